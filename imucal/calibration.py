@@ -1,0 +1,156 @@
+"""Calibration parameters of the three sensors, as frozen dataclasses with a versioned dict form.
+
+``calibrated = matrix @ (reading - bias)`` with ``reading = counts * sensitivity`` in SI units
+(the magnetometer normalised). Files are written and read by :mod:`imucal.io`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from imucal import errormodel
+from imucal.columns import SENSORS, SI_UNITS
+
+#: Version of the calibration file format written by this package.
+FORMAT_VERSION = 1
+
+CONVENTION = "calibrated = matrix @ (reading - bias); reading = counts * sensitivity"
+FRAME = "B: the rotation axes of the 3-D platform (phase x rotates about x of B, ...)"
+
+_STD_KEYS = ("bias", "matrix", "scale", "xi_rad", "alpha_rad")
+
+
+def _vector(values: Any, name: str) -> np.ndarray:
+    v = np.asarray(values, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {values!r}")
+    return v
+
+
+def _matrix(values: Any, name: str) -> np.ndarray:
+    m = np.asarray(values, dtype=float)
+    if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{name} must be a finite 3x3 matrix, got {values!r}")
+    return m
+
+
+@dataclass(frozen=True)
+class SensorCalibration:
+    """Calibration of one tri-axial sensor.
+
+    Attributes
+    ----------
+    sensor : str
+        'acc', 'gyr' or 'mag'.
+    bias : ndarray, shape (3,)
+        Bias ``o`` in ``unit`` (eq. 1).
+    matrix : ndarray, shape (3, 3)
+        ``T_R T_N S`` (eq. 11), maps a bias-free reading to frame B.
+    unit : str
+        Unit of the readings it accepts and of its output ('m/s^2', 'rad/s', 'normalised').
+    std : dict
+        Standard deviations where known, keys among 'bias' (3), 'matrix' (3x3), 'scale' (3),
+        'xi_rad' (3), 'alpha_rad' (3).
+    method : str
+        Which method variant produced it (free text for the report).
+    """
+
+    sensor: str
+    bias: np.ndarray
+    matrix: np.ndarray
+    unit: str
+    std: dict = field(default_factory=dict)
+    method: str = ""
+
+    def __post_init__(self) -> None:
+        if self.sensor not in SENSORS:
+            raise ValueError(f"unknown sensor {self.sensor!r}; expected one of {SENSORS}")
+        object.__setattr__(self, "bias", _vector(self.bias, f"{self.sensor}.bias"))
+        object.__setattr__(self, "matrix", _matrix(self.matrix, f"{self.sensor}.matrix"))
+        unknown = set(self.std) - set(_STD_KEYS)
+        if unknown:
+            raise ValueError(f"{self.sensor}.std has unknown keys {sorted(unknown)}")
+
+    @property
+    def decomposition(self) -> errormodel.Decomposition:
+        """Scale, non-orthogonality and rotation of :attr:`matrix`."""
+        return errormodel.decompose(self.matrix)
+
+    def apply(self, readings: np.ndarray, unit: str) -> np.ndarray:
+        """Calibrate ``readings`` (shape (n, 3), in ``unit``) to frame B.
+
+        Raises
+        ------
+        ValueError
+            If ``unit`` is not the unit this calibration was made for.
+        """
+        if unit != self.unit:
+            raise ValueError(
+                f"{self.sensor} calibration expects readings in {self.unit!r}, got {unit!r}"
+            )
+        return errormodel.apply(self.matrix, self.bias, readings)
+
+    def to_dict(self) -> dict:
+        d = self.decomposition
+        return {
+            "bias": self.bias.tolist(),
+            "matrix": self.matrix.tolist(),
+            "scale": d.scale.tolist(),
+            "xi_rad": d.xi_rad.tolist(),
+            "alpha_rad": d.alpha_rad.tolist(),
+            "unit_in": self.unit,
+            "unit_out": self.unit,
+            "std": {k: np.asarray(v).tolist() for k, v in self.std.items()},
+            "method": self.method,
+        }
+
+    @classmethod
+    def from_dict(cls, sensor: str, d: dict) -> "SensorCalibration":
+        for key in ("bias", "matrix", "unit_in"):
+            if key not in d:
+                raise ValueError(f"calibration of {sensor!r} lacks the key {key!r}")
+        if d["unit_in"] != SI_UNITS[sensor]:
+            raise ValueError(
+                f"calibration of {sensor!r} is for unit {d['unit_in']!r}, "
+                f"this package works in {SI_UNITS[sensor]!r}"
+            )
+        std = {k: np.asarray(v, dtype=float) for k, v in d.get("std", {}).items()}
+        return cls(sensor, d["bias"], d["matrix"], d["unit_in"], std, d.get("method", ""))
+
+
+@dataclass(frozen=True)
+class ImuCalibration:
+    """Calibration of accelerometer, gyroscope and magnetometer, all in frame B."""
+
+    acc: SensorCalibration
+    gyr: SensorCalibration
+    mag: SensorCalibration
+
+    def sensor(self, name: str) -> SensorCalibration:
+        if name not in SENSORS:
+            raise ValueError(f"unknown sensor {name!r}; expected one of {SENSORS}")
+        return getattr(self, name)
+
+    def to_dict(self) -> dict:
+        out: dict = {"format_version": FORMAT_VERSION, "frame": FRAME, "convention": CONVENTION}
+        for s in SENSORS:
+            out[s] = self.sensor(s).to_dict()
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ImuCalibration":
+        version = d.get("format_version")
+        if not isinstance(version, int):
+            raise ValueError(f"calibration lacks an integer 'format_version', got {version!r}")
+        if version > FORMAT_VERSION:
+            raise ValueError(
+                f"calibration format_version {version} is newer than this package "
+                f"supports ({FORMAT_VERSION}); upgrade the package"
+            )
+        missing = [s for s in SENSORS if s not in d]
+        if missing:
+            raise ValueError(f"calibration lacks the sensors {missing}")
+        return cls(*(SensorCalibration.from_dict(s, d[s]) for s in SENSORS))

@@ -1,0 +1,46 @@
+"""Column names and units of the ingested tables, defined once.
+
+Every table the pipeline writes (ingested recordings, low-pass filtered recordings) uses these
+names. Sensor values are in SI units after ingest: the accelerometer in m/s^2 (specific force),
+the gyroscope in rad/s, the magnetometer normalised to the field norm of the dataset.
+"""
+
+from __future__ import annotations
+
+TIME = "t_s"
+SEQ = "seq"
+
+SENSORS = ("acc", "gyr", "mag")
+AXES = ("x", "y", "z")
+
+ACC = ("acc_x", "acc_y", "acc_z")
+GYR = ("gyr_x", "gyr_y", "gyr_z")
+MAG = ("mag_x", "mag_y", "mag_z")
+
+SENSOR_COLUMNS = {"acc": ACC, "gyr": GYR, "mag": MAG}
+
+#: Header of the native raw CSV format, in this order (extra columns may follow).
+RAW_COLUMNS = (TIME, SEQ, *ACC, *GYR, *MAG)
+
+#: Unit of each sensor after ingest (inside the package everything is SI).
+SI_UNITS = {"acc": "m/s^2", "gyr": "rad/s", "mag": "normalised"}
+
+#: The packet counter is 16 bit and wraps at this value.
+SEQ_MODULUS = 65536
+
+# Xsens MT Manager export columns of the reference.
+REF_COUNTER = "PacketCounter"
+REF_TIME_FINE = "SampleTimeFine"
+REF_ACC = ("Acc_X", "Acc_Y", "Acc_Z")
+REF_GYR = ("Gyr_X", "Gyr_Y", "Gyr_Z")
+REF_MAG = ("Mag_X", "Mag_Y", "Mag_Z")
+#: SampleTimeFine counts ticks of this frequency.
+REF_TICKS_PER_S = 10_000
+
+
+def sensor_columns(sensor: str) -> tuple[str, str, str]:
+    """Return the three column names of ``sensor`` ('acc', 'gyr' or 'mag')."""
+    try:
+        return SENSOR_COLUMNS[sensor]
+    except KeyError:
+        raise ValueError(f"unknown sensor {sensor!r}; expected one of {SENSORS}") from None
