@@ -1,0 +1,22 @@
+# Calibration of a 9-axis IMU on a 3-D rotation platform (Zhang, Hoeflinger, Reindl 2014).
+# This file only reads and validates the config, includes the stages in pipeline order and
+# names the final targets; see workflow/rules/ for the stages and imucal/ for the numerics.
+from snakemake.utils import min_version, validate
+
+min_version("8.0")
+
+
+configfile: "config/config.yaml"
+
+
+validate(config, "workflow/schemas/config.schema.yaml")
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/ingest.smk"
+
+
+rule all:
+    input:
+        expand("results/{dataset}/ingest/summary.json", dataset=DATASETS),
+    default_target: True
