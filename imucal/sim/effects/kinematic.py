@@ -1,0 +1,65 @@
+"""Effects on the true signals in B: lever_arm, earth_rotation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from imucal.sim.effects.base import Effect, RecordingContext, register
+from imucal.sim.motion import KinematicState
+from imucal.sim.sensors import Signals
+
+#: Earth's rotation rate (rad/s), sidereal.
+EARTH_RATE_RAD_S = 7.2921150e-5
+
+
+@register
+@dataclass(frozen=True)
+class LeverArm(Effect):
+    """The accelerometer sits off the rotation centre: centripetal and tangential acceleration.
+
+    Adds ``omega x (omega x r) + omega_dot x r`` (all in B) to the specific force.
+
+    Parameters
+    ----------
+    x_m, y_m, z_m : float
+        Position ``r`` of the accelerometer relative to the centre of rotation, in B (m).
+    """
+
+    name = "lever_arm"
+    x_m: float = 0.03
+    y_m: float = 0.02
+    z_m: float = 0.0
+
+    def on_true_signals(
+        self, signals: Signals, state: KinematicState, ctx: RecordingContext
+    ) -> Signals:
+        r = np.array([self.x_m, self.y_m, self.z_m])
+        w = state.omega_b
+        extra = np.cross(w, np.cross(w, r)) + np.cross(state.omega_dot_b, r)
+        return signals.with_sensor("acc", signals.acc + extra)
+
+
+@register
+@dataclass(frozen=True)
+class EarthRotation(Effect):
+    """The gyroscope senses the Earth's rotation (world x = north, declination neglected).
+
+    Parameters
+    ----------
+    latitude_deg : float
+        Geographic latitude (deg); default Freiburg.
+    """
+
+    name = "earth_rotation"
+    latitude_deg: float = 48.0
+
+    def on_true_signals(
+        self, signals: Signals, state: KinematicState, ctx: RecordingContext
+    ) -> Signals:
+        lat = np.radians(self.latitude_deg)
+        earth_world = EARTH_RATE_RAD_S * np.array([np.cos(lat), 0.0, np.sin(lat)])
+        return signals.with_sensor(
+            "gyr", signals.gyr + state.rotation.apply(earth_world, inverse=True)
+        )
