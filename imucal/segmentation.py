@@ -1,0 +1,786 @@
+"""Automatic segmentation of the protocol recordings: static intervals, rotation3d phases, cube
+positions and rate-table runs, with the manual override of ``dataset.yaml``.
+
+The paper (Zhang et al. 2014) segments by hand; the rules here are the implementer's.
+
+**Quiet windows.** The moving variance of each axis over windows of ``window_s`` is compared
+with a threshold taken from the data: for white noise of variance ``s^2`` the variance ``v`` of
+a window of ``n`` samples follows ``s^2 chi2(n - 1) / (n - 1)``. The noise variance of each axis
+is estimated from the 10 % quantile of all window variances (the quietest windows are static or
+constant-rate in every protocol recording) divided by the same quantile of ``chi2(n-1)/(n-1)``,
+then refined once as the median variance of the windows found quiet. A window is quiet when
+every axis stays below the ``1 - p_false`` quantile of that distribution (``p_false = 1e-6``:
+~2.3 s^2 for 0.5 s at 100 Hz). The estimate is floored at the quantisation variance
+``step^2 / 12`` (``step`` the smallest difference between readings). A sample is quiet when some
+quiet window contains it, so a quiet interval ends where the motion becomes visible.
+
+**Static intervals** are quiet in both the gyroscope and the accelerometer, last at least
+``min_static_s``, and have a mean raw rate within ``rest_tol_dps`` of the rest level (the mean
+rate of the quiet interval with the smallest mean rate): a rotation at constant rate about the
+vertical is quiet in both sensors but is not static.
+
+**Motions** are the stretches between static intervals. The raw rate minus the rest level is
+integrated with the real timestamps (trapezoid); the dominant raw axis is the axis of largest
+absolute angle (misalignment is unknown before calibration). A motion is a full-turn *phase*
+when its raw turns ``r`` round to ``k >= 1`` with ``|r / k - 1| <= scale_tol`` (the gyro scale is
+unknown to ~15 %), else a *transition*.
+
+**Cube positions** are static intervals; consecutive ones whose mean specific force points the
+same way (within half the 45-degree V-block step, 22.5 deg) are one position (a yaw about the
+vertical does not give the cube fit a new point): the longest is kept, the others are labelled
+``static``.
+
+**Rate-table runs** are gyro-quiet intervals (constant rate, not necessarily zero) of at least
+``min_static_s`` (the steady part: the ends of the spin-up and spin-down stay within the noise
+there) whose rate differs from the rest level by at least half the smallest non-zero
+table rate; they are matched in time order to ``axes`` x ``rates_dps``. A 0 deg/s run is the
+static interval between its neighbouring runs, cut to the median length of the other runs of its
+axis around its centre.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from imucal.columns import ACC, AXES, GYR, TIME
+from imucal.filtering import nominal_period
+
+logger = logging.getLogger(__name__)
+
+#: Columns of the segments table, in order (docs/architecture.md).
+SEGMENT_COLUMNS = (
+    "recording", "label", "kind", "start_s", "end_s", "start_index", "end_index",
+    "axis", "rate_dps", "sense", "turns",
+)  # fmt: skip
+KINDS = ("static", "phase", "transition", "position", "run")
+#: Recordings the segmentation knows, in protocol order.
+RECORDINGS = ("rotation3d", "cube", "ratetable", "static")
+
+#: Half the 45-deg step between cube positions: gravity directions closer than this are one.
+SAME_POSITION_DEG = 22.5
+#: Quantile of the window variances that seeds the noise estimate (see module docstring).
+NOISE_QUANTILE = 0.1
+
+
+@dataclass(frozen=True)
+class DetectorSettings:
+    """Parameters of the quiet-window and static detectors.
+
+    Attributes
+    ----------
+    window_s : float
+        Moving-variance window, s.
+    p_false : float
+        Probability that a window of pure noise is called moving (per axis).
+    min_static_s : float
+        Shortest static interval (and shortest rate-table plateau), s.
+    rest_tol_dps : float
+        Largest difference of a static interval's mean raw rate from the rest level, deg/s.
+    scale_tol : float
+        Largest relative difference between a raw angle or rate and its nominal value
+        (unknown gyro scale).
+    """
+
+    window_s: float = 0.5
+    p_false: float = 1e-6
+    min_static_s: float = 1.0
+    rest_tol_dps: float = 2.0
+    scale_tol: float = 0.2
+
+    def __post_init__(self) -> None:
+        for name in ("window_s", "min_static_s", "rest_tol_dps", "scale_tol"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r}: expected a positive number")
+        if not 0 < self.p_false < 0.5:
+            raise ValueError(f"p_false = {self.p_false!r}: expected 0 < p_false < 0.5")
+
+
+def moving_variance(x: np.ndarray, window: int) -> np.ndarray:
+    """Variance (ddof 1) of every window of ``window`` consecutive samples.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, k)
+    window : int
+        Samples per window, 2 <= window <= n.
+
+    Returns
+    -------
+    ndarray, shape (n - window + 1, k)
+        Row ``j`` is the variance of rows ``j .. j + window - 1``.
+    """
+    x = np.asarray(x, dtype=float)
+    if not 2 <= window <= x.shape[0]:
+        raise ValueError(f"window of {window} samples: expected 2 <= window <= {x.shape[0]} (n)")
+    x = x - np.median(x, axis=0)  # centring keeps the running sums well conditioned
+    zero = np.zeros((1, x.shape[1]))
+    c1 = np.concatenate([zero, np.cumsum(x, axis=0)])
+    c2 = np.concatenate([zero, np.cumsum(x * x, axis=0)])
+    s1 = c1[window:] - c1[:-window]
+    s2 = c2[window:] - c2[:-window]
+    return np.maximum((s2 - s1 * s1 / window) / (window - 1), 0.0)
+
+
+def _quantisation_variance(x: np.ndarray) -> np.ndarray:
+    out = np.empty(x.shape[1])
+    for k in range(x.shape[1]):
+        steps = np.diff(np.unique(x[:, k]))
+        steps = steps[steps > 0]
+        out[k] = steps.min() ** 2 / 12 if steps.size else 0.0
+    return out
+
+
+def find_quiet_windows(x: np.ndarray, window: int, p_false: float) -> tuple[np.ndarray, np.ndarray]:
+    """Windows whose variance is consistent with the sensor noise alone, on every axis.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, k)
+        One tri-axial signal (SI units).
+    window : int
+        Samples per window.
+    p_false : float
+        Per-axis probability that a pure-noise window exceeds the threshold.
+
+    Returns
+    -------
+    quiet : ndarray of bool, shape (n - window + 1,)
+        Window ``j`` (rows ``j .. j + window - 1``) is quiet.
+    noise_var : ndarray, shape (k,)
+        Estimated noise variance per axis (unit of ``x`` squared).
+
+    Raises
+    ------
+    ValueError
+        If the signal is constant on some axis (no noise and no quantisation step to use).
+    """
+    var = moving_variance(x, window)
+    dof = window - 1
+    floor = _quantisation_variance(np.asarray(x, dtype=float))
+    # seed: the quietest NOISE_QUANTILE of the windows are noise only
+    noise = np.quantile(var, NOISE_QUANTILE, axis=0) / (stats.chi2.ppf(NOISE_QUANTILE, dof) / dof)
+    noise = np.maximum(noise, floor)
+    limit = stats.chi2.ppf(1 - p_false, dof) / dof
+    quiet = np.all(var <= limit * noise, axis=1)
+    if quiet.any():  # refine on the windows found quiet
+        noise = np.maximum(np.median(var[quiet], axis=0) / (stats.chi2.median(dof) / dof), floor)
+        quiet = np.all(var <= limit * noise, axis=1)
+    if np.any(noise <= 0):
+        raise ValueError(
+            f"signal constant on axis {int(np.argmin(noise))} over all {x.shape[0]} samples: "
+            "expected sensor noise or at least a quantisation step"
+        )
+    return quiet, noise
+
+
+def _windows_to_intervals(quiet: np.ndarray, window: int) -> list[tuple[int, int]]:
+    """Sample intervals (end exclusive) covered by runs of quiet windows."""
+    edges = np.diff(np.concatenate(([0], quiet.astype(np.int8), [0])))
+    starts = np.flatnonzero(edges == 1)
+    ends = np.flatnonzero(edges == -1)  # first non-quiet window after the run
+    return [(int(a), int(b - 1 + window)) for a, b in zip(starts, ends)]
+
+
+def _window_samples(t_s: np.ndarray, window_s: float) -> int:
+    return max(round(window_s / nominal_period(t_s)), 2)
+
+
+def find_quiet_intervals(
+    t_s: np.ndarray, x: np.ndarray, settings: DetectorSettings = DetectorSettings()
+) -> list[tuple[int, int]]:
+    """Intervals (row ranges, end exclusive) where ``x`` shows noise only, at least
+    ``settings.min_static_s`` long. ``t_s`` shape (n,), ``x`` shape (n, k)."""
+    window = _window_samples(t_s, settings.window_s)
+    quiet, _ = find_quiet_windows(x, window, settings.p_false)
+    return [
+        (a, b)
+        for a, b in _windows_to_intervals(quiet, window)
+        if t_s[b - 1] - t_s[a] >= settings.min_static_s
+    ]
+
+
+def _check_inputs(t_s: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> tuple[np.ndarray, ...]:
+    t = np.asarray(t_s, dtype=float)
+    acc = np.asarray(acc, dtype=float)
+    gyr = np.asarray(gyr, dtype=float)
+    for name, x in (("acc", acc), ("gyr", gyr)):
+        if x.shape != (t.size, 3):
+            raise ValueError(f"{name} has shape {x.shape}; expected ({t.size}, 3) like t_s")
+        bad = np.flatnonzero(~np.isfinite(x).all(axis=1))
+        if bad.size:
+            raise ValueError(
+                f"{name}: {bad.size} row(s) with NaN/inf, first at row {bad[0]}; expected finite"
+            )
+    nominal_period(t)  # at least 2 samples, never decreasing, a positive median step
+    return t, acc, gyr
+
+
+@dataclass(frozen=True)
+class StaticIntervals:
+    """Static intervals of a recording and the raw gyro rest level.
+
+    Attributes
+    ----------
+    intervals : list of (int, int)
+        Row ranges, end exclusive, in time order.
+    rest_rad_s : ndarray, shape (3,)
+        Mean raw rate of the static samples (the gyro bias seen at rest), rad/s.
+    """
+
+    intervals: list
+    rest_rad_s: np.ndarray
+
+
+def find_static_intervals(
+    t_s: np.ndarray,
+    acc: np.ndarray,
+    gyr: np.ndarray,
+    settings: DetectorSettings = DetectorSettings(),
+) -> StaticIntervals:
+    """Static intervals: quiet gyro and accelerometer, raw rate at the rest level.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Timestamps, s.
+    acc : ndarray, shape (n, 3)
+        Specific force, m/s^2 (uncalibrated).
+    gyr : ndarray, shape (n, 3)
+        Raw rate, rad/s (uncalibrated).
+    settings : DetectorSettings
+
+    Returns
+    -------
+    StaticIntervals
+
+    Raises
+    ------
+    ValueError
+        If no static interval of at least ``min_static_s`` is found.
+    """
+    t, acc, gyr = _check_inputs(t_s, acc, gyr)
+    window = _window_samples(t, settings.window_s)
+    quiet_g, _ = find_quiet_windows(gyr, window, settings.p_false)
+    quiet_a, _ = find_quiet_windows(acc, window, settings.p_false)
+    candidates = [
+        (a, b)
+        for a, b in _windows_to_intervals(quiet_g & quiet_a, window)
+        if t[b - 1] - t[a] >= settings.min_static_s
+    ]
+    if not candidates:
+        raise ValueError(
+            f"no static interval of at least {settings.min_static_s} s in {t[-1] - t[0]:.1f} s "
+            f"of data (window {settings.window_s} s): expected the sensor to rest at some time"
+        )
+    means = np.array([gyr[a:b].mean(axis=0) for a, b in candidates])
+    rest = means[np.argmin(np.linalg.norm(means, axis=1))]
+    tol = np.radians(settings.rest_tol_dps)
+    intervals = [c for c, m in zip(candidates, means) if np.linalg.norm(m - rest) <= tol]
+    rows = np.concatenate([np.arange(a, b) for a, b in intervals])
+    return StaticIntervals(intervals, gyr[rows].mean(axis=0))
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A stretch between static intervals and its raw rotation.
+
+    Attributes
+    ----------
+    start, end : int
+        Row range, end exclusive.
+    angle_rad : ndarray, shape (3,)
+        Integral of (raw rate - rest level) over the motion, rad, per raw axis.
+    """
+
+    start: int
+    end: int
+    angle_rad: np.ndarray
+
+    @property
+    def axis(self) -> str:
+        return AXES[int(np.argmax(np.abs(self.angle_rad)))]
+
+    @property
+    def raw_turns(self) -> float:
+        """Signed raw turns about the dominant axis."""
+        return float(self.angle_rad[AXES.index(self.axis)] / (2 * np.pi))
+
+
+def integrate_rate(t_s: np.ndarray, rate: np.ndarray, start: int, end: int) -> np.ndarray:
+    """Trapezoid integral of ``rate`` (n, 3) over rows ``start .. end - 1`` with the real
+    timestamps ``t_s`` (n,); returns shape (3,), rate unit times s."""
+    if end - start < 2:
+        return np.zeros(rate.shape[1])
+    return np.trapezoid(rate[start:end], t_s[start:end], axis=0)
+
+
+def find_motions(t_s: np.ndarray, gyr: np.ndarray, static: StaticIntervals) -> list[Motion]:
+    """The stretches before, between and after static intervals with their raw angles.
+
+    Each motion runs from the last row of the static interval before it to the first row of the
+    one after it, so that the integral covers the whole rotation.
+    """
+    t = np.asarray(t_s, dtype=float)
+    rate = np.asarray(gyr, dtype=float) - static.rest_rad_s
+    bounds = [(0, 0), *static.intervals, (t.size, t.size)]
+    motions = []
+    for (_, prev_end), (next_start, _) in itertools.pairwise(bounds):
+        if next_start - prev_end <= 0:
+            continue
+        a, b = max(prev_end - 1, 0), min(next_start + 1, t.size)
+        motions.append(Motion(prev_end, next_start, integrate_rate(t, rate, a, b)))
+    return motions
+
+
+def _describe(t: np.ndarray, m: Motion) -> str:
+    return (
+        f"about {m.axis} {np.degrees(m.angle_rad[AXES.index(m.axis)]):+.0f} deg raw "
+        f"({m.raw_turns:+.2f} turns) at {t[m.start]:.1f}-{t[m.end - 1]:.1f} s"
+    )
+
+
+def _row(recording, label, kind, t, a, b, axis="", rate_dps=np.nan, sense=0, turns=np.nan):
+    return {
+        "recording": recording, "label": label, "kind": kind,
+        "start_s": float(t[a]), "end_s": float(t[b - 1]), "start_index": int(a), "end_index": int(b),
+        "axis": axis, "rate_dps": float(rate_dps), "sense": int(sense), "turns": float(turns),
+    }  # fmt: skip
+
+
+def _frame(rows: list[dict]) -> pd.DataFrame:
+    frame = pd.DataFrame(rows, columns=list(SEGMENT_COLUMNS))
+    return frame.astype(
+        {
+            "start_s": float,
+            "end_s": float,
+            "start_index": np.int64,
+            "end_index": np.int64,
+            "rate_dps": float,
+            "sense": np.int64,
+            "turns": float,
+        }
+    )
+
+
+def _full_turns(raw_turns: float, scale_tol: float) -> int:
+    """Nearest whole number of turns when the raw value is one within the scale tolerance."""
+    k = round(abs(raw_turns))
+    if k >= 1 and abs(abs(raw_turns) / k - 1) <= scale_tol:
+        return k
+    return 0
+
+
+def segment_rotation3d(
+    t_s: np.ndarray,
+    acc: np.ndarray,
+    gyr: np.ndarray,
+    settings: DetectorSettings = DetectorSettings(),
+) -> pd.DataFrame:
+    """Static intervals, phases x, y, z and transitions of the 3-D platform recording.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Timestamps, s.
+    acc, gyr : ndarray, shape (n, 3)
+        Uncalibrated specific force (m/s^2) and rate (rad/s).
+    settings : DetectorSettings
+
+    Returns
+    -------
+    DataFrame
+        Segments table rows (docs/architecture.md): ``s01``.. static, ``x``, ``y``, ``z`` phases
+        with ``sense`` and whole signed ``turns``, ``t01``.. transitions with raw signed turns.
+
+    Raises
+    ------
+    ValueError
+        If the full-turn motions are not exactly one about x, then y, then z; the message lists
+        every motion found (raw axis, angle, time).
+    """
+    t, acc, gyr = _check_inputs(t_s, acc, gyr)
+    static = find_static_intervals(t, acc, gyr, settings)
+    motions = find_motions(t, gyr, static)
+    phases = [m for m in motions if _full_turns(m.raw_turns, settings.scale_tol)]
+    if [m.axis for m in phases] != list(AXES):
+        found = "; ".join(_describe(t, m) for m in motions) or "none"
+        raise ValueError(
+            f"rotation3d: expected one full-turn phase about x, then y, then z (raw turns within "
+            f"{settings.scale_tol:.0%} of a whole number); found full-turn phases about "
+            f"{[m.axis for m in phases]}; motions found: {found}"
+        )
+    rows = [
+        _row("rotation3d", f"s{i:02d}", "static", t, a, b)
+        for i, (a, b) in enumerate(static.intervals, start=1)
+    ]
+    n_transition = 0
+    for m in motions:
+        if m in phases:
+            k = _full_turns(m.raw_turns, settings.scale_tol)
+            sense = int(np.sign(m.raw_turns))
+            rows.append(
+                _row(
+                    "rotation3d",
+                    m.axis,
+                    "phase",
+                    t,
+                    m.start,
+                    m.end,
+                    m.axis,
+                    np.nan,
+                    sense,
+                    sense * k,
+                )
+            )
+            logger.info("rotation3d: phase %s", _describe(t, m))
+        else:
+            n_transition += 1
+            rows.append(
+                _row(
+                    "rotation3d",
+                    f"t{n_transition:02d}",
+                    "transition",
+                    t,
+                    m.start,
+                    m.end,
+                    m.axis,
+                    np.nan,
+                    int(np.sign(m.raw_turns)),
+                    m.raw_turns,
+                )
+            )
+    return _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+
+
+def segment_cube(
+    t_s: np.ndarray,
+    acc: np.ndarray,
+    gyr: np.ndarray,
+    settings: DetectorSettings = DetectorSettings(),
+    min_positions: int = 9,
+) -> pd.DataFrame:
+    """Static positions ``p01``.. of the cube recording, in time order.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+    acc, gyr : ndarray, shape (n, 3)
+        Uncalibrated specific force (m/s^2) and rate (rad/s).
+    settings : DetectorSettings
+    min_positions : int
+        Fewest positions the cube fit (eq. 32: 9 parameters) accepts.
+
+    Returns
+    -------
+    DataFrame
+        Segments table rows: positions, and ``s01``.. for static intervals that repeat the
+        gravity direction of the position next to them.
+
+    Raises
+    ------
+    ValueError
+        If fewer than ``min_positions`` distinct positions are found.
+    """
+    t, acc, gyr = _check_inputs(t_s, acc, gyr)
+    static = find_static_intervals(t, acc, gyr, settings)
+    groups: list[list[tuple[int, int]]] = []
+    last_dir = None
+    for a, b in static.intervals:
+        g = acc[a:b].mean(axis=0)
+        g = g / np.linalg.norm(g)
+        if (
+            last_dir is not None
+            and np.degrees(np.arccos(np.clip(g @ last_dir, -1, 1))) < SAME_POSITION_DEG
+        ):
+            groups[-1].append((a, b))
+        else:
+            groups.append([(a, b)])
+        last_dir = g
+    if len(groups) < min_positions:
+        where = ", ".join(f"{t[g[0][0]]:.1f}-{t[g[-1][1] - 1]:.1f} s" for g in groups) or "none"
+        raise ValueError(
+            f"cube: found {len(groups)} static position(s) ({where}); the cube fit needs at least "
+            f"{min_positions} (the protocol has 12)"
+        )
+    if len(groups) != 12:
+        logger.warning("cube: found %d positions; the protocol has 12", len(groups))
+    rows = []
+    n_static = 0
+    for i, group in enumerate(groups, start=1):
+        keep = max(group, key=lambda ab: ab[1] - ab[0])
+        for a, b in group:
+            if (a, b) == keep:
+                rows.append(_row("cube", f"p{i:02d}", "position", t, a, b))
+            else:
+                n_static += 1
+                rows.append(_row("cube", f"s{n_static:02d}", "static", t, a, b))
+    return _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+
+
+def segment_ratetable(
+    t_s: np.ndarray,
+    acc: np.ndarray,
+    gyr: np.ndarray,
+    axes: list[str],
+    rates_dps: list[float],
+    settings: DetectorSettings = DetectorSettings(),
+) -> pd.DataFrame:
+    """Constant-rate runs of the rate-table recording, matched to ``axes`` x ``rates_dps``.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+    acc, gyr : ndarray, shape (n, 3)
+        Uncalibrated specific force (m/s^2) and rate (rad/s).
+    axes : list of str
+        Table axes in recording order ('x', 'y', 'z' of frame B).
+    rates_dps : list of float
+        Table rates of each axis in recording order, deg/s (0 allowed).
+    settings : DetectorSettings
+
+    Returns
+    -------
+    DataFrame
+        One row per run, label ``f"{axis}{rate:+d}"``, the steady part only; ``turns`` is the raw
+        signed angle over it (NaN for 0 deg/s).
+
+    Raises
+    ------
+    ValueError
+        If the number of non-zero runs differs from the table's, a run's raw axis, sense or rate
+        does not match, or a 0 deg/s run has no static interval between its neighbours.
+    """
+    t, acc, gyr = _check_inputs(t_s, acc, gyr)
+    nonzero = [abs(r) for r in rates_dps if r != 0]
+    if not nonzero:
+        raise ValueError(f"rates_dps {rates_dps}: expected at least one non-zero rate")
+    static = find_static_intervals(t, acc, gyr, settings)
+    min_rate = np.radians(min(nonzero)) / 2
+    found = []
+    for a, b in find_quiet_intervals(t, gyr, settings):
+        w = gyr[a:b].mean(axis=0) - static.rest_rad_s
+        if np.linalg.norm(w) >= min_rate:
+            k = int(np.argmax(np.abs(w)))
+            found.append((a, b, AXES[k], float(np.degrees(w[k]))))
+    expected = [(ax, r) for ax in axes for r in rates_dps]
+    expected_nonzero = [(ax, r) for ax, r in expected if r != 0]
+
+    def listing() -> str:
+        return (
+            "; ".join(
+                f"about {ax} {r:+.0f} deg/s raw at {t[a]:.1f}-{t[b - 1]:.1f} s"
+                for a, b, ax, r in found
+            )
+            or "none"
+        )
+
+    if len(found) != len(expected_nonzero):
+        raise ValueError(
+            f"ratetable: found {len(found)} constant-rate run(s) of at least "
+            f"{np.degrees(min_rate):.0f} deg/s; expected {len(expected_nonzero)} non-zero runs "
+            f"(axes {list(axes)} x rates {list(rates_dps)} deg/s); runs found: {listing()}"
+        )
+    for (a, b, ax, r), (ax_e, r_e) in zip(found, expected_nonzero):
+        if (
+            ax != ax_e
+            or np.sign(r) != np.sign(r_e)
+            or abs(abs(r) / abs(r_e) - 1) > settings.scale_tol
+        ):
+            raise ValueError(
+                f"ratetable: run at {t[a]:.1f}-{t[b - 1]:.1f} s is about {ax} at {r:+.0f} deg/s raw; "
+                f"expected {ax_e} {r_e:+g} deg/s (within {settings.scale_tol:.0%}) by the table "
+                f"order; runs found: {listing()}"
+            )
+    rate = gyr - static.rest_rad_s
+    rows = []
+    it = iter(found)
+    matched: list[tuple[int, int] | None] = [None if r == 0 else next(it)[:2] for _, r in expected]
+    for (ax, r), ab in zip(expected, matched):
+        if ab is None:
+            continue
+        a, b = ab
+        k = AXES.index(ax)
+        turns = integrate_rate(t, rate, a, b)[k] / (2 * np.pi)
+        rows.append(
+            _row("ratetable", f"{ax}{int(r):+d}", "run", t, a, b, ax, r, int(np.sign(r)), turns)
+        )
+    for i, ((ax, r), ab) in enumerate(zip(expected, matched)):
+        if ab is not None:
+            continue
+        lo = next((m[1] for m in reversed(matched[:i]) if m is not None), 0)
+        hi = next((m[0] for m in matched[i + 1 :] if m is not None), t.size)
+        between = [(a, b) for a, b in static.intervals if a >= lo and b <= hi]
+        if not between:
+            raise ValueError(
+                f"ratetable: no static interval between {t[lo - 1] if lo else t[0]:.1f} s and "
+                f"{t[hi - 1]:.1f} s for the {ax} 0 deg/s run; expected one between its neighbours"
+            )
+        a, b = max(between, key=lambda ab: ab[1] - ab[0])
+        lengths = [
+            m[1] - m[0] for (axm, _), m in zip(expected, matched) if m is not None and axm == ax
+        ]
+        if lengths:  # centred stretch as long as the other plateaus of this axis
+            n = min(int(np.median(lengths)), b - a)
+            a = a + (b - a - n) // 2
+            b = a + n
+        rows.append(_row("ratetable", f"{ax}{int(r):+d}", "run", t, a, b, ax, r, 0, np.nan))
+    return _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+
+
+def segment_static(
+    t_s: np.ndarray,
+    acc: np.ndarray,
+    gyr: np.ndarray,
+    settings: DetectorSettings = DetectorSettings(),
+) -> pd.DataFrame:
+    """The static recording: one segment ``s01``, its longest static interval."""
+    t, acc, gyr = _check_inputs(t_s, acc, gyr)
+    static = find_static_intervals(t, acc, gyr, settings)
+    a, b = max(static.intervals, key=lambda ab: ab[1] - ab[0])
+    return _frame([_row("static", "s01", "static", t, a, b)])
+
+
+def manual_segments(recording: str, t_s: np.ndarray, entries: list[dict]) -> pd.DataFrame:
+    """Segments given by hand in ``dataset.yaml`` for one recording.
+
+    Parameters
+    ----------
+    recording : str
+    t_s : ndarray, shape (n,)
+        Timestamps of the ingested recording, s.
+    entries : list of dict
+        ``segments:`` entries of ``dataset.yaml`` naming this recording (keys ``label``, ``kind``,
+        ``start_s``, ``end_s``, optional ``axis``, ``rate_dps``).
+
+    Returns
+    -------
+    DataFrame
+        Segments table rows; rows ``start_index`` .. ``end_index`` are the samples with
+        ``start_s <= t_s <= end_s``. ``sense`` is 0 and ``turns`` NaN (not measured).
+
+    Raises
+    ------
+    ValueError
+        If an interval is empty, reversed or outside the recording, or a label repeats.
+    """
+    t = np.asarray(t_s, dtype=float)
+    rows = []
+    for e in entries:
+        if e["kind"] not in KINDS:
+            raise ValueError(
+                f"manual segment {e['label']!r}: kind {e['kind']!r}, expected one of {KINDS}"
+            )
+        a = int(np.searchsorted(t, e["start_s"], side="left"))
+        b = int(np.searchsorted(t, e["end_s"], side="right"))
+        if not e["start_s"] < e["end_s"] or b - a < 2:
+            raise ValueError(
+                f"manual segment {recording}/{e['label']}: {e['start_s']}-{e['end_s']} s holds "
+                f"{max(b - a, 0)} sample(s) of {t[0]:.2f}-{t[-1]:.2f} s; expected start_s < end_s "
+                "and at least 2 samples inside the recording"
+            )
+        rate = e.get("rate_dps", np.nan)
+        rows.append(_row(recording, e["label"], e["kind"], t, a, b, e.get("axis", ""), rate))
+    frame = _frame(rows)
+    dup = frame["label"][frame["label"].duplicated()].tolist()
+    if dup:
+        raise ValueError(
+            f"manual segments of {recording}: label(s) {dup} repeat; expected unique labels"
+        )
+    return frame.sort_values("start_s", kind="stable").reset_index(drop=True)
+
+
+def segment_recording(
+    recording: str,
+    table: pd.DataFrame,
+    *,
+    ratetable: dict | None = None,
+    settings: DetectorSettings = DetectorSettings(),
+) -> pd.DataFrame:
+    """Automatic segments of one ingested recording (dispatch on its protocol name).
+
+    Parameters
+    ----------
+    recording : str
+        One of ``RECORDINGS``.
+    table : DataFrame
+        Ingested recording (``t_s``, ``acc_*``, ``gyr_*`` in SI units).
+    ratetable : dict, optional
+        ``{'axes': [...], 'rates_dps': [...]}``; required for ``ratetable``.
+    settings : DetectorSettings
+
+    Returns
+    -------
+    DataFrame
+        Segments table rows of this recording.
+    """
+    if recording not in RECORDINGS:
+        raise ValueError(f"recording {recording!r}: expected one of {RECORDINGS}")
+    t = table[TIME].to_numpy(dtype=float)
+    acc = table[list(ACC)].to_numpy(dtype=float)
+    gyr = table[list(GYR)].to_numpy(dtype=float)
+    if recording == "rotation3d":
+        return segment_rotation3d(t, acc, gyr, settings)
+    if recording == "cube":
+        return segment_cube(t, acc, gyr, settings)
+    if recording == "static":
+        return segment_static(t, acc, gyr, settings)
+    if ratetable is None:
+        raise ValueError("recording 'ratetable' needs the table's axes and rates_dps; got none")
+    return segment_ratetable(t, acc, gyr, ratetable["axes"], ratetable["rates_dps"], settings)
+
+
+def segment_dataset(
+    tables: dict[str, pd.DataFrame],
+    *,
+    ratetable: dict | None = None,
+    manual: list[dict] | None = None,
+    window_s: float = 0.5,
+    p_false: float = 1e-6,
+    min_static_s: float = 1.0,
+    rest_tol_dps: float = 2.0,
+    scale_tol: float = 0.2,
+) -> pd.DataFrame:
+    """The segments table of a dataset: automatic, or manual for recordings named in ``manual``.
+
+    Parameters
+    ----------
+    tables : dict of str to DataFrame
+        Ingested IMU recordings by name (``rotation3d``, ``cube``, ``ratetable``, ``static``).
+    ratetable : dict, optional
+        ``Dataset.ratetable``.
+    manual : list of dict, optional
+        ``Dataset.segments``: replaces the automatic segments of every recording it names.
+    window_s, p_false, min_static_s, rest_tol_dps, scale_tol
+        See ``DetectorSettings``.
+
+    Returns
+    -------
+    DataFrame
+        Columns ``SEGMENT_COLUMNS``, recordings in protocol order, segments in time order.
+    """
+    settings = DetectorSettings(window_s, p_false, min_static_s, rest_tol_dps, scale_tol)
+    manual = list(manual or [])
+    unknown = sorted({e["recording"] for e in manual} - set(tables))
+    if unknown:
+        raise ValueError(
+            f"manual segments name recording(s) {unknown}; the dataset has {sorted(tables)}"
+        )
+    frames = []
+    for name in [r for r in RECORDINGS if r in tables] + sorted(set(tables) - set(RECORDINGS)):
+        mine = [e for e in manual if e["recording"] == name]
+        t = tables[name][TIME].to_numpy(dtype=float)
+        if mine:
+            frames.append(manual_segments(name, t, mine))
+        else:
+            frames.append(
+                segment_recording(name, tables[name], ratetable=ratetable, settings=settings)
+            )
+        logger.info("%s: %d segments", name, len(frames[-1]))
+    return pd.concat(frames, ignore_index=True) if frames else _frame([])

@@ -1,0 +1,56 @@
+# Stage 2: low-pass filter and segmentation. The low-pass runs per recording (zero-phase
+# Butterworth per contiguous block, imucal.filtering); the segmentation finds the static
+# intervals, rotation3d phases, cube positions and rate-table runs of a dataset in one table
+# (imucal.segmentation, or the manual `segments:` of dataset.yaml), plotted per recording.
+
+
+rule lowpass:
+    input:
+        table="results/{dataset}/ingest/{recording}.parquet",
+    output:
+        table="results/{dataset}/lowpass/{recording}.parquet",
+    log:
+        "results/{dataset}/logs/lowpass/{recording}.log",
+    benchmark:
+        "results/{dataset}/benchmarks/lowpass/{recording}.tsv"
+    params:
+        order=config["lowpass"]["order"],
+        cutoff_hz=config["lowpass"]["cutoff_hz"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/lowpass.py"
+
+
+rule segment:
+    input:
+        unpack(ingested_imu),
+        dataset_yaml=dataset_yaml,
+    output:
+        segments="results/{dataset}/segments.parquet",
+    log:
+        "results/{dataset}/logs/segment.log",
+    benchmark:
+        "results/{dataset}/benchmarks/segment.tsv"
+    params:
+        window_s=config["segmentation"]["window_s"],
+        p_false=config["segmentation"]["p_false"],
+        min_static_s=config["segmentation"]["min_static_s"],
+        rest_tol_dps=config["segmentation"]["rest_tol_dps"],
+        scale_tol=config["segmentation"]["scale_tol"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/segment.py"
+
+
+rule plot_segments:
+    input:
+        table="results/{dataset}/ingest/{recording}.parquet",
+        segments=rules.segment.output.segments,
+    output:
+        png="results/{dataset}/segments/{recording}.png",
+    log:
+        "results/{dataset}/logs/segments/{recording}.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/plot_segments.py"

@@ -1,0 +1,26 @@
+"""Rule lowpass: ingested recording -> zero-phase low-pass per contiguous block (imucal.filtering)."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.filtering import lowpass_recording
+from imucal.io import read_recording, write_recording
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+try:
+    table, metadata = read_recording(snakemake.input.table)
+    filtered = lowpass_recording(
+        table, order=snakemake.params.order, cutoff_hz=snakemake.params.cutoff_hz
+    )
+    write_recording(
+        filtered, snakemake.output.table, {**metadata, "lowpass": filtered.attrs["lowpass"]}
+    )
+    logging.info(
+        "%s -> %s: %s", snakemake.input.table, snakemake.output.table, filtered.attrs["lowpass"]
+    )
+except Exception:
+    logging.exception("lowpass of %s failed", snakemake.input.table)
+    raise

@@ -1,0 +1,23 @@
+"""Rule plot_segments: one recording with its segments shaded (imucal.plots.segmentation)."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.io import read_recording
+from imucal.plots.segmentation import plot_segments
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+try:
+    table, _ = read_recording(snakemake.input.table)
+    segments, _ = read_recording(snakemake.input.segments)
+    w = snakemake.wildcards
+    fig = plot_segments(
+        table, segments, recording=w.recording, title=f"{w.dataset} / {w.recording}"
+    )
+    fig.savefig(snakemake.output.png, dpi=120)
+except Exception:
+    logging.exception("segments plot of %s failed", snakemake.input.table)
+    raise

@@ -1,0 +1,40 @@
+"""Rule segment: ingested IMU recordings of a dataset -> segments table (imucal.segmentation)."""
+
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from imucal.dataset import IMU_RECORDINGS, read_dataset
+from imucal.io import read_recording, write_recording
+from imucal.segmentation import segment_dataset
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+try:
+    dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
+    names = [name for name in IMU_RECORDINGS if name in snakemake.input.keys()]  # noqa: SIM118 (a Namedlist: `in` tests values)
+    tables = {name: read_recording(getattr(snakemake.input, name))[0] for name in names}
+    p = snakemake.params
+    segments = segment_dataset(
+        tables,
+        ratetable=dataset.ratetable,
+        manual=dataset.segments,
+        window_s=p.window_s,
+        p_false=p.p_false,
+        min_static_s=p.min_static_s,
+        rest_tol_dps=p.rest_tol_dps,
+        scale_tol=p.scale_tol,
+    )
+    write_recording(
+        segments,
+        snakemake.output.segments,
+        {"dataset": dataset.name, "imucal_version": p.imucal_version},
+    )
+    logging.info(
+        "%d segments -> %s\n%s", len(segments), snakemake.output.segments, segments.to_string()
+    )
+except Exception:
+    logging.exception("segmentation of %s failed", snakemake.wildcards.dataset)
+    raise
