@@ -14,9 +14,17 @@ validate(config, "workflow/schemas/config.schema.yaml")
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/ingest.smk"
+include: "workflow/rules/segment.smk"
+include: "workflow/rules/magnetometer.smk"
+include: "workflow/rules/accelerometer.smk"
+include: "workflow/rules/gyroscope.smk"
+include: "workflow/rules/calibration.smk"
 
 
 rule all:
     input:
         expand("results/{dataset}/ingest/summary.json", dataset=DATASETS),
+        segment_plots(DATASETS),
+        expand("results/{dataset}/calibration.json", dataset=DATASETS),
+        expand("results/{dataset}/tables.csv", dataset=DATASETS),
     default_target: True

@@ -55,3 +55,63 @@ def ingested_imu(wildcards):
         for name in IMU_RECORDINGS
         if name in info.recordings
     }
+
+
+def has_recording(wildcards, recording):
+    return recording in dataset_info(wildcards).recordings
+
+
+def gyr_bias_inputs(wildcards):
+    """The static recording, or the recordings whose static pauses stand in for it."""
+    names = ["static"] if has_recording(wildcards, "static") else ["rotation3d", "cube"]
+    return {name: f"results/{wildcards.dataset}/ingest/{name}.parquet" for name in names}
+
+
+def gyr_table_inputs(wildcards):
+    """Rate-table artifacts when the dataset has a rate table, else nothing."""
+    if not has_recording(wildcards, "ratetable"):
+        return {}
+    return {
+        "table": f"results/{wildcards.dataset}/gyr_table.json",
+        "table_alignment": f"results/{wildcards.dataset}/gyr_table_align.json",
+    }
+
+
+def truth_input(wildcards):
+    """truth.json of a simulated or conformance dataset (for the truth rows of tables.csv)."""
+    path = Path(dataset_folder(wildcards)) / "truth.json"
+    return {"truth": str(path)} if path.is_file() else {}
+
+
+def saturation_limit(sensor):
+    """Input function: sensor range in SI units (range_counts * sensitivity)."""
+
+    def limit(wildcards):
+        info = dataset_info(wildcards)
+        return info.range_counts[sensor] * info.sensitivity[sensor]
+
+    return limit
+
+
+def gravity(wildcards):
+    return dataset_info(wildcards).gravity_m_s2
+
+
+def segment_plots(datasets):
+    """Segment plots of every IMU recording of the given datasets."""
+    return [
+        f"results/{name}/segments/{recording}.png"
+        for name in datasets
+        for recording in IMU_RECORDINGS
+        if recording in read_dataset(config["datasets"][name]).recordings
+    ]
+
+
+def mag_step1_inputs(wildcards):
+    """rotation3d, and the cube's magnetometer samples offered for coverage."""
+    names = ["rotation3d"] + (["cube"] if has_recording(wildcards, "cube") else [])
+    return {name: f"results/{wildcards.dataset}/ingest/{name}.parquet" for name in names}
+
+
+def field_norm(wildcards):
+    return dataset_info(wildcards).field_norm

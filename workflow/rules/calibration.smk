@@ -1,0 +1,34 @@
+# The combined calibration of all three sensors in frame B, and applying it to a recording.
+
+
+rule calibration:
+    input:
+        acc="results/{dataset}/acc.json",
+        gyr="results/{dataset}/gyr.json",
+        mag="results/{dataset}/mag.json",
+    output:
+        calibration=report(
+            "results/{dataset}/calibration.json",
+            caption="../report/calibration.rst",
+            category="Calibration",
+        ),
+    log:
+        "results/{dataset}/logs/calibration.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/calibration.py"
+
+
+rule apply_calibration:
+    input:
+        table="results/{dataset}/ingest/{recording}.parquet",
+        calibration="results/{dataset}/calibration.json",
+    output:
+        table="results/{dataset}/calibrated/{recording}.parquet",
+    log:
+        "results/{dataset}/logs/apply/{recording}.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/apply_calibration.py"

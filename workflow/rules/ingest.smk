@@ -1,0 +1,31 @@
+# Stage 1: ingest. Each raw recording (IMU CSV in counts, or the MT Manager export of the
+# reference) is read, checked and converted to SI units; then one summary per dataset.
+
+
+rule ingest:
+    input:
+        raw=raw_recording,
+        dataset_yaml=dataset_yaml,
+    output:
+        table="results/{dataset}/ingest/{recording}.parquet",
+    log:
+        "results/{dataset}/logs/ingest/{recording}.log",
+    benchmark:
+        "results/{dataset}/benchmarks/ingest/{recording}.tsv"
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/ingest.py"
+
+
+rule ingest_summary:
+    input:
+        unpack(ingested),
+    output:
+        summary="results/{dataset}/ingest/summary.json",
+    log:
+        "results/{dataset}/logs/ingest/summary.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/ingest_summary.py"

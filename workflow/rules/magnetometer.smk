@@ -1,0 +1,38 @@
+# Magnetometer: step 1 the ellipsoid fit (eqs. 17-24), step 2 T_R,mag from the rotation3d
+# phases (eqs. 25-27).
+
+
+rule mag_step1:
+    input:
+        unpack(mag_step1_inputs),
+    output:
+        step1="results/{dataset}/mag_step1.json",
+    log:
+        "results/{dataset}/logs/mag_step1.log",
+    benchmark:
+        "results/{dataset}/benchmarks/mag_step1.tsv"
+    params:
+        field_norm=field_norm,
+        refine_lm=config["magnetometer"]["refine_lm"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/mag_step1.py"
+
+
+rule mag_step2:
+    input:
+        rotation3d="results/{dataset}/ingest/rotation3d.parquet",
+        segments="results/{dataset}/segments.parquet",
+        step1="results/{dataset}/mag_step1.json",
+    output:
+        mag="results/{dataset}/mag.json",
+    log:
+        "results/{dataset}/logs/mag_step2.log",
+    benchmark:
+        "results/{dataset}/benchmarks/mag_step2.tsv"
+    params:
+        method=config["magnetometer"]["step2_method"],
+        exact=config["exact_rotation"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/mag_step2.py"

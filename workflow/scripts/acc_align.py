@@ -1,0 +1,22 @@
+"""Rule acc_align: accelerometer step 2, T_R,acc from the filtered rotation3d phases."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.io import read_json, read_recording, write_json, read_segments
+from imucal.stages import align_acc
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+
+rotation3d, _ = read_recording(snakemake.input.rotation3d)
+acc = align_acc(
+    rotation3d,
+    read_segments(snakemake.input.segments),
+    read_json(snakemake.input.fit),
+    method=snakemake.params.method,
+    exact=snakemake.params.exact,
+)
+write_json(acc, snakemake.output.acc)

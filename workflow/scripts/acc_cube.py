@@ -1,0 +1,23 @@
+"""Rule acc_cube: accelerometer step 1, the cube fit (eq. 32)."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.io import read_recording, write_json, read_segments
+from imucal.stages import fit_acc_cube
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+
+cube, _ = read_recording(snakemake.input.cube)
+fit, figures = fit_acc_cube(
+    cube,
+    read_segments(snakemake.input.segments),
+    gravity_m_s2=snakemake.params.gravity_m_s2,
+    saturation_limit_m_s2=snakemake.params.saturation_limit_m_s2,
+    method=snakemake.params.method,
+)
+write_json(fit, snakemake.output.fit)
+figures["acc_cube"].savefig(snakemake.output.figure, dpi=110)

@@ -1,0 +1,23 @@
+"""Rule gyr_align: T_R,gyr from the filtered rotation3d phases (eqs. 28-31), tool-free path."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.io import read_json, read_recording, write_json, read_segments
+from imucal.stages import align_gyr, gyr_bias_value
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+
+rotation3d, _ = read_recording(snakemake.input.rotation3d)
+bias, _ = gyr_bias_value(read_json(snakemake.input.bias), snakemake.params.bias_estimator)
+alignment = align_gyr(
+    rotation3d,
+    read_segments(snakemake.input.segments),
+    bias,
+    method=snakemake.params.method,
+    exact=snakemake.params.exact,
+)
+write_json(alignment, snakemake.output.alignment)

@@ -1,0 +1,24 @@
+"""Rule gyr_scale: gyroscope scale without tools (eq. 36), after the alignment."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.io import read_json, read_recording, write_json, read_segments
+from imucal.stages import estimate_gyr_scale
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+
+rotation3d, _ = read_recording(snakemake.input.rotation3d)
+scale = estimate_gyr_scale(
+    rotation3d,
+    read_segments(snakemake.input.segments),
+    read_json(snakemake.input.bias),
+    read_json(snakemake.input.alignment),
+    read_json(snakemake.input.acc),
+    read_json(snakemake.input.mag),
+    bias_estimator=snakemake.params.bias_estimator,
+)
+write_json(scale, snakemake.output.scale)

@@ -1,0 +1,24 @@
+"""Rule gyr_table_align: T_R,gyr for the rate-table S'_gyr from the rotation3d phases."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.io import read_json, read_recording, write_json, read_segments
+from imucal.stages import align_gyr
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+
+rotation3d, _ = read_recording(snakemake.input.rotation3d)
+fit = read_json(snakemake.input.fit)
+alignment = align_gyr(
+    rotation3d,
+    read_segments(snakemake.input.segments),
+    fit["bias"],
+    fit["upper"],
+    method=snakemake.params.method,
+    exact=snakemake.params.exact,
+)
+write_json(alignment, snakemake.output.alignment)

@@ -1,0 +1,28 @@
+"""Rule ingest: one raw recording -> checked parquet in SI units (imucal.ingest)."""
+
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from imucal.dataset import read_dataset
+from imucal.ingest import ingest_recording
+from imucal.io import write_recording
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log = logging.getLogger(__name__)
+try:
+    dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
+    table, metadata = ingest_recording(
+        snakemake.input.raw,
+        recording=snakemake.wildcards.recording,
+        dataset=dataset,
+        imucal_version=snakemake.params.imucal_version,
+    )
+    write_recording(table, snakemake.output.table, metadata)
+    log.info("%s: %d rows -> %s", snakemake.input.raw, len(table), snakemake.output.table)
+except Exception:
+    log.exception("ingest of %s failed", snakemake.input.raw)
+    raise
