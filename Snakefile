@@ -19,12 +19,10 @@ include: "workflow/rules/magnetometer.smk"
 include: "workflow/rules/accelerometer.smk"
 include: "workflow/rules/gyroscope.smk"
 include: "workflow/rules/calibration.smk"
+include: "workflow/rules/report.smk"
 
 
 rule all:
     input:
-        expand("results/{dataset}/ingest/summary.json", dataset=DATASETS),
-        segment_plots(DATASETS),
-        expand("results/{dataset}/calibration.json", dataset=DATASETS),
-        expand("results/{dataset}/tables.csv", dataset=DATASETS),
+        all_targets,
     default_target: True

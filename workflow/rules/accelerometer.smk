@@ -2,6 +2,8 @@
 
 
 rule acc_cube:
+    conda:
+        "../envs/imucal.yaml"
     input:
         cube="results/{dataset}/ingest/cube.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -26,6 +28,8 @@ rule acc_cube:
 
 
 rule acc_align:
+    conda:
+        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",

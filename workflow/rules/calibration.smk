@@ -2,6 +2,8 @@
 
 
 rule calibration:
+    conda:
+        "../envs/imucal.yaml"
     input:
         acc="results/{dataset}/acc.json",
         gyr="results/{dataset}/gyr.json",
@@ -21,6 +23,8 @@ rule calibration:
 
 
 rule apply_calibration:
+    conda:
+        "../envs/imucal.yaml"
     input:
         table="results/{dataset}/ingest/{recording}.parquet",
         calibration="results/{dataset}/calibration.json",

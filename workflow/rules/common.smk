@@ -97,14 +97,15 @@ def gravity(wildcards):
     return dataset_info(wildcards).gravity_m_s2
 
 
-def segment_plots(datasets):
-    """Segment plots of every IMU recording of the given datasets."""
-    return [
-        f"results/{name}/segments/{recording}.png"
-        for name in datasets
-        for recording in IMU_RECORDINGS
-        if recording in read_dataset(config["datasets"][name]).recordings
-    ]
+def all_targets(wildcards):
+    """Final outputs of every configured dataset (read lazily, only when `all` is requested)."""
+    targets = []
+    for name in DATASETS:
+        recordings = read_dataset(config["datasets"][name]).recordings
+        targets += [f"results/{name}/ingest/summary.json", f"reports/{name}.html"]
+        targets += [f"results/{name}/calibration.json", f"results/{name}/tables.csv"]
+        targets += [f"results/{name}/segments/{r}.png" for r in IMU_RECORDINGS if r in recordings]
+    return targets
 
 
 def mag_step1_inputs(wildcards):
@@ -115,3 +116,50 @@ def mag_step1_inputs(wildcards):
 
 def field_norm(wildcards):
     return dataset_info(wildcards).field_norm
+
+
+def _git_commit():
+    import subprocess
+
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+        )
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return out.stdout.strip()
+
+
+#: Commit of the workflow checkout, for the report's provenance.
+GIT_COMMIT = _git_commit()
+
+
+def reference_input(wildcards):
+    """The ingested reference when the dataset has one, else nothing."""
+    if not has_recording(wildcards, "reference"):
+        return {}
+    return {"reference": f"results/{wildcards.dataset}/ingest/reference.parquet"}
+
+
+def report_inputs(wildcards):
+    """Every figure of a dataset and the run-time benchmarks of its fit rules."""
+    d = wildcards.dataset
+    info = dataset_info(wildcards)
+    figures = [f"results/{d}/figures/acc_cube.png", f"results/{d}/figures/gyr_bias.png"]
+    benchmarks = [
+        f"results/{d}/benchmarks/{rule}.tsv"
+        for rule in ("segment", "mag_step1", "mag_step2", "acc_cube", "acc_align")
+        + ("gyr_bias", "gyr_align", "gyr_scale", "validate")
+    ]
+    if "ratetable" in info.recordings:
+        figures.append(f"results/{d}/figures/gyr_table.png")
+        benchmarks += [f"results/{d}/benchmarks/gyr_table.tsv"]
+    if "reference" in info.recordings:
+        figures += [
+            f"results/{d}/figures/validation_magnitudes.png",
+            f"results/{d}/figures/validation_xcorr.png",
+        ]
+    figures += [
+        f"results/{d}/segments/{r}.png" for r in IMU_RECORDINGS if r in info.recordings
+    ]
+    return {"figures": figures, "benchmarks": benchmarks}

@@ -3,6 +3,8 @@
 
 
 rule gyr_bias:
+    conda:
+        "../envs/imucal.yaml"
     input:
         unpack(gyr_bias_inputs),
         segments="results/{dataset}/segments.parquet",
@@ -24,6 +26,8 @@ rule gyr_bias:
 
 
 rule gyr_align:
+    conda:
+        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -44,6 +48,8 @@ rule gyr_align:
 
 
 rule gyr_scale:
+    conda:
+        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/ingest/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -65,6 +71,8 @@ rule gyr_scale:
 
 
 rule gyr_table:
+    conda:
+        "../envs/imucal.yaml"
     input:
         ratetable="results/{dataset}/ingest/ratetable.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -87,6 +95,8 @@ rule gyr_table:
 
 
 rule gyr_table_align:
+    conda:
+        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -106,6 +116,8 @@ rule gyr_table_align:
 
 
 rule gyr:
+    conda:
+        "../envs/imucal.yaml"
     input:
         unpack(gyr_table_inputs),
         unpack(truth_input),

@@ -3,6 +3,8 @@
 
 
 rule ingest:
+    conda:
+        "../envs/imucal.yaml"
     input:
         raw=raw_recording,
         dataset_yaml=dataset_yaml,
@@ -19,6 +21,8 @@ rule ingest:
 
 
 rule ingest_summary:
+    conda:
+        "../envs/imucal.yaml"
     input:
         unpack(ingested),
     output:

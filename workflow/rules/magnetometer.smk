@@ -3,6 +3,8 @@
 
 
 rule mag_step1:
+    conda:
+        "../envs/imucal.yaml"
     input:
         unpack(mag_step1_inputs),
     output:
@@ -20,12 +22,18 @@ rule mag_step1:
 
 
 rule mag_step2:
+    conda:
+        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/ingest/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
         step1="results/{dataset}/mag_step1.json",
     output:
         mag="results/{dataset}/mag.json",
+        mag_raw="results/{dataset}/figures/mag_raw.png",
+        mag_step1="results/{dataset}/figures/mag_step1.png",
+        mag_phases="results/{dataset}/figures/mag_phases.png",
+        mag_step2="results/{dataset}/figures/mag_step2.png",
     log:
         "results/{dataset}/logs/mag_step2.log",
     benchmark:

@@ -5,6 +5,8 @@
 
 
 rule lowpass:
+    conda:
+        "../envs/imucal.yaml"
     input:
         table="results/{dataset}/ingest/{recording}.parquet",
     output:
@@ -22,6 +24,8 @@ rule lowpass:
 
 
 rule segment:
+    conda:
+        "../envs/imucal.yaml"
     input:
         unpack(ingested_imu),
         dataset_yaml=dataset_yaml,
@@ -43,6 +47,8 @@ rule segment:
 
 
 rule plot_segments:
+    conda:
+        "../envs/imucal.yaml"
     input:
         table="results/{dataset}/ingest/{recording}.parquet",
         segments=rules.segment.output.segments,

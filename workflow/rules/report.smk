@@ -1,0 +1,73 @@
+# Validation against the Xsens MTx reference (reference-free checks without one) and the HTML
+# lab report.
+
+
+rule validate:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        unpack(reference_input),
+        rotation3d="results/{dataset}/ingest/rotation3d.parquet",
+        segments="results/{dataset}/segments.parquet",
+        calibration="results/{dataset}/calibration.json",
+    output:
+        validation=report(
+            "results/{dataset}/validation.json",
+            caption="../report/validation.rst",
+            category="Validation",
+        ),
+    log:
+        "results/{dataset}/logs/validate.log",
+    benchmark:
+        "results/{dataset}/benchmarks/validate.tsv"
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/validate.py"
+
+
+rule validation_figures:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        reference="results/{dataset}/ingest/reference.parquet",
+        rotation3d="results/{dataset}/ingest/rotation3d.parquet",
+        calibration="results/{dataset}/calibration.json",
+        validation="results/{dataset}/validation.json",
+    output:
+        magnitudes=report(
+            "results/{dataset}/figures/validation_magnitudes.png",
+            caption="../report/validation.rst",
+            category="Validation",
+        ),
+        xcorr="results/{dataset}/figures/validation_xcorr.png",
+    log:
+        "results/{dataset}/logs/validation_figures.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/validation_figures.py"
+
+
+rule report:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        unpack(report_inputs),
+        summary="results/{dataset}/ingest/summary.json",
+        calibration="results/{dataset}/calibration.json",
+        mag="results/{dataset}/mag.json",
+        acc="results/{dataset}/acc.json",
+        gyr="results/{dataset}/gyr.json",
+        validation="results/{dataset}/validation.json",
+        tables="results/{dataset}/tables.csv",
+    output:
+        html="reports/{dataset}.html",
+    log:
+        "results/{dataset}/logs/report.log",
+    params:
+        config=config,
+        git_commit=GIT_COMMIT,
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/report.py"

@@ -1,0 +1,28 @@
+"""Rule report: the self-contained HTML lab report of one dataset."""
+
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from imucal.report import build_report_context, render_report
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+context = build_report_context(
+    dataset=snakemake.wildcards.dataset,
+    summary=snakemake.input.summary,
+    calibration=snakemake.input.calibration,
+    mag_result=snakemake.input.mag,
+    acc_result=snakemake.input.acc,
+    gyr_result=snakemake.input.gyr,
+    validation=snakemake.input.validation,
+    tables=snakemake.input.tables,
+    figures=list(snakemake.input.figures),
+    benchmarks=list(snakemake.input.benchmarks),
+    config=dict(snakemake.params.config),
+    git_commit=snakemake.params.git_commit,
+    imucal_version=snakemake.params.imucal_version,
+)
+Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")
