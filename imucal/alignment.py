@@ -360,7 +360,9 @@ def align_rotation_axis(
     if method == "full":
         points = {label: np.arange(w.shape[0]) for label, w in used.items()}
     else:
-        points = {label: np.array([w.shape[0] // 3, (2 * w.shape[0]) // 3]) for label, w in used.items()}
+        points = {
+            label: np.array([w.shape[0] // 3, (2 * w.shape[0]) // 3]) for label, w in used.items()
+        }
     chosen = {label: used[label][points[label]] for label in used}
 
     def residuals(alpha: np.ndarray) -> np.ndarray:
@@ -368,8 +370,11 @@ def align_rotation_axis(
         # eqs. 28-31: the off-axis rows of T_R give zero
         return np.concatenate([(chosen[lb] @ t[off[lb]].T).ravel() for lb in used])
 
-    start = _rotvec(_wahba([normals[lb] for lb in used], [axes[lb] for lb in used],
-                           [weights[lb] for lb in used]))
+    start = _rotvec(
+        _wahba(
+            [normals[lb] for lb in used], [axes[lb] for lb in used], [weights[lb] for lb in used]
+        )
+    )
     what = f"rotation-axis alignment ({method}, phases {sorted(used)})"
     alpha, cov = _solve(residuals, start, 0, what)
     t = rotation_matrix(alpha, exact)

@@ -73,7 +73,7 @@ class EllipsoidSolution:
         }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EllipsoidSolution":
+    def from_dict(cls, d: dict) -> EllipsoidSolution:
         return cls(
             upper=np.asarray(d["upper"], dtype=float),
             bias=np.asarray(d["bias"], dtype=float),
@@ -155,7 +155,7 @@ class EllipsoidFit:
         }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "EllipsoidFit":
+    def from_dict(cls, d: dict) -> EllipsoidFit:
         for key in ("used", "field_norm", "svd", "lm"):
             if key not in d:
                 raise ValueError(f"magnetometer step-1 result lacks the key {key!r}")
@@ -307,7 +307,9 @@ def _fit(
     if m.ndim != 2 or m.shape[1] != 3:
         raise ValueError(f"samples must have shape (n, 3), got {m.shape}")
     if m.shape[0] < 10:
-        raise ValueError(f"need at least 10 magnetometer samples for 9 parameters, got {m.shape[0]}")
+        raise ValueError(
+            f"need at least 10 magnetometer samples for 9 parameters, got {m.shape[0]}"
+        )
     bad = np.flatnonzero(~np.isfinite(m).all(axis=1))
     if bad.size:
         raise ValueError(
@@ -371,9 +373,7 @@ def _fit(
     svd = _solution(p_svd, m, field_norm)
     lm = None
     if refine_lm:
-        res = least_squares(
-            _residuals, p_svd, jac=_jacobian, args=(m,), method="lm", max_nfev=200
-        )
+        res = least_squares(_residuals, p_svd, jac=_jacobian, args=(m,), method="lm", max_nfev=200)
         if not res.success or not np.all(np.isfinite(res.x)):
             # eq. 17 is measured in calibrated units: at low coverage it can shrink S' towards a
             # degenerate (elongated) ellipsoid and run away from the algebraic solution
