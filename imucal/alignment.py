@@ -178,6 +178,29 @@ def _solve(residuals, alpha0: np.ndarray, n_nuisance: int, what: str, sigma2=Non
     return res.x, sigma2 * np.linalg.inv(jtj)
 
 
+def _fit_angles(residuals, normals, axes, weights, n_nuisance, what, exact, spread_of,
+                paper_variance_factor=None):
+    """Solve the alignment angles from the Wahba start; return alpha, covariance, T_R, spread.
+
+    With ``paper_variance_factor`` (the paper's few points per phase), the few degrees of
+    freedom estimate the noise poorly: the variance of one equation is taken instead as the
+    factor times the mean squared spread over all samples of the phases, and the covariance is
+    recomputed with it.
+    """
+    labels = list(normals)
+    start = _rotvec(
+        _wahba([normals[lb] for lb in labels], [axes[lb] for lb in labels],
+               [weights[lb] for lb in labels])
+    )
+    alpha, cov = _solve(residuals, start, n_nuisance, what)
+    t = rotation_matrix(alpha, exact)
+    spread = spread_of(t)
+    if paper_variance_factor is not None:
+        sigma2 = paper_variance_factor * float(np.mean(np.square(list(spread.values()))))
+        alpha, cov = _solve(residuals, alpha, 0, what, sigma2)
+    return alpha, cov, t, spread
+
+
 def _result(alpha, cov, exact, per_phase_res, spread, used_points, skipped, method, condition):
     return AlignmentResult(
         matrix=rotation_matrix(alpha, exact),
@@ -278,22 +301,15 @@ def align_constant_component(
         t = rotation_matrix(alpha, exact)
         return np.concatenate([centred[lb] @ t[axes[lb]] for lb in used])
 
-    start = _rotvec(
-        _wahba(
-            [normals[lb] / np.linalg.norm(normals[lb]) for lb in used],
-            [axes[lb] for lb in used],
-            [weights[lb] for lb in used],
-        )
+    def spread_of(t: np.ndarray) -> dict[str, float]:
+        return {lb: float(np.std(v @ t[axes[lb]])) for lb, v in used.items()}
+
+    # 'paper': one equation is a difference of two samples, twice the variance of one sample
+    alpha, cov, t, spread = _fit_angles(
+        residuals, {lb: normals[lb] / np.linalg.norm(normals[lb]) for lb in used}, axes, weights,
+        n_nuisance, f"constant-component alignment ({method}, phases {sorted(used)})", exact,
+        spread_of, paper_variance_factor=2.0 if method == "paper" else None,
     )
-    what = f"constant-component alignment ({method}, phases {sorted(used)})"
-    alpha, cov = _solve(residuals, start, n_nuisance, what)
-    t = rotation_matrix(alpha, exact)
-    spread = {lb: float(np.std(v @ t[axes[lb]])) for lb, v in used.items()}
-    if method == "paper":
-        # 6 degrees of freedom estimate the noise poorly: take the variance of one equation
-        # (a difference of two samples) from the spread over all samples of the phases
-        sigma2 = 2 * float(np.mean(np.square(list(spread.values()))))
-        alpha, cov = _solve(residuals, alpha, 0, what, sigma2)
     own = {lb: float(np.sqrt(np.mean((centred[lb] @ t[axes[lb]]) ** 2))) for lb in used}
     return _result(alpha, cov, exact, own, spread, points, skipped, method, "constant_component")
 
@@ -370,19 +386,14 @@ def align_rotation_axis(
         # eqs. 28-31: the off-axis rows of T_R give zero
         return np.concatenate([(chosen[lb] @ t[off[lb]].T).ravel() for lb in used])
 
-    start = _rotvec(
-        _wahba(
-            [normals[lb] for lb in used], [axes[lb] for lb in used], [weights[lb] for lb in used]
-        )
+    def spread_of(t: np.ndarray) -> dict[str, float]:
+        return {lb: float(np.sqrt(np.mean((w @ t[off[lb]].T) ** 2))) for lb, w in used.items()}
+
+    alpha, cov, t, spread = _fit_angles(
+        residuals, normals, axes, weights, 0,
+        f"rotation-axis alignment ({method}, phases {sorted(used)})", exact, spread_of,
+        paper_variance_factor=1.0 if method == "paper" else None,
     )
-    what = f"rotation-axis alignment ({method}, phases {sorted(used)})"
-    alpha, cov = _solve(residuals, start, 0, what)
-    t = rotation_matrix(alpha, exact)
-    spread = {lb: float(np.sqrt(np.mean((w @ t[off[lb]].T) ** 2))) for lb, w in used.items()}
-    if method == "paper":
-        # as for the constant component: the noise from all samples, not from 4 per phase
-        sigma2 = float(np.mean(np.square(list(spread.values()))))
-        alpha, cov = _solve(residuals, alpha, 0, what, sigma2)
     own = {lb: float(np.sqrt(np.mean((chosen[lb] @ t[off[lb]].T) ** 2))) for lb in used}
     return _result(alpha, cov, exact, own, spread, points, skipped, method, "rotation_axis")
 

@@ -73,13 +73,13 @@ DEFAULT_CAPTIONS = {
     "mag_phases": "Magnetometer phases x, y, z with the extreme points used by eqs. 25-27 "
     "(paper Fig. 6).",
     "mag_step2": "Magnetometer after step 2, the alignment T_R (paper Fig. 7).",
-    "acc_norm": "Accelerometer |a| - g per cube position before and after the cube fit "
+    "acc_cube": "Accelerometer |a| - g per cube position before and after the cube fit "
     "(paper Fig. 10).",
     "acc_phases": "Low-pass filtered accelerometer phases before and after alignment "
     "(paper Figs. 11-13).",
     "gyr_bias": "Gyroscope before and after bias removal (paper Figs. 16-17).",
     "gyr_phases": "Gyroscope phases before and after alignment (paper Figs. 18-19).",
-    "gyr_ratetable": "Rate-table magnitude errors |w| - |w_true| per run before and after "
+    "gyr_table": "Rate-table magnitude errors |w| - |w_true| per run before and after "
     "calibration (paper Fig. 15).",
     "validation": "Magnitudes of the calibrated module and of the reference (paper Fig. 20).",
 }

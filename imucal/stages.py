@@ -17,7 +17,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from imucal import accelerometer, errormodel, gyroscope
-from imucal.alignment import align_constant_component, align_rotation_axis
+from imucal.alignment import align_constant_component, align_rotation_axis, phase_samples
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import ACC, AXES, GYR, MAG, TIME
 from imucal.plots import inertial as inertial_plots
@@ -63,14 +63,9 @@ def _saturated(values: np.ndarray, limit: float) -> np.ndarray:
     return np.any(np.abs(values) >= limit, axis=1)
 
 
-def _phases(table: pd.DataFrame, segments: pd.DataFrame, columns) -> dict[str, np.ndarray]:
-    rows = _segments_of(segments, "rotation3d", "phase")
-    return {
-        str(r.label): table.iloc[int(r.start_index) : int(r.end_index)][list(columns)].to_numpy(
-            dtype=float
-        )
-        for r in rows.itertuples(index=False)
-    }
+def _phases(table: pd.DataFrame, segments: pd.DataFrame, sensor: str) -> dict[str, np.ndarray]:
+    """Phase label -> the sensor's samples (n, 3) in that rotation3d phase."""
+    return {label: values for label, (_, values) in phase_samples(table, segments, sensor).items()}
 
 
 def fit_acc_cube(
@@ -139,7 +134,7 @@ def align_acc(
     bias = np.asarray(cube_fit["bias"], dtype=float)
     phases = {
         label: errormodel.apply(upper, bias, values)
-        for label, values in _phases(rotation3d_lowpass, segments, ACC).items()
+        for label, values in _phases(rotation3d_lowpass, segments, "acc").items()
     }
     alignments = {
         name: align_constant_component(phases, method=name, exact=exact)
@@ -234,7 +229,7 @@ def align_gyr(
     s = np.eye(3) if upper is None else np.asarray(upper, dtype=float)
     phases = {
         label: errormodel.apply(s, bias, values)
-        for label, values in _phases(rotation3d_lowpass, segments, GYR).items()
+        for label, values in _phases(rotation3d_lowpass, segments, "gyr").items()
     }
     alignments = {
         name: align_rotation_axis(phases, method=name, exact=exact) for name in ALIGNMENT_METHODS
@@ -457,6 +452,44 @@ def combine_gyr(
     return artifact, pd.DataFrame(rows, columns=["table", "row", "x", "y", "z"])
 
 
+def plot_phases(
+    rotation3d_lowpass: pd.DataFrame, segments: pd.DataFrame, sensor: str, calibration: Mapping
+) -> Figure:
+    """The filtered rotation3d phases of ``sensor`` before and after alignment.
+
+    Paper Figs. 11-13 (accelerometer) and 18-19 (gyroscope). "Before" applies the calibration
+    without its rotation ``T_R`` (the upper-triangular factor ``S'`` of ``matrix = T_R S'``, and
+    the bias), "after" the whole calibration.
+
+    Parameters
+    ----------
+    rotation3d_lowpass : DataFrame
+        The low-pass filtered rotation3d recording, SI units.
+    segments : DataFrame
+    sensor : str
+        'acc' or 'gyr'.
+    calibration : mapping
+        A SensorCalibration dict of ``sensor`` (e.g. ``acc.json['calibration']``).
+    """
+    if sensor not in ("acc", "gyr"):
+        raise ValueError(f"phase figures are drawn for 'acc' or 'gyr', got {sensor!r}")
+    cal = SensorCalibration.from_dict(sensor, dict(calibration))
+    _, upper = errormodel.upper_triangular_factor(cal.matrix)
+    phases = {
+        label: (t, errormodel.apply(upper, cal.bias, v), errormodel.apply(cal.matrix, cal.bias, v))
+        for label, (t, v) in phase_samples(rotation3d_lowpass, segments, sensor).items()
+    }
+    if sensor == "acc":
+        return inertial_plots.plot_phases_before_after(
+            phases, unit="m/s^2", quantity="specific force",
+            title="Accelerometer, filtered rotation3d phases (paper Figs. 11-13)",
+        )
+    return inertial_plots.plot_phases_before_after(
+        phases, unit="deg/s", factor=np.degrees(1.0), quantity="rate",
+        title="Gyroscope, filtered rotation3d phases (paper Figs. 18-19)",
+    )
+
+
 def combine_calibration(acc: Mapping, gyr: Mapping, mag: Mapping) -> ImuCalibration:
     """The calibration of all three sensors in frame B from the stage artifacts."""
     return ImuCalibration(
@@ -604,7 +637,7 @@ def align_mag(
     fit = magnetometer.EllipsoidFit.from_dict(dict(step1))
     phases = {
         label: values[np.all(np.isfinite(values), axis=1)]
-        for label, values in _phases(rotation3d, segments, MAG).items()
+        for label, values in _phases(rotation3d, segments, "mag").items()
     }
     result = magnetometer.calibrate_alignment(fit, phases, method=method, exact=exact)
     artifact = result.to_dict()

@@ -22,25 +22,10 @@ N_SAMPLES = 600
 CONFORMANCE = (
     Path(__file__).resolve().parents[1].parent / "shared" / "data" / "conformance" / "clean"
 )
+from imucal.sim.protocol import CUBE_UP_B
 
-# 6 faces down and 6 at 45 degrees on the V-block (unit gravity directions in frame B)
-DIRECTIONS = np.array(
-    [
-        [1, 0, 0],
-        [-1, 0, 0],
-        [0, 1, 0],
-        [0, -1, 0],
-        [0, 0, 1],
-        [0, 0, -1],
-        [0, 1, 1],
-        [0, 1, -1],
-        [1, 0, 1],
-        [1, 0, -1],
-        [1, 1, 0],
-        [1, -1, 0],
-    ],
-    dtype=float,
-)
+# the simulator's 12 cube positions: 6 faces and 6 at 45 degrees on the V-block (frame B)
+DIRECTIONS = np.array(CUBE_UP_B, dtype=float)
 DIRECTIONS /= np.linalg.norm(DIRECTIONS, axis=1, keepdims=True)
 
 

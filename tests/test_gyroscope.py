@@ -24,6 +24,7 @@ from imucal.gyroscope import (
     rate_table_crlb,
 )
 from imucal.segmentation import segment_ratetable
+from imucal.sim.protocol import CUBE_UP_B
 
 CONFORMANCE = (
     Path(__file__).resolve().parents[1].parent / "shared" / "data" / "conformance" / "clean"
@@ -165,23 +166,7 @@ def test_magnitude_only_fit_cannot_observe_cross_terms():
 def test_cube_directions_make_the_magnitude_fit_observable():
     """Contrast: the 45-degree cube positions give the same magnitude model full rank."""
     rng = np.random.default_rng(23)
-    directions = np.array(
-        [
-            [1, 0, 0],
-            [-1, 0, 0],
-            [0, 1, 0],
-            [0, -1, 0],
-            [0, 0, 1],
-            [0, 0, -1],
-            [0, 1, 1],
-            [0, 1, -1],
-            [1, 0, 1],
-            [1, 0, -1],
-            [1, 1, 0],
-            [1, -1, 0],
-        ],
-        dtype=float,
-    )
+    directions = np.array(CUBE_UP_B, dtype=float)
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     matrix = gyro_truth()
     positions = [

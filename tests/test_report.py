@@ -156,8 +156,8 @@ def artifacts(tmp_path_factory) -> dict:
     figures = [
         _png(results / "segments" / "rotation3d.png", 4),
         _png(results / "figures" / "mag_raw.png", 3),
-        _png(results / "figures" / "acc_norm.png", 5),
-        _png(results / "figures" / "gyr_ratetable.png", 4),
+        _png(results / "figures" / "acc_cube.png", 5),
+        _png(results / "figures" / "gyr_table.png", 4),
         _png(results / "figures" / "validation.png", 6),
     ]
     bench = root / "benchmarks" / "demo"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -122,4 +122,61 @@ def plot_gyro_bias(t_s: np.ndarray, rate_rad_s: np.ndarray, bias_rad_s: np.ndarr
     bottom.axhline(0, color="0.5", lw=0.8)
     bottom.set_ylabel("rate (deg/s)")
     bottom.set_xlabel("time (s)")
+    return fig
+
+
+def plot_phases_before_after(
+    phases: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    *,
+    unit: str,
+    factor: float = 1.0,
+    quantity: str,
+    title: str,
+) -> Figure:
+    """The rotation3d phases of one sensor before and after alignment (Figs. 11-13, 18-19).
+
+    In the phase about axis ``k`` of frame B the component along ``k`` is the one the alignment
+    makes constant (accelerometer: the gravity component along the rotation axis; gyroscope: the
+    whole rate lies on ``k``, so the other two components vanish after alignment).
+
+    Parameters
+    ----------
+    phases : mapping of str to (ndarray (n,), ndarray (n, 3), ndarray (n, 3))
+        Phase label ('x', 'y', 'z') -> (timestamps in s, values before alignment, values after),
+        values in SI units.
+    unit : str
+        Unit label of the plotted values (after ``factor``).
+    factor : float
+        Multiplies the SI values for display (e.g. ``180 / pi`` for deg/s).
+    quantity : str
+        Axis label, e.g. 'specific force'.
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One row per phase, columns 'before' and 'after' sharing the y axis of the row.
+    """
+    if not phases:
+        raise ValueError("no phase to plot; expected at least one of the phases x, y, z")
+    fig = Figure(figsize=(9, 2.4 * len(phases) + 0.8), layout="constrained")
+    grid = fig.subplots(len(phases), 2, sharey="row", squeeze=False)
+    for row, (label, (t, before, after)) in zip(grid, sorted(phases.items())):
+        t = np.asarray(t, dtype=float)
+        for ax, values, when in zip(row, (before, after), ("before", "after")):
+            values = np.asarray(values, dtype=float)
+            if values.shape != (len(t), 3):
+                raise ValueError(
+                    f"phase {label!r}: expected values of shape ({len(t)}, 3), got {values.shape}"
+                )
+            for k, axis in enumerate(AXES):
+                ax.plot(t - t[0], values[:, k] * factor, color=AXIS_COLOURS[axis], lw=0.8,
+                        label=f"{axis}_B")
+            ax.axhline(0, color="0.6", lw=0.6)
+            ax.set_title(f"phase {label}: {when} alignment", fontsize="medium")
+            ax.set_ylabel(f"{quantity} ({unit})")
+        row[0].set_xlabel("time in phase (s)")
+        row[1].set_xlabel("time in phase (s)")
+    fig.legend(*grid[0, 0].get_legend_handles_labels(), loc="outside right upper")
+    fig.suptitle(title)
     return fig

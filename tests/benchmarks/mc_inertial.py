@@ -30,29 +30,14 @@ from imucal.gyroscope import (
     fit_rate_table_magnitude,
     rate_table_crlb,
 )
+from imucal.sim.protocol import CUBE_UP_B
 
 G = 9.81
 CUBE_SAMPLES = 600  # per position (6 s at 100 Hz)
 RUN_SAMPLES = 800  # per rate-table run (8 s at 100 Hz)
 STATIC_SAMPLES = 36000  # gyro static recording (6 min at 100 Hz)
 RATES_DPS = np.arange(-400, 401, 100)
-CUBE_DIRECTIONS = np.array(
-    [
-        [1, 0, 0],
-        [-1, 0, 0],
-        [0, 1, 0],
-        [0, -1, 0],
-        [0, 0, 1],
-        [0, 0, -1],
-        [0, 1, 1],
-        [0, 1, -1],
-        [1, 0, 1],
-        [1, 0, -1],
-        [1, 1, 0],
-        [1, -1, 0],
-    ],
-    dtype=float,
-)
+CUBE_DIRECTIONS = np.array(CUBE_UP_B, dtype=float)  # 6 faces, 6 on the V-block
 UPPER_NAMES = ["S'xx", "S'xy", "S'xz", "S'yy", "S'yz", "S'zz"]
 IU = np.triu_indices(3)
 

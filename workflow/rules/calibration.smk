@@ -36,3 +36,30 @@ rule apply_calibration:
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/apply_calibration.py"
+
+
+rule phase_figures:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
+        segments="results/{dataset}/segments.parquet",
+        acc="results/{dataset}/acc.json",
+        gyr="results/{dataset}/gyr.json",
+    output:
+        acc=report(
+            "results/{dataset}/figures/acc_phases.png",
+            caption="../report/phases.rst",
+            category="Accelerometer",
+        ),
+        gyr=report(
+            "results/{dataset}/figures/gyr_phases.png",
+            caption="../report/phases.rst",
+            category="Gyroscope",
+        ),
+    log:
+        "results/{dataset}/logs/phase_figures.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/phase_figures.py"

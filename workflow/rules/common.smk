@@ -145,7 +145,11 @@ def report_inputs(wildcards):
     """Every figure of a dataset and the run-time benchmarks of its fit rules."""
     d = wildcards.dataset
     info = dataset_info(wildcards)
-    figures = [f"results/{d}/figures/acc_cube.png", f"results/{d}/figures/gyr_bias.png"]
+    figures = [
+        f"results/{d}/figures/{name}.png"
+        for name in ("mag_raw", "mag_step1", "mag_phases", "mag_step2", "acc_cube", "acc_phases")
+        + ("gyr_bias", "gyr_phases")
+    ]
     benchmarks = [
         f"results/{d}/benchmarks/{rule}.tsv"
         for rule in ("segment", "mag_step1", "mag_step2", "acc_cube", "acc_align")

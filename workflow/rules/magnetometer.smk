@@ -30,10 +30,26 @@ rule mag_step2:
         step1="results/{dataset}/mag_step1.json",
     output:
         mag="results/{dataset}/mag.json",
-        mag_raw="results/{dataset}/figures/mag_raw.png",
-        mag_step1="results/{dataset}/figures/mag_step1.png",
-        mag_phases="results/{dataset}/figures/mag_phases.png",
-        mag_step2="results/{dataset}/figures/mag_step2.png",
+        mag_raw=report(
+            "results/{dataset}/figures/mag_raw.png",
+            caption="../report/magnetometer.rst",
+            category="Magnetometer",
+        ),
+        mag_step1=report(
+            "results/{dataset}/figures/mag_step1.png",
+            caption="../report/magnetometer.rst",
+            category="Magnetometer",
+        ),
+        mag_phases=report(
+            "results/{dataset}/figures/mag_phases.png",
+            caption="../report/magnetometer.rst",
+            category="Magnetometer",
+        ),
+        mag_step2=report(
+            "results/{dataset}/figures/mag_step2.png",
+            caption="../report/magnetometer.rst",
+            category="Magnetometer",
+        ),
     log:
         "results/{dataset}/logs/mag_step2.log",
     benchmark:

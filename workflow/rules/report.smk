@@ -65,6 +65,8 @@ rule report:
         html="reports/{dataset}.html",
     log:
         "results/{dataset}/logs/report.log",
+    benchmark:
+        "results/{dataset}/benchmarks/report.tsv"
     params:
         config=config,
         git_commit=GIT_COMMIT,

@@ -1,0 +1,18 @@
+"""Rule phase_figures: accelerometer and gyroscope phases before/after alignment (Figs. 11-13, 18-19)."""
+
+import logging
+from typing import TYPE_CHECKING
+
+from imucal.io import read_json, read_recording, read_segments
+from imucal.stages import plot_phases
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+
+rotation3d, _ = read_recording(snakemake.input.rotation3d)
+segments = read_segments(snakemake.input.segments)
+for sensor in ("acc", "gyr"):
+    figure = plot_phases(rotation3d, segments, sensor, read_json(snakemake.input[sensor])["calibration"])
+    figure.savefig(snakemake.output[sensor], dpi=110)
