@@ -255,8 +255,8 @@ def estimate_gyr_scale(
     segments: pd.DataFrame,
     bias: Mapping,
     alignment: Mapping,
-    acc: Mapping,
-    mag: Mapping,
+    acc: Mapping | None,
+    mag: Mapping | None,
     *,
     bias_estimator: str = "ls",
 ) -> dict:
@@ -274,8 +274,9 @@ def estimate_gyr_scale(
         Ingested rotation3d recording.
     bias, alignment : dict
         Artifacts of the bias and alignment stages.
-    acc, mag : dict
-        Artifacts of the accelerometer and magnetometer stages (``calibration`` key).
+    acc, mag : dict or None
+        Artifacts of the accelerometer and magnetometer stages (``calibration`` key); None (or a
+        recording without the sensor's columns) leaves that sensor out of the angle measurement.
 
     Returns
     -------
@@ -284,8 +285,13 @@ def estimate_gyr_scale(
     """
     o, _ = gyr_bias_value(bias, bias_estimator)
     rotation = np.asarray(alignment[alignment["used"]]["matrix"], dtype=float)
-    acc_cal = SensorCalibration.from_dict("acc", acc["calibration"])
-    mag_cal = SensorCalibration.from_dict("mag", mag["calibration"])
+    measuring = [
+        (name, SensorCalibration.from_dict(name, artifact["calibration"]), cols)
+        for name, artifact, cols in (("mag", mag, MAG), ("acc", acc, ACC))
+        if artifact is not None and all(c in rotation3d.columns for c in cols)
+    ]
+    if not measuring:
+        raise ValueError("eq. 36 needs a calibrated magnetometer or accelerometer; got neither")
     noise = np.asarray(bias["noise_std_rad_s"], dtype=float)
     phases = _segments_of(segments, "rotation3d", "phase")
     per_phase = {}
@@ -297,7 +303,7 @@ def estimate_gyr_scale(
             for s in (before, phase, after)
         ]
         angles = {}
-        for name, cal, cols in (("mag", mag_cal, MAG), ("acc", acc_cal, ACC)):
+        for name, cal, cols in measuring:
             vectors = [
                 errormodel.apply(cal.matrix, cal.bias, p[list(cols)].to_numpy(dtype=float))
                 for p in parts
