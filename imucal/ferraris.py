@@ -120,8 +120,11 @@ class KnownOrientationFit:
     magnitude_error_m_s2 : ndarray, shape (n_pos,)
         ``|matrix (mean - bias)| - g`` per position, m/s^2 (in-sample).
     residual_std_m_s2 : float
-        Pooled std of the reading residuals ``mean - (A g d + o)`` (sensor frame, m/s^2) with
-        ``dof`` degrees of freedom; it scales the parameter standard deviations.
+        Pooled std of the equal-weight reading residuals ``mean - (A g d + o)`` (sensor frame,
+        m/s^2) with ``dof`` degrees of freedom.
+    placement_std_rad : float
+        Estimated tilt of a position from its nominal direction (std per axis, rad) used by the
+        'tilt' weighting; 0 for 'equal'.
     dof : int
         ``3 (n_pos - 4)``.
     """
@@ -133,7 +136,65 @@ class KnownOrientationFit:
     residuals_m_s2: np.ndarray
     magnitude_error_m_s2: np.ndarray
     residual_std_m_s2: float
+    placement_std_rad: float
     dof: int
+
+
+_WEIGHTINGS = ("tilt", "equal")
+
+
+def _tilt_weighted(
+    positions: Sequence[np.ndarray],
+    means: np.ndarray,
+    d: np.ndarray,
+    g: float,
+    theta: np.ndarray,
+    dof: int,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Generalised least squares with a placement-tilt error model; returns theta, cov, tilt.
+
+    A position tilted by a small angle (std ``tau`` per axis) moves the specific force by
+    ``g tau`` across its direction and only by ``g tau^2 / 2`` along it, so in the reading
+    frame the mean of position k has the covariance
+    ``diag(var_k) / n_k + tau^2 g^2 A (I - d_k d_k^T) A^T``. ``tau`` is set so that the
+    weighted chi-square equals the degrees of freedom (0 if the sample noise alone explains
+    the residuals).
+    """
+    # floor: a constant (noise-free) reading still has its rounding; keeps the weights finite
+    floor = (1e-9 * g) ** 2
+    noise = [
+        np.maximum(np.var(np.asarray(p, dtype=float), axis=0, ddof=1) / len(p), floor)
+        for p in positions
+    ]
+    rows = [np.hstack([np.kron(np.eye(3), g * dk[None, :]), np.eye(3)]) for dk in d]
+
+    def solve(theta0: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray, float]:
+        a = theta0[:9].reshape(3, 3)
+        info = np.zeros((12, 12))
+        rhs = np.zeros(12)
+        weights = []
+        for x, m, dk, nv in zip(rows, means, d, noise):
+            cov = np.diag(nv) + tau**2 * g**2 * a @ (np.eye(3) - np.outer(dk, dk)) @ a.T
+            w = np.linalg.inv(cov)
+            weights.append(w)
+            info += x.T @ w @ x
+            rhs += x.T @ w @ m
+        new = np.linalg.solve(info, rhs)
+        chi2 = sum(float((m - x @ new) @ w @ (m - x @ new)) for x, m, w in zip(rows, means, weights))
+        return new, np.linalg.inv(info), chi2
+
+    tau = 0.0
+    for _ in range(3):
+        if solve(theta, 0.0)[2] <= dof:
+            tau = 0.0
+        else:
+            lo, hi = 0.0, 0.5  # rad; the chi-square falls monotonically with tau
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if solve(theta, mid)[2] > dof else (lo, mid)
+            tau = hi
+        theta, cov, _ = solve(theta, tau)
+    return theta, cov, tau
 
 
 def fit_known_orientations(
@@ -142,6 +203,7 @@ def fit_known_orientations(
     gravity_m_s2: float,
     *,
     labels: Sequence[str] | None = None,
+    weighting: str = "tilt",
 ) -> KnownOrientationFit:
     """Fit the accelerometer matrix and bias to static positions of known orientation.
 
@@ -158,6 +220,9 @@ def fit_known_orientations(
         Local gravity, m/s^2.
     labels : sequence of str, optional
         Position names for messages (default ``p01``...).
+    weighting : {'tilt', 'equal'}
+        'tilt' (default): generalised least squares with the placement-tilt error model (see
+        Notes); 'equal': ordinary least squares on the position means.
 
     Returns
     -------
@@ -171,17 +236,27 @@ def fit_known_orientations(
 
     Notes
     -----
-    Each position mean obeys ``mean_k = A g d_k + o + e_k`` (``A = matrix^-1``): per sensor axis
-    ``i`` a linear least-squares problem in ``(A[i, :], o[i])`` with the design ``[g d_k, 1]``
-    (shape (n_pos, 4)), solved by ``lstsq``. Equal weights: the residual ``e_k`` is dominated by
-    how well the module sits on its face, not by the sensor noise averaged over the samples, so
-    the standard deviations come from the residuals (pooled over the three axes,
-    ``3 (n_pos - 4)`` dof), not from the sample scatter. They propagate to ``matrix = A^-1``
-    and to its decomposition to first order. With exactly 4 positions there are no residual dof
-    and the standard deviations are NaN.
+    Each position mean obeys ``mean_k = A g d_k + o + e_k`` (``A = matrix^-1``), linear in
+    ``(A, o)``. The error ``e_k`` is dominated by how well the module sits on its face, not by
+    the sensor noise averaged over the samples. A tilt moves the specific force across its
+    direction to first order and along it only to second order, so the reading of an axis that
+    points up or down is nearly tilt-free while the horizontal axes pick up ``g`` times the
+    tilt. With equal weights (ordinary least squares; for the six faces the matrix columns are
+    the half-differences of opposite faces, as in Ferraris's closed form, and the bias is the
+    mean of all six faces) the tilt of the four faces on which an axis is horizontal enters
+    that axis's bias to first order. The 'tilt' weighting models it: generalised least squares
+    with the covariance ``diag(var_k) / n_k + tau^2 g^2 A (I - d_k d_k^T) A^T`` per position,
+    ``tau`` estimated so that the chi-square equals the ``3 (n_pos - 4)`` dof. Its bias then
+    comes mainly from the faces on which the axis is vertical (Ferraris's bias), and the
+    covariance of the estimate is the inverse of the weighted information. The standard
+    deviations therefore come from the residuals, not from the sample scatter; they propagate
+    to ``matrix = A^-1`` and to its decomposition to first order. With exactly 4 positions
+    there are no residual dof and no standard deviations.
     """
     if not np.isfinite(gravity_m_s2) or gravity_m_s2 <= 0:
         raise ValueError(f"gravity_m_s2 must be positive, got {gravity_m_s2!r}")
+    if weighting not in _WEIGHTINGS:
+        raise ValueError(f"weighting must be one of {_WEIGHTINGS}, got {weighting!r}")
     n_pos = len(positions)
     labels = tuple(labels) if labels is not None else tuple(f"p{i + 1:02d}" for i in range(n_pos))
     d = np.asarray(directions, dtype=float)
@@ -210,32 +285,35 @@ def fit_known_orientations(
             f"values {sv.round(4).tolist()}); expected each axis of B both up and down"
         )
     coef, *_ = np.linalg.lstsq(design, means, rcond=None)  # shape (4, 3): column i = axis i
-    a_inv = coef[:3].T  # reading = a_inv @ (g d) + o
-    bias = coef[3]
-    matrix = np.linalg.inv(a_inv)
-    _check_proper(matrix, "accelerometer", "the up directions (labels p/a swapped?)")
     resid_readings = means - design @ coef
     dof = 3 * (n_pos - MIN_POSITIONS)
     s2 = float(np.sum(resid_readings**2) / dof) if dof > 0 else np.nan
-
-    # covariance of (A row-major, o): rows independent, each s2 (X^T X)^-1 over (A[i,:], o[i])
-    xtx_inv = np.linalg.inv(design.T @ design)
-    cov_a = np.zeros((9, 9))
-    cov_o = np.zeros((3, 3))
-    for i in range(3):
-        cov_a[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = s2 * xtx_inv[:3, :3]
-        cov_o[i, i] = s2 * xtx_inv[3, 3]
-    cov_m = _propagate(lambda a: np.linalg.inv(a.reshape(3, 3)), a_inv.ravel(), cov_a)
+    theta = np.concatenate([coef[:3].T.ravel(), coef[3]])  # (A row-major, o)
+    placement = 0.0
+    if weighting == "tilt" and dof > 0:
+        theta, cov, placement = _tilt_weighted(positions, means, d, gravity_m_s2, theta, dof)
+    else:
+        # equal weights: rows independent, each s2 (X^T X)^-1 over (A[i,:], o[i])
+        xtx_inv = np.linalg.inv(design.T @ design)
+        cov = np.zeros((12, 12))
+        for i in range(3):
+            idx = [3 * i, 3 * i + 1, 3 * i + 2, 9 + i]
+            cov[np.ix_(idx, idx)] = s2 * xtx_inv
+    a_inv = theta[:9].reshape(3, 3)  # reading = a_inv @ (g d) + o
+    bias = theta[9:]
+    matrix = np.linalg.inv(a_inv)
+    _check_proper(matrix, "accelerometer", "the up directions (labels p/a swapped?)")
+    cov_m = _propagate(lambda a: np.linalg.inv(a.reshape(3, 3)), a_inv.ravel(), cov[:9, :9])
     if dof > 0:
         std = {
-            "bias": np.sqrt(np.diag(cov_o)),
+            "bias": np.sqrt(np.diag(cov[9:, 9:])),
             "matrix": np.sqrt(np.clip(np.diag(cov_m), 0, None)).reshape(3, 3),
             **_decomposition_std(matrix, cov_m),
         }
     else:
         std = {}
     calibration = SensorCalibration(
-        "acc", bias, matrix, "m/s^2", std, f"known orientations ({n_pos} positions, linear LS)"
+        "acc", bias, matrix, "m/s^2", std, f"known orientations ({n_pos} positions, {weighting} weights)"
     )
     calibrated = errormodel.apply(matrix, bias, means)
     return KnownOrientationFit(
@@ -246,6 +324,7 @@ def fit_known_orientations(
         residuals_m_s2=calibrated - gravity_m_s2 * d,
         magnitude_error_m_s2=np.linalg.norm(calibrated, axis=1) - gravity_m_s2,
         residual_std_m_s2=float(np.sqrt(s2)),
+        placement_std_rad=placement,
         dof=dof,
     )
 
