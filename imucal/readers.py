@@ -507,18 +507,18 @@ def _time(
     t = raw[TIME] if rate is None else raw[TIME] / float(rate)
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        raise io.RawDataError(path, _line(first_line, bad[0]), f"t_s is {t[bad[0]]}", "a finite time in s")
+        raise io.RawDataError(path, _line(first_line, bad[0]), f"t_s is {float(t[bad[0]])}", "a finite time in s")
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         i = int(back[0]) + 1
         raise io.RawDataError(
             path,
             _line(first_line, i),
-            f"t_s {t[i]!r} s is earlier than {t[i - 1]!r} s on the row before",
+            f"t_s {float(t[i])!r} s is earlier than {float(t[i - 1])!r} s on the row before",
             "non-decreasing time",
         )
     if t[-1] == t[0]:
-        raise io.RawDataError(path, None, f"t_s stays at {t[0]!r} s", "a time that advances")
+        raise io.RawDataError(path, None, f"t_s stays at {float(t[0])!r} s", "a time that advances")
     return np.asarray(t, dtype=float)
 
 
