@@ -12,7 +12,9 @@ Sec. IV-B) but does not say how; the design here is the implementer's choice:
   was lost). Timestamps are receive times with jitter and bursts (equal stamps), so the counter,
   not a tight time test, is the evidence of loss. Each block is filtered on its own, so data on
   one side of a gap cannot leak to the other side. Within a block the samples are taken as
-  uniformly spaced at the nominal period (the median time step);
+  uniformly spaced at the nominal period (the median time step; for irregular, bursty
+  receive times the effective period, see :mod:`imucal.timebase`). Without ``seq`` only time
+  gaps split;
 * a block not longer than the padding ``sosfiltfilt`` needs (``3 (2 n_sections + 1)`` samples,
   15 for order 4, 0.15 s at 100 Hz) is kept unfiltered and reported (logged and listed in
   ``DataFrame.attrs``), never dropped and never filled;
@@ -30,7 +32,8 @@ import numpy as np
 import pandas as pd
 from scipy import signal
 
-from imucal.columns import ACC, GYR, MAG, SEQ, SEQ_MODULUS, TIME
+from imucal.columns import SENSOR_COLUMNS, SEQ, TIME
+from imucal.timebase import gap_threshold_s, resolve_packet_steps, sampling_period
 
 logger = logging.getLogger(__name__)
 
@@ -84,32 +87,17 @@ def padding_length(sos: np.ndarray) -> int:
 
 
 def nominal_period(t_s: np.ndarray) -> float:
-    """Nominal sampling period (median time step) of timestamps ``t_s``, shape (n,), in s.
+    """Nominal sampling period of timestamps ``t_s``, shape (n,), in s.
 
-    Equal consecutive stamps (packets received in a burst) are allowed.
+    The median step; for irregular (bursty) timestamps the effective period
+    (:func:`imucal.timebase.sampling_period`). Equal consecutive stamps are allowed.
 
     Raises
     ------
     ValueError
         If there are fewer than two samples, a timestamp decreases or the median step is 0.
     """
-    t = np.asarray(t_s, dtype=float)
-    if t.size < 2:
-        raise ValueError(f"{t.size} timestamp(s): need at least 2 to find the sampling period")
-    step = np.diff(t)
-    bad = np.flatnonzero(~(step >= 0))
-    if bad.size:
-        i = int(bad[0])
-        raise ValueError(
-            f"{TIME} decreases at row {i + 1}: {t[i]:.6g} s -> {t[i + 1]:.6g} s "
-            f"({bad.size} such step(s)); expected non-decreasing timestamps"
-        )
-    period = float(np.median(step))
-    if period <= 0:
-        raise ValueError(
-            f"{TIME}: median time step is 0 over {t.size} samples; expected a sampling period > 0"
-        )
-    return period
+    return sampling_period(t_s)[0]
 
 
 def find_contiguous_blocks(
@@ -122,9 +110,13 @@ def find_contiguous_blocks(
     t_s : array_like, shape (n,)
         Timestamps, s, non-decreasing.
     seq : array_like, shape (n,), optional
-        Packet counter (16 bit, wraps at 65536). A step other than +1 splits.
+        Packet counter (16 bit, wraps at 65536). A step other than one packet splits (wraps
+        resolved by :func:`imucal.timebase.resolve_packet_steps`). Without a counter only time
+        gaps split, and lost samples within ``gap_periods`` periods cannot be seen.
     gap_periods : float
-        A time step larger than ``gap_periods`` nominal periods (median step) splits.
+        A time step longer than :func:`imucal.timebase.gap_threshold_s` (``gap_periods``
+        nominal periods; for irregular timestamps nominal steps include the burst pauses)
+        splits.
 
     Returns
     -------
@@ -141,13 +133,12 @@ def find_contiguous_blocks(
         return []
     if t.size == 1:
         return [(0, 1)]
-    period = nominal_period(t)
-    cut = np.diff(t) > gap_periods * period
+    cut = np.diff(t) > gap_threshold_s(t, gap_periods)
     if seq is not None:
         s = np.asarray(seq, dtype=np.int64)
         if s.shape != t.shape:
             raise ValueError(f"{SEQ} has shape {s.shape}; expected {t.shape} like {TIME}")
-        cut |= np.mod(np.diff(s), SEQ_MODULUS) != 1
+        cut |= resolve_packet_steps(s, t)[0] != 1
     edges = np.concatenate(([0], np.flatnonzero(cut) + 1, [t.size]))
     return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
@@ -209,11 +200,24 @@ def lowpass_recording(
 ) -> pd.DataFrame:
     """Low-pass the accelerometer, gyroscope and magnetometer of an ingested recording.
 
+    Each sensor present is filtered on its own samples (its rows without NaN). A sensor with a
+    sample on every row is filtered per contiguous block of the recording (``seq`` jumps when
+    there is a counter, time gaps always). A sensor with samples on some rows only (the
+    magnetometer of the native CSV; each stream of a declared recording merged on time) is a
+    series of its own: its own nominal rate, split at its own time gaps and at the blocks of the
+    recording.
+
+    Irregular timestamps (host receive times in bursts, see :mod:`imucal.timebase`): the
+    samples of a block are taken as uniformly spaced at the *effective* period (mean ordinary
+    step), not at the median step, which is the spacing within a burst. The filter then acts on
+    the sample sequence as if it were uniform; the timestamps are kept as they are.
+
     Parameters
     ----------
     table : DataFrame
-        Ingested recording (docs/architecture.md): ``t_s``, ``seq``, ``acc_*``, ``gyr_*``,
-        ``mag_*`` (NaN on rows without a fresh magnetometer sample), extra columns.
+        Ingested recording (docs/data-format.md): ``t_s``, ``seq`` (optional), the columns of
+        the sensors present (``acc_*``, ``gyr_*``, ``mag_*``; NaN on rows without a sample of
+        that sensor), extra columns.
     order : int
         Butterworth order of the one-way filter.
     cutoff_hz : float
@@ -224,74 +228,95 @@ def lowpass_recording(
     Returns
     -------
     DataFrame
-        Same rows, columns and dtypes; ``acc_*``, ``gyr_*`` filtered per contiguous block; the
-        non-NaN ``mag_*`` samples filtered per block at their own rate when the cutoff is below
-        their Nyquist frequency, else unchanged. ``attrs['lowpass']`` describes the filter, the
-        blocks and every block or series left unfiltered.
+        Same rows, columns and dtypes; the sensors filtered as above. The magnetometer (and any
+        sensor on part of the rows) is left unchanged when the cutoff is not below its Nyquist
+        frequency, and reported. ``attrs['lowpass']`` describes the filter, the blocks, each
+        sensor series and every block or series left unfiltered.
 
     Raises
     ------
     ValueError
-        If a column is missing, the timestamps do not increase, the cutoff is not below the
-        Nyquist frequency of acc/gyr, or acc/gyr hold NaN.
+        If ``t_s`` or every sensor column is missing, the timestamps do not increase, the cutoff
+        is not below the Nyquist frequency of acc/gyr, or a row has some but not all three
+        values of a sensor.
     """
-    missing = [c for c in (TIME, SEQ, *ACC, *GYR, *MAG) if c not in table.columns]
-    if missing:
-        raise ValueError(f"recording lacks column(s) {missing}; expected the ingested layout")
+    present = [s for s, cols in SENSOR_COLUMNS.items() if any(c in table.columns for c in cols)]
+    missing = [c for s in present for c in SENSOR_COLUMNS[s] if c not in table.columns]
+    if TIME not in table.columns or not present or missing:
+        raise ValueError(
+            f"recording lacks column(s) {missing or [TIME]}; expected t_s and all three columns "
+            "of at least one sensor (the ingested layout)"
+        )
     t = table[TIME].to_numpy(dtype=float)
-    blocks = find_contiguous_blocks(t, table[SEQ].to_numpy(), gap_periods)
+    seq = table[SEQ].to_numpy() if SEQ in table.columns else None
+    blocks = find_contiguous_blocks(t, seq, gap_periods)
     fs_hz = 1.0 / nominal_period(t)
-    sos = design_lowpass(order, cutoff_hz, fs_hz)
     out = table.copy()
     unfiltered: list[dict] = []
-    for cols, name in ((ACC, "acc"), (GYR, "gyr")):
-        x = table[list(cols)].to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(x).all(axis=1))
-        if bad.size:
+    series: dict[str, dict] = {}
+    for sensor in present:
+        cols = list(SENSOR_COLUMNS[sensor])
+        x = table[cols].to_numpy(dtype=float)
+        finite = np.isfinite(x)
+        partial = np.flatnonzero(finite.any(axis=1) & ~finite.all(axis=1))
+        full_rows = finite.all(axis=1)
+        if partial.size or (sensor != "mag" and not full_rows.any()):
+            bad = np.flatnonzero(~full_rows)
             raise ValueError(
-                f"{name}: {bad.size} row(s) with NaN/inf, first at row {bad[0]} "
-                f"(t = {t[bad[0]]:.3f} s); expected finite values on every row"
+                f"{sensor}: {bad.size} row(s) with NaN/inf, first at row {bad[0]} "
+                f"(t = {t[bad[0]]:.3f} s); expected finite values on every row, or all three "
+                "values NaN on rows without a sample of this sensor"
             )
-        y, skipped = _lowpass_series(t, x, blocks, sos, name)
-        out[list(cols)] = y
-        unfiltered += skipped
-
-    mag = table[list(MAG)].to_numpy(dtype=float)
-    rows = np.flatnonzero(np.isfinite(mag).all(axis=1))
-    mag_info: dict = {"rows": int(rows.size)}
-    if rows.size >= 2:
-        t_mag = t[rows]
-        fs_mag = 1.0 / nominal_period(t_mag)
-        mag_info["fs_hz"] = fs_mag
-        if cutoff_hz < fs_mag / 2 * (1 - RATE_RTOL):
-            sos_mag = design_lowpass(order, cutoff_hz, fs_mag)
-            # a magnetometer block ends at a main-stream block boundary or at its own time gap
-            block_id = np.searchsorted([b for _, b in blocks], rows, side="right")
-            cut = (np.diff(t_mag) > gap_periods / fs_mag) | (np.diff(block_id) != 0)
-            edges = np.concatenate(([0], np.flatnonzero(cut) + 1, [rows.size]))
-            mag_blocks = [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
-            y, skipped = _lowpass_series(t_mag, mag[rows], mag_blocks, sos_mag, "mag")
-            out.loc[out.index[rows], list(MAG)] = y
+        rows = np.flatnonzero(full_rows)
+        info: dict = {"rows": int(rows.size)}
+        if rows.size == t.size:
+            sos = design_lowpass(order, cutoff_hz, fs_hz)
+            y, skipped = _lowpass_series(t, x, blocks, sos, sensor)
+            out[cols] = y
             unfiltered += skipped
-            mag_info["filtered"] = True
+            info.update(fs_hz=fs_hz, filtered=True)
+        elif rows.size >= 2:
+            t_own = t[rows]
+            fs_own = 1.0 / nominal_period(t_own)
+            info["fs_hz"] = fs_own
+            if cutoff_hz < fs_own / 2 * (1 - RATE_RTOL):
+                sos_own = design_lowpass(order, cutoff_hz, fs_own)
+                # a block of the series ends at a block boundary of the recording or at its
+                # own time gap
+                block_id = np.searchsorted([b for _, b in blocks], rows, side="right")
+                cut = (np.diff(t_own) > gap_threshold_s(t_own, gap_periods)) | (
+                    np.diff(block_id) != 0
+                )
+                edges = np.concatenate(([0], np.flatnonzero(cut) + 1, [rows.size]))
+                own_blocks = [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+                y, skipped = _lowpass_series(t_own, x[rows], own_blocks, sos_own, sensor)
+                out.loc[out.index[rows], cols] = y
+                unfiltered += skipped
+                info["filtered"] = True
+            elif sensor != "mag":
+                design_lowpass(order, cutoff_hz, fs_own)  # raises: acc/gyr must be filtered
+            else:
+                info["filtered"] = False
+                logger.warning(
+                    "%s: cutoff %.3g Hz is not below its Nyquist frequency (%.3g Hz at %.3g Hz); "
+                    "kept unfiltered",
+                    sensor,
+                    cutoff_hz,
+                    fs_own / 2,
+                    fs_own,
+                )
         else:
-            mag_info["filtered"] = False
-            logger.warning(
-                "mag: cutoff %.3g Hz is not below the magnetometer's Nyquist frequency "
-                "(%.3g Hz at %.3g Hz); magnetometer kept unfiltered",
-                cutoff_hz,
-                fs_mag / 2,
-                fs_mag,
-            )
-    else:
-        mag_info["filtered"] = False
+            info["filtered"] = False
+        series[sensor] = info
     out.attrs["lowpass"] = {
         "order": int(order),
         "cutoff_hz": float(cutoff_hz),
         "fs_hz": fs_hz,
+        "irregular_timestamps": sampling_period(t)[1],
         "gap_periods": float(gap_periods),
         "blocks": [[a, b] for a, b in blocks],
         "unfiltered": unfiltered,
-        "mag": mag_info,
+        "sensors": series,
+        "mag": series.get("mag", {"rows": 0, "filtered": False}),
     }
     return out

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from imucal import io
+from imucal import io, readers
 from imucal.columns import (
     ACC,
     GYR,
@@ -33,68 +33,24 @@ from imucal.columns import (
     SI_UNITS,
     TIME,
 )
-from imucal.dataset import IMU_RECORDINGS, Dataset
+from imucal.dataset import REFERENCE, Dataset
+from imucal.timebase import describe_timestamps, resolve_packet_steps, unwrap_counter
 
-#: Name of the recording that holds the MT Manager export of the reference IMU.
-REFERENCE = "reference"
-#: Steps up to this long (s) estimate the packet rate that resolves counter wraps in longer ones.
-ORDINARY_STEP_S = 1.0
+__all__ = [
+    "check_log",
+    "counts_to_si",
+    "ingest_recording",
+    "reference_to_table",
+    "resolve_packet_steps",
+    "summarize_dataset",
+    "summarize_recording",
+    "unwrap_counter",
+]
+
 #: The summary lists at most this many gaps (all are counted).
 MAX_LISTED_GAPS = 100
 #: ``SampleTimeFine`` of the MT Manager export is an unsigned 32-bit tick counter.
 REF_TICK_MODULUS = 2**32
-
-
-# --------------------------------------------------------------------------------------------
-# Packet counter
-
-
-def resolve_packet_steps(
-    seq: np.ndarray, t_s: np.ndarray, modulus: int = SEQ_MODULUS
-) -> tuple[np.ndarray, float]:
-    """Number of packets the counter advanced between consecutive rows, wraps resolved.
-
-    Parameters
-    ----------
-    seq : ndarray, shape (n,)
-        Packet counter, integers in ``[0, modulus)``.
-    t_s : ndarray, shape (n,)
-        Receiver time, s, non-decreasing.
-    modulus : int
-        The counter wraps at this value.
-
-    Returns
-    -------
-    advance : ndarray, shape (n - 1,), int64
-        Packets from row ``i`` to row ``i + 1``: 1 for consecutive packets, ``k + 1`` after
-        ``k`` lost packets, 0 for a repeated counter (duplicated packet), negative for a counter
-        that went back (out-of-order packet).
-    rate_hz : float
-        Packet rate estimated from the ordinary steps (forward by less than half the modulus,
-        at most :data:`ORDINARY_STEP_S` long); NaN if the time does not advance in them.
-
-    Notes
-    -----
-    The counter only gives the advance modulo ``modulus``: ``d = (seq[i+1] - seq[i]) mod M``.
-    Of all ``d + k M`` (``k`` integer) the advance is the one nearest to the number of packets
-    the elapsed time predicts, ``(t[i+1] - t[i]) * rate_hz``. In a step shorter than
-    ``M / (2 rate)`` (327 s at 100 Hz) that is ``d`` or ``d - M``; only a longer silence can
-    hide whole wraps, and the time counts them.
-    """
-    seq = np.asarray(seq, dtype=np.int64)
-    t_s = np.asarray(t_s, dtype=float)
-    d = np.mod(np.diff(seq), modulus)
-    dt = np.diff(t_s)
-    ordinary = (d >= 1) & (d < modulus // 2) & (dt <= ORDINARY_STEP_S)
-    elapsed = dt[ordinary].sum()
-    rate_hz = float(d[ordinary].sum() / elapsed) if elapsed > 0 else float("nan")
-    # Only a step that went back or lasted long can differ from d (cheap on long logs); an
-    # ordinary step keeps d for any packet rate below modulus / 2 / ORDINARY_STEP_S (32 kHz).
-    advance = d.copy()
-    odd = np.flatnonzero(~ordinary)
-    expected = dt[odd] * rate_hz if np.isfinite(rate_hz) else np.zeros(odd.size)
-    advance[odd] += np.round((expected - d[odd]) / modulus).astype(np.int64) * modulus
-    return advance, rate_hz
 
 
 # --------------------------------------------------------------------------------------------
@@ -242,10 +198,10 @@ def reference_to_table(export: io.MtManagerExport) -> pd.DataFrame:
     src = export.table
     counter = src[REF_COUNTER].to_numpy(dtype=np.int64)
     if REF_TIME_FINE in src.columns:
-        ticks = _unwrap(src[REF_TIME_FINE].to_numpy(dtype=np.int64), REF_TICK_MODULUS)
+        ticks = unwrap_counter(src[REF_TIME_FINE].to_numpy(dtype=np.int64), REF_TICK_MODULUS)
         t_s = ticks / REF_TICKS_PER_S
     else:
-        t_s = _unwrap(counter, SEQ_MODULUS) / export.update_rate_hz
+        t_s = unwrap_counter(counter, SEQ_MODULUS) / export.update_rate_hz
     data: dict[str, np.ndarray] = {TIME: t_s, SEQ: counter}
     for ours, theirs in ((ACC, REF_ACC), (GYR, REF_GYR), (MAG, REF_MAG)):
         for name, ref_name in zip(ours, theirs):
@@ -257,13 +213,6 @@ def reference_to_table(export: io.MtManagerExport) -> pd.DataFrame:
     return pd.DataFrame(data, copy=False)
 
 
-def _unwrap(counter: np.ndarray, modulus: int) -> np.ndarray:
-    """Counter continued across its wraps (assumes no step of half the modulus or more)."""
-    steps = np.mod(np.diff(counter), modulus)
-    steps = np.where(steps >= modulus // 2, steps - modulus, steps)
-    return counter[0] + np.concatenate(([0], np.cumsum(steps)))
-
-
 def ingest_recording(
     path: str | Path, recording: str, dataset: Dataset, imucal_version: str
 ) -> tuple[pd.DataFrame, dict]:
@@ -272,65 +221,150 @@ def ingest_recording(
     Parameters
     ----------
     path : str or Path
-        The raw file: native IMU CSV, or the MT Manager export for ``recording='reference'``.
+        The raw file: native IMU CSV, the MT Manager export for ``recording='reference'``, or
+        for a recording declared with a reader its first file (``dataset.recordings[name]``;
+        the declaration names the others).
     recording : str
-        Recording name ('rotation3d', 'cube', 'ratetable', 'static' or 'reference').
+        Recording name (one of :data:`imucal.dataset.RECORDING_NAMES`).
     dataset : Dataset
-        Gives the sensitivities and the dataset name.
+        Gives the sensitivities, the reader declarations, the section list and the name.
     imucal_version : str
         Package version, recorded in the metadata.
 
     Returns
     -------
-    table : DataFrame, shape (n, 11 + extra)
-        The ingested recording (``docs/architecture.md``).
+    table : DataFrame, shape (n, k)
+        The ingested recording (``docs/data-format.md``).
     metadata : dict
         ``dataset``, ``recording``, ``source``, ``format``, ``sha256``, ``sensitivity``
         (None for the reference, which is in SI units already), ``units`` (per column),
-        ``first_line`` (line of row 0 in the source), ``extra_columns``, ``imucal_version``,
-        and for the reference ``update_rate_hz`` and ``header``.
+        ``sensors`` (present), ``has_seq``, ``first_line`` (line of row 0 in the source, None
+        when rows are not lines of one file), ``extra_columns``, ``imucal_version``; for the
+        reference ``update_rate_hz`` and ``header``; for a declared recording ``reader``,
+        ``files`` (path and sha256 of each), ``source_units``, ``streams``/``parts`` and
+        ``sections`` (manual segment entries from the section list, when it names this
+        recording).
 
     Raises
     ------
     ValueError
-        If ``recording`` is not a known name.
-    FileNotFoundError, RawDataError
-        From the reader and :func:`check_log`.
+        If ``recording`` is not a recording of the dataset, or ``path`` is not its file.
+    FileNotFoundError, RawDataError, DeclarationError
+        From the readers and :func:`check_log`.
     """
+    if recording not in dataset.recordings:
+        raise ValueError(
+            f"unknown recording {recording!r}; dataset {dataset.name!r} has "
+            f"{sorted(dataset.recordings)}"
+        )
     metadata: dict[str, Any] = {
         "dataset": dataset.name,
         "recording": recording,
         "source": str(path),
         "imucal_version": imucal_version,
     }
-    if recording == REFERENCE:
+    if recording in dataset.readers:
+        if Path(path).resolve() != Path(dataset.recordings[recording]).resolve():
+            raise ValueError(
+                f"{path}: not the file of the declared recording {recording!r}; expected "
+                f"{dataset.recordings[recording]}"
+            )
+        table, declared = _ingest_declared(recording, dataset)
+        metadata.update(declared)
+    elif recording == REFERENCE:
         export = io.read_mt_manager_export(path)
         table = reference_to_table(export)
-        first_line = export.first_line
+        check_log(table, path, export.first_line)
         metadata.update(
             format=io.MT_MANAGER_FORMAT,
             sensitivity=None,
             update_rate_hz=export.update_rate_hz,
             header=export.header,
+            first_line=export.first_line,
+            sha256=io.sha256_file(path),
         )
-    elif recording in IMU_RECORDINGS:
-        counts = io.read_imu_csv(path)
-        first_line = 2
-        table = counts_to_si(counts, dataset.sensitivity)
-        metadata.update(format=io.IMU_CSV_FORMAT, sensitivity=dict(dataset.sensitivity))
     else:
-        raise ValueError(
-            f"unknown recording {recording!r}; expected one of {(*IMU_RECORDINGS, REFERENCE)}"
+        counts = io.read_imu_csv(path)
+        table = counts_to_si(counts, dataset.sensitivity)
+        check_log(table, path, 2)
+        metadata.update(
+            format=io.IMU_CSV_FORMAT,
+            sensitivity=dict(dataset.sensitivity),
+            first_line=2,
+            sha256=io.sha256_file(path),
         )
-    check_log(table, path, first_line)
-    extra = [c for c in table.columns if c not in RAW_COLUMNS]
-    units = {TIME: "s", SEQ: "1"}
-    units.update({c: SI_UNITS[s] for s, cols in SENSOR_COLUMNS.items() for c in cols})
+    sensors = [s for s, cols in SENSOR_COLUMNS.items() if cols[0] in table.columns]
+    extra = [
+        c for c in table.columns if c not in (TIME, SEQ) and c not in _SENSOR_COLUMN_NAMES
+    ]
+    units = {TIME: "s"}
+    if SEQ in table.columns:
+        units[SEQ] = "1"
+    units.update({c: SI_UNITS[s] for s in sensors for c in SENSOR_COLUMNS[s]})
     units.update({c: "as in the source" for c in extra})
     metadata.update(
-        sha256=io.sha256_file(path), units=units, first_line=first_line, extra_columns=extra
+        units=units, sensors=sensors, has_seq=SEQ in table.columns, extra_columns=extra
     )
     return table, metadata
+
+
+_SENSOR_COLUMN_NAMES = {c for cols in SENSOR_COLUMNS.values() for c in cols}
+
+
+def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, dict]:
+    """A recording declared with a reader: read, check, resolve its section list."""
+    where = f"{dataset.yaml_path}: recordings.{recording}"
+    sections = dataset.sections if (dataset.sections or {}).get("recording") == recording else None
+    label_column = sections.get("from_column") if sections else None
+    rec = readers.read_declared(
+        dataset.readers[recording],
+        where=where,
+        field_norm_t=dataset.field_norm_t,
+        label_column=label_column,
+    )
+    table = rec.table
+    first_line = rec.metadata.get("first_line")
+    files = rec.metadata["files"]
+    if SEQ in table.columns:
+        check_log(table, files[0]["path"] if len(files) == 1 else where, first_line or 0)
+    meta: dict[str, Any] = {
+        "format": "declared",
+        "reader": dataset.readers[recording],
+        "files": files,
+        "sha256": files[0]["sha256"],
+        "source_units": rec.metadata["source_units"],
+        "sensitivity": _declared_sensitivity(dataset.readers[recording]),
+        "first_line": first_line if len(files) == 1 else None,
+        "field_norm_t": dataset.field_norm_t,
+    }
+    for key in ("streams", "parts", "part_gap_s", "sorted_by_time"):
+        if key in rec.metadata:
+            meta[key] = rec.metadata[key]
+    if sections is not None:
+        meta["sections"] = readers.read_sections(
+            sections,
+            where=f"{dataset.yaml_path}: sections",
+            t_s=table[TIME].to_numpy(dtype=float),
+            primary_t_s=rec.primary_t_s,
+            labels=rec.labels,
+        )
+        if "file" in sections:
+            meta["sections_file"] = {
+                "path": sections["file"],
+                "sha256": io.sha256_file(sections["file"]),
+            }
+    return table, meta
+
+
+def _declared_sensitivity(declaration: Mapping[str, Any]) -> dict:
+    """Sensitivities (SI per count) of the entries of a declaration, by sensor."""
+    entries = [declaration]
+    out: dict = {}
+    while entries:
+        entry = entries.pop(0)
+        entries += list(entry.get("parts", [])) + list(entry.get("streams", []))
+        out.update(entry.get("sensitivity") or {})
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -338,56 +372,45 @@ def ingest_recording(
 
 
 def summarize_recording(table: pd.DataFrame, metadata: Mapping[str, Any]) -> dict:
-    """Summarise an ingested recording: duration, rates, lost packets, gaps, order, mag samples.
+    """Summarise an ingested recording: duration, rates, time steps, lost packets, sensors.
 
     Parameters
     ----------
     table : DataFrame, shape (n, k)
-        Ingested recording (``t_s`` in s, ``seq``, ``mag_*`` NaN where no fresh sample).
+        Ingested recording (``t_s`` in s, ``seq`` when there is a counter, the columns of the
+        sensors present, NaN on rows without a sample of that sensor).
     metadata : mapping
-        Its metadata (``source``, ``format``, ``sha256``, ``first_line``, ``extra_columns``).
+        Its metadata (``source``, ``format``, ``sha256``, ``first_line``, ``extra_columns``, and
+        for a declared recording ``files``, ``source_units``, ``parts``).
 
     Returns
     -------
     dict
         ``rows``, ``t_start_s``, ``t_end_s``, ``duration_s``, ``rate_hz`` (packet rate,
-        lost packets included), ``received_rate_hz``, ``lost_packets`` (from ``seq`` across
-        wraps), ``lost_fraction``, ``n_gaps``, ``gaps`` (the first :data:`MAX_LISTED_GAPS`:
-        ``line``, ``t_s``, ``dt_s``, ``seq_before``, ``seq``, ``lost``), ``duplicated_rows``,
-        ``out_of_order_rows``, ``mag_samples``, ``mag_rate_hz`` (received magnetometer
-        samples per second), ``extra_columns`` and the source's ``source``, ``format``,
-        ``sha256``. Unknown values are None, never NaN.
+        lost packets included; without a counter the received rate), ``received_rate_hz``,
+        the time-step statistics of :func:`imucal.timebase.describe_timestamps`
+        (``dt_median_s``, ``dt_mean_s``, ``dt_max_s``, ``effective_rate_hz`` = rows /
+        duration, ``non_increasing_steps``, ``irregular``, ``nominal_period_s``),
+        ``has_seq``, ``lost_packets`` (from ``seq`` across wraps; None without a counter),
+        ``lost_fraction``, ``n_gaps``, ``gaps`` (the first :data:`MAX_LISTED_GAPS`: ``line``,
+        ``t_s``, ``dt_s``, ``seq_before``, ``seq``, ``lost``), ``duplicated_rows``,
+        ``out_of_order_rows``, ``sensors`` (present), ``samples`` and ``sample_rate_hz`` per
+        sensor, ``mag_samples``, ``mag_rate_hz``, ``notes`` (what could not be checked),
+        ``extra_columns`` and the source's ``source``, ``format``, ``sha256``, ``files``,
+        ``source_units``, ``parts``. Unknown values are None, never NaN.
 
     Notes
     -----
     Packets lost before the first or after the last received row leave no jump in ``seq``
-    and cannot be counted.
+    and cannot be counted; without ``seq`` no lost packet can be counted at all.
     """
     t_s = table[TIME].to_numpy(dtype=float)
-    seq = table[SEQ].to_numpy(dtype=np.int64)
-    first_line = int(metadata.get("first_line", 2))
+    first_line = metadata.get("first_line")
     n = len(t_s)
     duration = float(t_s[-1] - t_s[0]) if n else 0.0
-    advance, _ = resolve_packet_steps(seq, t_s)
-    forward = advance[advance > 0]
-    lost = np.where(advance > 1, advance - 1, 0)
-    gap_steps = np.flatnonzero(advance > 1)
-    gaps = [
-        {
-            "line": int(first_line + i + 1),
-            "t_s": float(t_s[i + 1]),
-            "dt_s": float(t_s[i + 1] - t_s[i]),
-            "seq_before": int(seq[i]),
-            "seq": int(seq[i + 1]),
-            "lost": int(lost[i]),
-        }
-        for i in gap_steps[:MAX_LISTED_GAPS]
-    ]
-    has_mag = ~np.isnan(table[MAG[0]].to_numpy(dtype=float))
-    t_mag = t_s[has_mag]
-    mag_span = float(t_mag[-1] - t_mag[0]) if t_mag.size >= 2 else 0.0
-    lost_total = int(lost.sum())
-    return {
+    has_seq = SEQ in table.columns
+    notes = []
+    summary: dict[str, Any] = {
         "source": metadata.get("source"),
         "format": metadata.get("format"),
         "sha256": metadata.get("sha256"),
@@ -395,18 +418,79 @@ def summarize_recording(table: pd.DataFrame, metadata: Mapping[str, Any]) -> dic
         "t_start_s": float(t_s[0]) if n else None,
         "t_end_s": float(t_s[-1]) if n else None,
         "duration_s": duration,
-        "rate_hz": float(forward.sum()) / duration if duration > 0 else None,
         "received_rate_hz": (n - 1) / duration if duration > 0 else None,
-        "lost_packets": lost_total,
-        "lost_fraction": lost_total / (n + lost_total) if n else None,
-        "n_gaps": int(gap_steps.size),
-        "gaps": gaps,
-        "duplicated_rows": int(np.count_nonzero(advance == 0)),
-        "out_of_order_rows": int(np.count_nonzero(advance < 0)),
-        "mag_samples": int(has_mag.sum()),
-        "mag_rate_hz": (t_mag.size - 1) / mag_span if mag_span > 0 else None,
-        "extra_columns": list(metadata.get("extra_columns", [])),
+        **describe_timestamps(t_s),
+        "has_seq": has_seq,
     }
+    if has_seq:
+        seq = table[SEQ].to_numpy(dtype=np.int64)
+        advance, _ = resolve_packet_steps(seq, t_s)
+        forward = advance[advance > 0]
+        lost = np.where(advance > 1, advance - 1, 0)
+        gap_steps = np.flatnonzero(advance > 1)
+        line0 = 0 if first_line is None else int(first_line)
+        gaps = [
+            {
+                "line": int(line0 + i + 1) if first_line is not None else None,
+                "t_s": float(t_s[i + 1]),
+                "dt_s": float(t_s[i + 1] - t_s[i]),
+                "seq_before": int(seq[i]),
+                "seq": int(seq[i + 1]),
+                "lost": int(lost[i]),
+            }
+            for i in gap_steps[:MAX_LISTED_GAPS]
+        ]
+        lost_total = int(lost.sum())
+        summary.update(
+            rate_hz=float(forward.sum()) / duration if duration > 0 else None,
+            lost_packets=lost_total,
+            lost_fraction=lost_total / (n + lost_total) if n else None,
+            n_gaps=int(gap_steps.size),
+            gaps=gaps,
+            duplicated_rows=int(np.count_nonzero(advance == 0)),
+            out_of_order_rows=int(np.count_nonzero(advance < 0)),
+        )
+    else:
+        notes.append("no packet counter (seq): lost packets cannot be counted")
+        summary.update(
+            rate_hz=summary["received_rate_hz"],
+            lost_packets=None,
+            lost_fraction=None,
+            n_gaps=None,
+            gaps=[],
+            duplicated_rows=None,
+            out_of_order_rows=None,
+        )
+    if summary["irregular"]:
+        notes.append(
+            "irregular timestamps (receive times in bursts): kept as they are; the nominal "
+            "period is the effective one"
+        )
+    sensors = [s for s, cols in SENSOR_COLUMNS.items() if cols[0] in table.columns]
+    absent = [s for s in SENSOR_COLUMNS if s not in sensors]
+    if absent:
+        notes.append(f"sensors absent from this recording: {', '.join(absent)}")
+    samples: dict[str, int] = {}
+    sample_rate: dict[str, float | None] = {}
+    for sensor in sensors:
+        has = ~np.isnan(table[SENSOR_COLUMNS[sensor][0]].to_numpy(dtype=float))
+        t_own = t_s[has]
+        span = float(t_own[-1] - t_own[0]) if t_own.size >= 2 else 0.0
+        samples[sensor] = int(has.sum())
+        sample_rate[sensor] = (t_own.size - 1) / span if span > 0 else None
+    summary.update(
+        sensors=sensors,
+        samples=samples,
+        sample_rate_hz=sample_rate,
+        mag_samples=samples.get("mag", 0),
+        mag_rate_hz=sample_rate.get("mag"),
+        extra_columns=list(metadata.get("extra_columns", [])),
+        notes=notes,
+    )
+    for key in ("files", "source_units", "parts", "sections"):
+        if key in metadata:
+            summary[key] = metadata[key]
+    return summary
 
 
 def summarize_dataset(
@@ -425,11 +509,15 @@ def summarize_dataset(
     -------
     dict
         ``{'dataset': ..., 'recordings': {name: summarize_recording(...)}}`` plus the total
-        ``lost_packets``.
+        ``lost_packets`` of the recordings with a packet counter and ``sensors`` (present in
+        some recording).
     """
     per_recording = {name: summarize_recording(t, m) for name, (t, m) in recordings.items()}
     return {
         "dataset": dataset,
-        "lost_packets": sum(s["lost_packets"] for s in per_recording.values()),
+        "lost_packets": sum(s["lost_packets"] or 0 for s in per_recording.values()),
+        "sensors": [
+            s for s in SENSOR_COLUMNS if any(s in r["sensors"] for r in per_recording.values())
+        ],
         "recordings": per_recording,
     }

@@ -56,7 +56,7 @@ logger = logging.getLogger(__name__)
 #: Columns of the segments table, in order (docs/architecture.md).
 SEGMENT_COLUMNS = (
     "recording", "label", "kind", "start_s", "end_s", "start_index", "end_index",
-    "axis", "rate_dps", "sense", "turns",
+    "axis", "rate_dps", "sense", "turns", "up", "angle_deg",
 )  # fmt: skip
 KINDS = ("static", "phase", "transition", "position", "run")
 #: Recordings the segmentation knows, in protocol order.
@@ -346,11 +346,13 @@ def _describe(t: np.ndarray, m: Motion) -> str:
     )
 
 
-def _row(recording, label, kind, t, a, b, axis="", rate_dps=np.nan, sense=0, turns=np.nan):
+def _row(recording, label, kind, t, a, b, axis="", rate_dps=np.nan, sense=0, turns=np.nan,
+         up="", angle_deg=np.nan):  # fmt: skip
     return {
         "recording": recording, "label": label, "kind": kind,
         "start_s": float(t[a]), "end_s": float(t[b - 1]), "start_index": int(a), "end_index": int(b),
         "axis": axis, "rate_dps": float(rate_dps), "sense": int(sense), "turns": float(turns),
+        "up": up, "angle_deg": float(angle_deg),
     }  # fmt: skip
 
 
@@ -365,6 +367,7 @@ def _frame(rows: list[dict]) -> pd.DataFrame:
             "rate_dps": float,
             "sense": np.int64,
             "turns": float,
+            "angle_deg": float,
         }
     )
 
@@ -657,7 +660,8 @@ def manual_segments(recording: str, t_s: np.ndarray, entries: list[dict]) -> pd.
         Timestamps of the ingested recording, s.
     entries : list of dict
         ``segments:`` entries of ``dataset.yaml`` naming this recording (keys ``label``, ``kind``,
-        ``start_s``, ``end_s``, optional ``axis``, ``rate_dps``).
+        ``start_s``, ``end_s``, optional ``axis``, ``rate_dps``, ``up``, ``angle_deg``), or the
+        entries of a section list (:func:`imucal.readers.read_sections`).
 
     Returns
     -------
@@ -686,7 +690,10 @@ def manual_segments(recording: str, t_s: np.ndarray, entries: list[dict]) -> pd.
                 "and at least 2 samples inside the recording"
             )
         rate = e.get("rate_dps", np.nan)
-        rows.append(_row(recording, e["label"], e["kind"], t, a, b, e.get("axis", ""), rate))
+        rows.append(
+            _row(recording, e["label"], e["kind"], t, a, b, e.get("axis", ""), rate,
+                 up=e.get("up", ""), angle_deg=e.get("angle_deg", np.nan))  # fmt: skip
+        )
     frame = _frame(rows)
     dup = frame["label"][frame["label"].duplicated()].tolist()
     if dup:
@@ -722,18 +729,35 @@ def segment_recording(
     """
     if recording not in RECORDINGS:
         raise ValueError(f"recording {recording!r}: expected one of {RECORDINGS}")
+    missing = [c for c in (*ACC, *GYR) if c not in table.columns]
+    if missing:
+        raise ValueError(
+            f"{recording}: no column(s) {missing}; the automatic segmentation needs the "
+            "accelerometer and the gyroscope (give a section list or manual segments instead)"
+        )
     t = table[TIME].to_numpy(dtype=float)
     acc = table[list(ACC)].to_numpy(dtype=float)
     gyr = table[list(GYR)].to_numpy(dtype=float)
+    # streams merged on time leave rows without an acc/gyr sample (NaN): segment the rows with
+    # both, then give the indices in rows of the whole table
+    rows = np.flatnonzero(np.isnan(acc).all(axis=1) | np.isnan(gyr).all(axis=1))
+    keep = np.setdiff1d(np.arange(t.size), rows) if rows.size else None
+    if keep is not None:
+        t, acc, gyr = t[keep], acc[keep], gyr[keep]
     if recording == "rotation3d":
-        return segment_rotation3d(t, acc, gyr, settings)
-    if recording == "cube":
-        return segment_cube(t, acc, gyr, settings)
-    if recording == "static":
-        return segment_static(t, acc, gyr, settings)
-    if ratetable is None:
+        out = segment_rotation3d(t, acc, gyr, settings)
+    elif recording == "cube":
+        out = segment_cube(t, acc, gyr, settings)
+    elif recording == "static":
+        out = segment_static(t, acc, gyr, settings)
+    elif ratetable is None:
         raise ValueError("recording 'ratetable' needs the table's axes and rates_dps; got none")
-    return segment_ratetable(t, acc, gyr, ratetable["axes"], ratetable["rates_dps"], settings)
+    else:
+        out = segment_ratetable(t, acc, gyr, ratetable["axes"], ratetable["rates_dps"], settings)
+    if keep is not None and len(out):
+        out["start_index"] = keep[out["start_index"].to_numpy()]
+        out["end_index"] = keep[out["end_index"].to_numpy() - 1] + 1
+    return out
 
 
 def segment_dataset(

@@ -39,6 +39,7 @@ from scipy.signal import correlate
 from scipy.spatial.transform import Rotation
 
 from imucal.columns import ACC, GYR, MAG, SENSOR_COLUMNS, SENSORS, SEQ, SEQ_MODULUS, TIME
+from imucal.timebase import unwrap_counter
 
 #: The time convention of :class:`TimeAlignment`, written into the JSON result.
 TIME_CONVENTION = "t_ref = offset_s + (1 + drift_ppm * 1e-6) * t_module"
@@ -53,8 +54,10 @@ NO_REFERENCE_NOTE = (
 # --------------------------------------------------------------------------- time axes
 
 
-def unwrap_seq(seq: np.ndarray, modulus: int = SEQ_MODULUS) -> np.ndarray:
-    """Packet index from a wrapping packet counter.
+def unwrap_seq(
+    seq: np.ndarray, modulus: int = SEQ_MODULUS, t_s: np.ndarray | None = None
+) -> np.ndarray:
+    """Packet index from a wrapping packet counter (:func:`imucal.timebase.unwrap_counter`).
 
     Parameters
     ----------
@@ -62,6 +65,8 @@ def unwrap_seq(seq: np.ndarray, modulus: int = SEQ_MODULUS) -> np.ndarray:
         Received packet counters in order of reception, counting modulo ``modulus``.
     modulus : int
         Counter period (65536 for a 16-bit counter).
+    t_s : array_like, shape (n,), optional
+        Receiver times, s; with them a silence longer than a wrap is counted from the time.
 
     Returns
     -------
@@ -75,7 +80,8 @@ def unwrap_seq(seq: np.ndarray, modulus: int = SEQ_MODULUS) -> np.ndarray:
 
     Notes
     -----
-    A loss of ``modulus`` or more consecutive packets cannot be told from a smaller one.
+    Without ``t_s`` a loss of ``modulus / 2`` or more consecutive packets cannot be told from a
+    counter going back.
     """
     s = np.asarray(seq)
     if s.ndim != 1 or s.size == 0:
@@ -87,7 +93,8 @@ def unwrap_seq(seq: np.ndarray, modulus: int = SEQ_MODULUS) -> np.ndarray:
             f"seq repeats the value {int(s[first])} at rows {first} and {first + 1}; "
             "expected a strictly advancing packet counter"
         )
-    return np.concatenate([[0], np.cumsum(step)])
+    index = unwrap_counter(s, modulus, t_s)
+    return index - index[0]
 
 
 def packet_times(t_s: np.ndarray, seq: np.ndarray) -> np.ndarray:
@@ -115,11 +122,11 @@ def packet_times(t_s: np.ndarray, seq: np.ndarray) -> np.ndarray:
         If the shapes differ, fewer than 2 samples are given or the timestamps are not finite.
     """
     t = np.asarray(t_s, dtype=float)
-    index = unwrap_seq(seq)
-    if t.shape != index.shape:
-        raise ValueError(f"t_s has shape {t.shape} but seq has shape {index.shape}; expected equal")
+    if t.shape != np.shape(seq):
+        raise ValueError(f"t_s has shape {t.shape} but seq has shape {np.shape(seq)}; expected equal")
     if t.size < 2 or not np.all(np.isfinite(t)):
         raise ValueError(f"t_s must hold at least 2 finite timestamps, got {t.size} samples")
+    index = unwrap_seq(seq, t_s=t)
     period, t0 = np.polyfit(index.astype(float), t, 1)
     if period <= 0:
         raise ValueError(
