@@ -544,6 +544,7 @@ def build_report_context(
     gyr_result: Mapping | str | Path | None = None,
     validation: Mapping | str | Path | None = None,
     tables: pd.DataFrame | str | Path | None = None,
+    stages: Mapping | str | Path | None = None,
     figures: Sequence[str | Path] = (),
     captions: Mapping[str, str] | None = None,
     benchmarks: Sequence[str | Path] | Mapping[str, str | Path] = (),
@@ -562,7 +563,10 @@ def build_report_context(
     summary : mapping or path
         ``results/{dataset}/ingest/summary.json`` (:func:`imucal.ingest.summarize_dataset`).
     calibration : mapping or path
-        ``results/{dataset}/calibration.json`` (:meth:`imucal.ImuCalibration.to_dict`).
+        ``results/{dataset}/calibration.json`` (:meth:`imucal.ImuCalibration.to_dict`); a partial
+        session's calibration may lack sensors it names in ``missing`` (sensor -> reason).
+    stages : mapping or path, optional
+        ``results/{dataset}/stages.json``: ``stages``, a list of {stage, what, status, reason}.
     mag_result, acc_result, gyr_result : mapping or path, optional
         The per-stage JSONs (``mag.json``, ``acc.json``, ``gyr.json``); rendered generically.
     validation : mapping or path, optional
@@ -601,9 +605,14 @@ def build_report_context(
     """
     summary = _load_json(summary, "ingest summary")
     calibration = _load_json(calibration, "calibration")
-    missing = [s for s in SENSORS if s not in calibration]
+    not_calibrated = dict(calibration.get("missing", {}))
+    missing = [s for s in SENSORS if s not in calibration and s not in not_calibrated]
     if missing:
-        raise ValueError(f"calibration lacks the sensors {missing}; expected acc, gyr and mag")
+        raise ValueError(
+            f"calibration lacks the sensors {missing} and gives no reason for them in 'missing'; "
+            "expected acc, gyr and mag"
+        )
+    stages = _optional_json(stages, "stages.json")
     results = {
         "mag": _optional_json(mag_result, "mag.json"),
         "acc": _optional_json(acc_result, "acc.json"),
@@ -636,6 +645,19 @@ def build_report_context(
     sensors = []
     for sensor, section in SENSOR_SECTIONS.items():
         result = results[sensor]
+        if sensor in not_calibrated:
+            sensors.append(
+                {
+                    "id": section,
+                    "title": SECTION_TITLES[section],
+                    "parameters": None,
+                    "result_file": f"{sensor}.json",
+                    "result": None,
+                    "figures": figure_items[section],
+                    "notes": [f"Not calibrated: {not_calibrated[sensor]}"],
+                }
+            )
+            continue
         sensors.append(
             {
                 "id": section,
@@ -671,10 +693,15 @@ def build_report_context(
         "methods": [
             {
                 "sensor": SECTION_TITLES[section],
-                "method": calibration[s].get("method") or "not stated",
+                "method": (
+                    f"not calibrated: {not_calibrated[s]}"
+                    if s in not_calibrated
+                    else calibration[s].get("method") or "not stated"
+                ),
             }
             for s, section in SENSOR_SECTIONS.items()
         ],
+        "stages": None if stages is None else list(stages.get("stages", [])),
         "segmentation_figures": figure_items["segmentation"],
         "other_figures": figure_items["other"],
         "sensors": sensors,

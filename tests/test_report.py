@@ -348,6 +348,34 @@ def test_missing_artifacts_give_sentences(artifacts):
     assert "No tables.csv was given" in no_tables
 
 
+def test_partial_session_lists_stages_and_uncalibrated_sensors(artifacts):
+    calibration = dict(artifacts["calibration"])
+    del calibration["acc"]
+    calibration["missing"] = {"acc": "no stage of this sensor could run: acc_cube: needs poses"}
+    stages = {
+        "stages": [
+            {"stage": "mag_step1", "what": "magnetometer ellipsoid fit", "status": "run",
+             "reason": "ran"},
+            {"stage": "acc_cube", "what": "accelerometer fit", "status": "skipped",
+             "reason": "not applicable: needs >= 9 static poses"},
+        ]
+    }
+    html = render_report(
+        build_report_context(
+            dataset="demo", summary=artifacts["summary"], calibration=calibration, stages=stages
+        )
+    )
+    doc = parse(html)
+    assert doc.errors == []
+    assert "Stages run and skipped" in doc.headings
+    assert "not applicable: needs &gt;= 9 static poses" in html
+    assert "Not calibrated: no stage of this sensor could run" in html
+    assert "not calibrated: no stage of this sensor could run" in html  # methods table
+    with pytest.raises(ValueError, match="gives no reason"):
+        del calibration["missing"]
+        build_report_context(dataset="demo", summary=artifacts["summary"], calibration=calibration)
+
+
 def test_reference_without_validation_says_so(artifacts):
     html = render_report(
         build_report_context(
