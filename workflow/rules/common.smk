@@ -3,7 +3,7 @@
 from pathlib import Path
 
 import imucal
-from imucal.dataset import IMU_RECORDINGS, read_dataset
+from imucal.dataset import IMU_RECORDINGS, RECORDING_NAMES, read_dataset
 
 DATASETS = sorted(config["datasets"])
 #: Package version as a param of every fit rule: an upgrade of imucal reruns them.
@@ -12,7 +12,7 @@ IMUCAL_VERSION = imucal.__version__
 
 wildcard_constraints:
     dataset="[a-z0-9_]+",
-    recording="|".join(("rotation3d", "cube", "ratetable", "static", "reference")),
+    recording="|".join(RECORDING_NAMES),
 
 
 def dataset_folder(wildcards):
@@ -29,14 +29,9 @@ def dataset_yaml(wildcards):
 
 
 def raw_recording(wildcards):
-    """The raw file of one recording, as named in dataset.yaml."""
+    """Every file one recording reads (streams, parts, section list), as named in dataset.yaml."""
     info = dataset_info(wildcards)
-    if wildcards.recording not in info.recordings:
-        raise ValueError(
-            f"dataset {wildcards.dataset!r} ({info.folder}/dataset.yaml) has no recording "
-            f"{wildcards.recording!r}; it has {sorted(info.recordings)}"
-        )
-    return str(info.recordings[wildcards.recording])
+    return [str(path) for path in info.recording_files(wildcards.recording)]
 
 
 def ingested(wildcards):

@@ -1,5 +1,6 @@
-# Stage 1: ingest. Each raw recording (IMU CSV in counts, or the MT Manager export of the
-# reference) is read, checked and converted to SI units; then one summary per dataset.
+# Stage 1: ingest. Each raw recording (IMU CSV in counts, the MT Manager export of the
+# reference, or a recording declared with a reader in dataset.yaml: every file it reads is an
+# input) is read, checked and converted to SI units; then one summary per dataset.
 
 
 rule ingest:

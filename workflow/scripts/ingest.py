@@ -1,4 +1,4 @@
-"""Rule ingest: one raw recording -> checked parquet in SI units (imucal.ingest)."""
+"""Rule ingest: one raw or declared recording -> checked parquet in SI units (imucal.ingest)."""
 
 import logging
 from pathlib import Path
@@ -15,14 +15,15 @@ logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 log = logging.getLogger(__name__)
 try:
     dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
+    raw = dataset.recordings[snakemake.wildcards.recording]  # the others: snakemake.input.raw
     table, metadata = ingest_recording(
-        snakemake.input.raw,
+        raw,
         recording=snakemake.wildcards.recording,
         dataset=dataset,
         imucal_version=snakemake.params.imucal_version,
     )
     write_recording(table, snakemake.output.table, metadata)
-    log.info("%s: %d rows -> %s", snakemake.input.raw, len(table), snakemake.output.table)
+    log.info("%s: %d rows -> %s", list(snakemake.input.raw), len(table), snakemake.output.table)
 except Exception:
     log.exception("ingest of %s failed", snakemake.input.raw)
     raise

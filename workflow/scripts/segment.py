@@ -15,12 +15,19 @@ logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 try:
     dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
     names = [name for name in IMU_RECORDINGS if name in snakemake.input.keys()]  # noqa: SIM118 (a Namedlist: `in` tests values)
-    tables = {name: read_recording(getattr(snakemake.input, name))[0] for name in names}
+    loaded = {name: read_recording(getattr(snakemake.input, name)) for name in names}
+    tables = {name: table for name, (table, _) in loaded.items()}
+    # a section list of dataset.yaml was resolved at ingest (metadata 'sections')
+    sections = [
+        {"recording": name, **entry}
+        for name, (_, meta) in loaded.items()
+        for entry in meta.get("sections", [])
+    ]
     p = snakemake.params
     segments = segment_dataset(
         tables,
         ratetable=dataset.ratetable,
-        manual=dataset.segments,
+        manual=dataset.segments + sections,
         window_s=p.window_s,
         p_false=p.p_false,
         min_static_s=p.min_static_s,
