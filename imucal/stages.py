@@ -250,6 +250,37 @@ def _adjacent_static(segments: pd.DataFrame, phase: pd.Series) -> tuple[pd.Serie
     return before.iloc[-1], after.iloc[0]
 
 
+def integration_times(table: pd.DataFrame) -> np.ndarray:
+    """Strictly increasing sample times of a table's rows, for integrating a rate, s.
+
+    Receive timestamps come in bursts (equal or near-equal stamps, then a pause), which would
+    weight samples by the receiver's latency rather than by their sampling interval. With a
+    packet counter the times are :func:`imucal.validation.packet_times` (a line through the
+    timestamps against the unwrapped counter: jitter averages out, lost packets leave exact
+    gaps); without one, strictly increasing timestamps are kept and bursty ones are replaced by
+    the least-squares line against the row index (every row a sample, none lost: the only
+    assumption left when the logger records no counter).
+
+    Parameters
+    ----------
+    table : DataFrame
+        Rows of one sensor's samples, columns ``t_s`` and optionally ``seq``.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    from imucal import validation
+
+    t = table[TIME].to_numpy(dtype=float)
+    if "seq" in table.columns:
+        return validation.packet_times(t, table["seq"].to_numpy())
+    if t.size < 2 or np.all(np.diff(t) > 0):
+        return t
+    period, t0 = np.polyfit(np.arange(t.size, dtype=float), t, 1)
+    return t0 + period * np.arange(t.size)
+
+
 def estimate_gyr_scale(
     rotation3d: pd.DataFrame,
     segments: pd.DataFrame,
@@ -315,11 +346,13 @@ def estimate_gyr_scale(
         measured = [a for a in angles.values() if isinstance(a, float)]
         if not measured:
             raise ValueError(f"phase {phase.label!r}: no sensor could measure its angle: {angles}")
-        rate = errormodel.apply(rotation, o, window[list(GYR)].to_numpy(dtype=float))
+        raw = window[list(GYR)].to_numpy(dtype=float)
+        fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
+        rate = errormodel.apply(rotation, o, raw[fresh])
         k = AXES.index(phase.label)
         spread = float(np.std(measured)) if len(measured) > 1 else 0.0
         result = gyroscope.estimate_scale(
-            window[TIME].to_numpy(dtype=float),
+            integration_times(window[fresh]),
             rate,
             phase.label,
             float(np.mean(measured)),
