@@ -166,8 +166,7 @@ def read_dataset(folder: str | Path) -> Dataset:
     unknown = sorted({e["recording"] for e in manual} - set(recordings))
     if unknown:
         raise ValueError(
-            f"{path}: key 'segments': recording(s) {unknown} not in recordings "
-            f"{sorted(recordings)}"
+            f"{path}: key 'segments': recording(s) {unknown} not in recordings {sorted(recordings)}"
         )
     return Dataset(
         name=cfg["name"],
@@ -252,4 +251,3 @@ def _sections(sections: dict, folder: Path, recordings: dict, where: str) -> dic
     if has_file:
         sections["file"] = str(_resolve(folder, sections["file"]))
     return sections
-

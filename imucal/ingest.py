@@ -294,17 +294,13 @@ def ingest_recording(
             sha256=io.sha256_file(path),
         )
     sensors = [s for s, cols in SENSOR_COLUMNS.items() if cols[0] in table.columns]
-    extra = [
-        c for c in table.columns if c not in (TIME, SEQ) and c not in _SENSOR_COLUMN_NAMES
-    ]
+    extra = [c for c in table.columns if c not in (TIME, SEQ) and c not in _SENSOR_COLUMN_NAMES]
     units = {TIME: "s"}
     if SEQ in table.columns:
         units[SEQ] = "1"
     units.update({c: SI_UNITS[s] for s in sensors for c in SENSOR_COLUMNS[s]})
     units.update({c: "as in the source" for c in extra})
-    metadata.update(
-        units=units, sensors=sensors, has_seq=SEQ in table.columns, extra_columns=extra
-    )
+    metadata.update(units=units, sensors=sensors, has_seq=SEQ in table.columns, extra_columns=extra)
     return table, metadata
 
 

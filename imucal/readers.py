@@ -170,7 +170,9 @@ def _read_streams_or_entry(
 ) -> DeclaredRecording:
     if "streams" in declaration:
         streams = [
-            read_entry(s, where=f"{where}.streams[{i}]", field_norm_t=field_norm_t, label_column=label)
+            read_entry(
+                s, where=f"{where}.streams[{i}]", field_norm_t=field_norm_t, label_column=label
+            )
             for i, s in enumerate(declaration["streams"])
         ]
         return merge_streams(streams, where)
@@ -266,8 +268,10 @@ def _check_targets(columns: Mapping[str, Any], where: str) -> None:
                 f"target {target!r}",
                 "t_s, seq, acc_x..mag_z or an extra name of lower-case letters, digits and _",
             )
-        if isinstance(source, bool) or not isinstance(source, (str, int)) or (
-            isinstance(source, int) and source < 0
+        if (
+            isinstance(source, bool)
+            or not isinstance(source, (str, int))
+            or (isinstance(source, int) and source < 0)
         ):
             raise DeclarationError(
                 f"{where}.columns.{target}",
@@ -359,9 +363,11 @@ def _read_table(
 def _numbers(cells: pd.Series, path: Path, column: Any, first_line: int) -> np.ndarray:
     """Cells to float64; an empty cell is NaN, anything else that is not a number is an error."""
     values = pd.to_numeric(cells.str.strip(), errors="coerce").to_numpy(dtype=float)
-    bad = np.isnan(values) & (cells.str.strip() != "").to_numpy() & ~cells.str.strip().str.lower().isin(
-        ["nan"]
-    ).to_numpy()
+    bad = (
+        np.isnan(values)
+        & (cells.str.strip() != "").to_numpy()
+        & ~cells.str.strip().str.lower().isin(["nan"]).to_numpy()
+    )
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
         raise io.RawDataError(
@@ -421,7 +427,9 @@ def _read_arrays(
             raw[target] = np.asarray(vector, dtype=float)
         lengths = {t: v.size for t, v in raw.items()}
         if len(set(lengths.values())) > 1:
-            raise DeclarationError(f"{where}.columns", f"vectors of lengths {lengths}", "equal lengths")
+            raise DeclarationError(
+                f"{where}.columns", f"vectors of lengths {lengths}", "equal lengths"
+            )
     labels = None
     if label_column is not None and name is None and store.has(label_column):
         labels = np.asarray(store.get(label_column, where), dtype=str).reshape(-1)
@@ -448,7 +456,9 @@ class _ArrayFile:
             try:
                 self.mat = sio.loadmat(path)
             except (ValueError, TypeError, NotImplementedError) as err:
-                raise io.RawDataError(path, None, f"unreadable ({err})", "a MATLAB v5 file") from None
+                raise io.RawDataError(
+                    path, None, f"unreadable ({err})", "a MATLAB v5 file"
+                ) from None
             self.names = sorted(k for k in self.mat if not k.startswith("__"))
 
     def _hdf5_names(self) -> list[str]:
@@ -507,7 +517,9 @@ def _time(
     t = raw[TIME] if rate is None else raw[TIME] / float(rate)
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        raise io.RawDataError(path, _line(first_line, bad[0]), f"t_s is {float(t[bad[0]])}", "a finite time in s")
+        raise io.RawDataError(
+            path, _line(first_line, bad[0]), f"t_s is {float(t[bad[0]])}", "a finite time in s"
+        )
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         i = int(back[0]) + 1
@@ -529,7 +541,9 @@ def _line(first_line: int | None, row: int) -> int | None:
 def _integers(values: np.ndarray, path: Path, name: str, first_line: int | None) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(values) | (values != np.round(values)))
     if bad.size:
-        raise io.RawDataError(path, _line(first_line, bad[0]), f"{name} is {values[bad[0]]}", "an integer counter")
+        raise io.RawDataError(
+            path, _line(first_line, bad[0]), f"{name} is {values[bad[0]]}", "an integer counter"
+        )
     return values.astype(np.int64)
 
 
@@ -583,7 +597,10 @@ def _sensor(
             x = x - float(zero)
         x = x * float(factor)
     else:
-        for key, value in (("sensitivity", (entry.get("sensitivity") or {}).get(sensor)), ("zero_counts", zero)):
+        for key, value in (
+            ("sensitivity", (entry.get("sensitivity") or {}).get(sensor)),
+            ("zero_counts", zero),
+        ):
             if value is not None:
                 raise DeclarationError(
                     f"{where}.{key}.{sensor}",
@@ -608,7 +625,9 @@ def _sensor(
     return x
 
 
-def _check_rows(x: np.ndarray, sensor: str, names: Sequence[str], path: Path, first_line: int | None) -> None:
+def _check_rows(
+    x: np.ndarray, sensor: str, names: Sequence[str], path: Path, first_line: int | None
+) -> None:
     """Per row the three axes are all numbers (a sample) or all empty (none); never part."""
     finite = np.isfinite(x)
     some = finite.any(axis=1)
@@ -648,12 +667,16 @@ def axis_matrix(axes: Sequence[str], key: str = "axes") -> np.ndarray:
     """
     items = list(axes) if isinstance(axes, (list, tuple)) else None
     pattern = re.compile(r"^([+-]?)([xyz])$")
-    matches = [pattern.match(str(a)) for a in items] if items is not None and len(items) == 3 else None
+    matches = (
+        [pattern.match(str(a)) for a in items] if items is not None and len(items) == 3 else None
+    )
     if matches is None or not all(matches):
         raise DeclarationError(key, f"{axes!r}", "three items like [x, -y, z] (signed source axes)")
     sources = [m.group(2) for m in matches]
     if len(set(sources)) != 3:
-        raise DeclarationError(key, f"{axes!r} uses a source axis twice", "a permutation of x, y, z")
+        raise DeclarationError(
+            key, f"{axes!r} uses a source axis twice", "a permutation of x, y, z"
+        )
     matrix = np.zeros((3, 3))
     for i, m in enumerate(matches):
         matrix[i, AXES.index(m.group(2))] = -1.0 if m.group(1) == "-" else 1.0
@@ -882,7 +905,9 @@ def read_sections(
             start_s, end_s = float(times[int(start)]), float(times[int(end) - 1])
         if not start_s < end_s:
             raise DeclarationError(
-                f"{where}", f"section {label!r} of {source}: {start_s} s to {end_s} s", "start < end"
+                f"{where}",
+                f"section {label!r} of {source}: {start_s} s to {end_s} s",
+                "start < end",
             )
         entry = {"label": str(label), "start_s": start_s, "end_s": end_s, **meaning}
         if "angle_deg" in entry:
@@ -894,11 +919,15 @@ def read_sections(
 def _section_json(path: Path) -> list[dict]:
     data = io.read_json(path)
     if not isinstance(data, dict):
-        raise io.RawDataError(path, None, f"a JSON {type(data).__name__}", '{"label": {"start": ., "end": .}}')
+        raise io.RawDataError(
+            path, None, f"a JSON {type(data).__name__}", '{"label": {"start": ., "end": .}}'
+        )
     rows = []
     for label, value in data.items():
         if not (isinstance(value, dict) and {"start", "end"} <= set(value)):
-            raise io.RawDataError(path, None, f"{label!r}: {value!r}", '{"start": <int>, "end": <int>}')
+            raise io.RawDataError(
+                path, None, f"{label!r}: {value!r}", '{"start": <int>, "end": <int>}'
+            )
         rows.append({"label": label, "start": value["start"], "end": value["end"]})
     return rows
 
@@ -908,14 +937,19 @@ def _section_csv(path: Path) -> list[dict]:
     missing = [c for c in ("label", "start", "end") if c not in table.columns]
     if missing:
         raise io.RawDataError(
-            path, 1, f"missing column(s) {missing} in {list(table.columns)}", "label,start,end[,kind,axis,up,angle_deg,rate_dps]"
+            path,
+            1,
+            f"missing column(s) {missing} in {list(table.columns)}",
+            "label,start,end[,kind,axis,up,angle_deg,rate_dps]",
         )
     rows = []
     for i, rec in enumerate(table.to_dict("records")):
         try:
             start, end = float(rec["start"]), float(rec["end"])
         except ValueError:
-            raise io.RawDataError(path, i + 2, f"start {rec['start']!r}, end {rec['end']!r}", "numbers") from None
+            raise io.RawDataError(
+                path, i + 2, f"start {rec['start']!r}, end {rec['end']!r}", "numbers"
+            ) from None
         row = {"label": rec["label"], "start": start, "end": end}
         for key in SECTION_CSV_OPTIONAL:
             if rec.get(key, "") != "":
@@ -930,7 +964,9 @@ def _section_csv(path: Path) -> list[dict]:
 
 def _label_runs(labels: np.ndarray | None, column: str, where: str) -> list[dict]:
     if labels is None:
-        raise DeclarationError(f"{where}.from_column", f"column {column!r} not read", "a column of the recording")
+        raise DeclarationError(
+            f"{where}.from_column", f"column {column!r} not read", "a column of the recording"
+        )
     values = np.asarray(labels, dtype=str)
     change = np.flatnonzero(values[1:] != values[:-1]) + 1
     starts = np.concatenate(([0], change))

@@ -691,8 +691,18 @@ def manual_segments(recording: str, t_s: np.ndarray, entries: list[dict]) -> pd.
             )
         rate = e.get("rate_dps", np.nan)
         rows.append(
-            _row(recording, e["label"], e["kind"], t, a, b, e.get("axis", ""), rate,
-                 up=e.get("up", ""), angle_deg=e.get("angle_deg", np.nan))  # fmt: skip
+            _row(
+                recording,
+                e["label"],
+                e["kind"],
+                t,
+                a,
+                b,
+                e.get("axis", ""),
+                rate,
+                up=e.get("up", ""),
+                angle_deg=e.get("angle_deg", np.nan),
+            )
         )
     frame = _frame(rows)
     dup = frame["label"][frame["label"].duplicated()].tolist()

@@ -123,7 +123,9 @@ def packet_times(t_s: np.ndarray, seq: np.ndarray) -> np.ndarray:
     """
     t = np.asarray(t_s, dtype=float)
     if t.shape != np.shape(seq):
-        raise ValueError(f"t_s has shape {t.shape} but seq has shape {np.shape(seq)}; expected equal")
+        raise ValueError(
+            f"t_s has shape {t.shape} but seq has shape {np.shape(seq)}; expected equal"
+        )
     if t.size < 2 or not np.all(np.isfinite(t)):
         raise ValueError(f"t_s must hold at least 2 finite timestamps, got {t.size} samples")
     index = unwrap_seq(seq, t_s=t)

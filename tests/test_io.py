@@ -351,6 +351,8 @@ def segments() -> pd.DataFrame:
             "rate_dps": [np.nan, np.nan],
             "sense": [1, 0],
             "turns": [2.0, np.nan],
+            "up": ["", "+z"],
+            "angle_deg": [360.0, np.nan],
         }
     )
 

@@ -63,8 +63,15 @@ def test_table_delimiters_names_units(tmp_path, delimiter):
         "reader": "table",
         "file": "d.txt",
         "delimiter": delimiter,
-        "columns": {"t_s": "time", "acc_x": "ax", "acc_y": "ay", "acc_z": "az",
-                    "gyr_x": "gx", "gyr_y": "gy", "gyr_z": "gz"},  # fmt: skip
+        "columns": {
+            "t_s": "time",
+            "acc_x": "ax",
+            "acc_y": "ay",
+            "acc_z": "az",
+            "gyr_x": "gx",
+            "gyr_y": "gy",
+            "gyr_z": "gz",
+        },
         "units": {"acc": "g", "gyr": "deg/s"},
     }
     table, meta = ingest(write_dataset(tmp_path, {"poses": entry}), "poses")
@@ -89,7 +96,9 @@ def test_table_without_header_by_index_skip_lines_and_rate(tmp_path):
 
 
 def test_time_column_as_sample_counter_and_sort_by_time(tmp_path):
-    rows = ["n,acc_x,acc_y,acc_z,part"] + [f"{k},{k},0,1,{'b' if k >= 5 else 'a'}" for k in range(10)]
+    rows = ["n,acc_x,acc_y,acc_z,part"] + [
+        f"{k},{k},0,1,{'b' if k >= 5 else 'a'}" for k in range(10)
+    ]
     (tmp_path / "d.csv").write_text("\n".join([rows[0], *rows[6:], *rows[1:6]]) + "\n")
     entry = {"reader": "table", "file": "d.csv", "columns": {"t_s": "n", "acc_x": "acc_x",
              "acc_y": "acc_y", "acc_z": "acc_z"}, "rate_hz": 4.0, "units": {"acc": "m/s^2"}}  # fmt: skip
@@ -246,7 +255,9 @@ def streams_entry() -> dict:
 
 def test_streams_merge_on_time_without_invented_samples(tmp_path):
     t_acc, t_mag = stream_files(tmp_path)
-    table, meta = ingest(write_dataset(tmp_path, {"tumble": streams_entry()}, field_norm_t=5e-5), "tumble")
+    table, meta = ingest(
+        write_dataset(tmp_path, {"tumble": streams_entry()}, field_norm_t=5e-5), "tumble"
+    )
     union = np.union1d(t_acc, t_mag)
     np.testing.assert_array_equal(table[TIME].to_numpy(), union)
     assert len(table) == t_acc.size + t_mag.size - 2  # the two shared stamps are one row each
@@ -255,7 +266,9 @@ def test_streams_merge_on_time_without_invented_samples(tmp_path):
     np.testing.assert_array_equal(table[TIME].to_numpy()[has_acc], t_acc)
     np.testing.assert_array_equal(table[TIME].to_numpy()[has_mag], t_mag)
     assert (has_acc & has_mag).sum() == 2
-    np.testing.assert_allclose(table.loc[has_mag, list(MAG)].to_numpy(), [[0.4, 0.0, -0.9]] * t_mag.size)
+    np.testing.assert_allclose(
+        table.loc[has_mag, list(MAG)].to_numpy(), [[0.4, 0.0, -0.9]] * t_mag.size
+    )
     assert table.loc[~has_acc, list(ACC)].isna().all().all()  # NaN, never filled
     assert len(meta["files"]) == 2 and [s["sensors"] for s in meta["streams"]] == [["acc"], ["mag"]]
     summary = summarize_recording(table, meta)
@@ -303,7 +316,8 @@ def test_parts_are_concatenated_with_a_gap(tmp_path):
 
 def ferraris_table(tmp_path: Path) -> dict:
     rows = ["n,ax,ay,az,gx,gy,gz"] + [
-        f"{k},{RNG.normal()},{RNG.normal()},{9.8 + RNG.normal()},0,0,{RNG.normal()}" for k in range(200)
+        f"{k},{RNG.normal()},{RNG.normal()},{9.8 + RNG.normal()},0,0,{RNG.normal()}"
+        for k in range(200)
     ]
     (tmp_path / "f.csv").write_text("\n".join(rows) + "\n")
     return {"reader": "table", "file": "f.csv", "rate_hz": 10.0,
@@ -316,7 +330,12 @@ def test_sections_ferraris_json_by_sample_index(tmp_path):
     entry = ferraris_table(tmp_path)
     (tmp_path / "s.json").write_text(json.dumps({"x_p": {"start": 10, "end": 50},
                                                  "z_rot": {"start": 100, "end": 160}}))  # fmt: skip
-    sections = {"recording": "ferraris", "file": "s.json", "format": "ferraris_json", "index": "sample"}
+    sections = {
+        "recording": "ferraris",
+        "file": "s.json",
+        "format": "ferraris_json",
+        "index": "sample",
+    }
     folder = write_dataset(tmp_path, {"ferraris": entry}, sections=sections)
     table, meta = ingest(folder, "ferraris")
     x_p, z_rot = meta["sections"]
@@ -337,7 +356,9 @@ def test_sections_csv_by_time_and_unknown_label(tmp_path):
     (tmp_path / "s.csv").write_text("label,start,end,kind,axis\nturn,2.0,5.5,phase,y\nrest,6,9,,\n")
     sections = {"recording": "ferraris", "file": "s.csv", "format": "csv", "index": "time"}
     folder = write_dataset(tmp_path, {"ferraris": entry}, sections=sections)
-    with pytest.raises(DeclarationError, match=r"sections.labels.rest: label 'rest' of .*s.csv has no meaning"):
+    with pytest.raises(
+        DeclarationError, match=r"sections.labels.rest: label 'rest' of .*s.csv has no meaning"
+    ):
         ingest(folder, "ferraris")
     sections["labels"] = {"rest": {"kind": "static"}}
     _, meta = ingest(write_dataset(tmp_path, {"ferraris": entry}, sections=sections), "ferraris")
@@ -354,7 +375,9 @@ def test_sections_from_column(tmp_path):
     entry = {"reader": "table", "file": "a.csv", "columns": {"t_s": "t", "acc_x": "ax",
              "acc_y": "ay", "acc_z": "az"}, "units": {"acc": "g"}}  # fmt: skip
     sections = {"recording": "ferraris", "from_column": "part"}
-    table, meta = ingest(write_dataset(tmp_path, {"ferraris": entry}, sections=sections), "ferraris")
+    table, meta = ingest(
+        write_dataset(tmp_path, {"ferraris": entry}, sections=sections), "ferraris"
+    )
     assert "part" not in table.columns
     assert [(s["label"], s["start_s"], s["end_s"]) for s in meta["sections"]] == [
         ("x_p", 0.0, 2.9), ("x_a", 3.0, 6.9), ("y_rot", 7.0, 9.9)]  # fmt: skip
@@ -369,13 +392,13 @@ def test_sections_from_column(tmp_path):
     ("change", "message"),
     [
         ({"columns": {"acc_x": "accx", "acc_y": "ay", "acc_z": "az"}},
-         r"dataset.yaml: recordings.static.columns.acc_x: column 'accx' not in .*d.csv "
-         r"\(columns: time, ax, ay, az, gx, gy, gz\); expected a column of its header line"),
+         (r"dataset.yaml: recordings.static.columns.acc_x: column 'accx' not in .*d.csv "
+          r"\(columns: time, ax, ay, az, gx, gy, gz\); expected a column of its header line")),
         ({"columns": {"acc_x": 9, "acc_y": "ay", "acc_z": "az"}},
          r"recordings.static.columns.acc_x: column index 9 not in .*d.csv \(7 columns"),
         ({"columns": {"acc_x": "ax", "acc_y": "ay"}},
-         r"recordings.static.columns.acc_z: acc has column\(s\) \['acc_x', 'acc_y'\] but not "
-         r"\['acc_z'\]"),
+         (r"recordings.static.columns.acc_z: acc has column\(s\) \['acc_x', 'acc_y'\] but not "
+          r"\['acc_z'\]")),
         ({"units": {}}, r"recordings.static.units.acc: missing; expected one of \['m/s\^2', 'g', 'counts'\]"),
         ({"units": {"acc": "counts"}},
          r"recordings.static.sensitivity.acc: missing; expected a positive number of m/s\^2 per count"),
@@ -399,13 +422,17 @@ def test_header_false_refuses_names_and_bad_cells_name_the_line(tmp_path):
     (tmp_path / "d.csv").write_text(csv_text(",", header=False))
     entry = {"reader": "table", "file": "d.csv", "header": False, "rate_hz": 10,
              "columns": {"acc_x": "ax", "acc_y": 1, "acc_z": 2}, "units": {"acc": "g"}}  # fmt: skip
-    with pytest.raises(DeclarationError, match=r"columns.acc_x: column 'ax' by name, but header is false"):
+    with pytest.raises(
+        DeclarationError, match=r"columns.acc_x: column 'ax' by name, but header is false"
+    ):
         ingest(write_dataset(tmp_path, {"static": entry}), "static")
     text = csv_text(",").splitlines()
     text[4] = text[4].replace(text[4].split(",")[2], "1.2x", 1)
     (tmp_path / "d.csv").write_text("\n".join(text) + "\n")
     entry.update(header=True, columns={"acc_x": "ax", "acc_y": "ay", "acc_z": "az"})
-    with pytest.raises(io.RawDataError, match=r"d.csv, line 5: column 'ay' holds '1.2x'; expected a number"):
+    with pytest.raises(
+        io.RawDataError, match=r"d.csv, line 5: column 'ay' holds '1.2x'; expected a number"
+    ):
         ingest(write_dataset(tmp_path, {"static": entry}), "static")
 
 
@@ -419,7 +446,9 @@ def test_schema_and_structure_errors(tmp_path):
     both = {**entry, "streams": [entry]}
     with pytest.raises(ValueError, match=r"recordings.static: has \['file', 'streams'\]"):
         read_dataset(write_dataset(tmp_path, {"static": both}))
-    with pytest.raises(ValueError, match=r"key 'sensitivity': required because recordings.cube is a native"):
+    with pytest.raises(
+        ValueError, match=r"key 'sensitivity': required because recordings.cube is a native"
+    ):
         read_dataset(write_dataset(tmp_path, {"cube": "cube.csv"}))
     mag = {"reader": "table", "file": "d.csv", "rate_hz": 1, "units": {"mag": "gauss"},
            "columns": {"mag_x": "ax", "mag_y": "ay", "mag_z": "az"}}  # fmt: skip
@@ -431,7 +460,9 @@ def test_schema_and_structure_errors(tmp_path):
 def test_missing_shared_file_names_the_key(tmp_path):
     entry = {"reader": "table", "file": "../absent/x.csv", "rate_hz": 1,
              "columns": {"acc_x": 0, "acc_y": 1, "acc_z": 2}, "units": {"acc": "g"}}  # fmt: skip
-    with pytest.raises(FileNotFoundError, match=r"recordings.static.file: .*absent/x.csv not found"):
+    with pytest.raises(
+        FileNotFoundError, match=r"recordings.static.file: .*absent/x.csv not found"
+    ):
         ingest(write_dataset(tmp_path / "ds", {"static": entry}), "static")
 
 
