@@ -19,6 +19,7 @@ include: "workflow/rules/magnetometer.smk"
 include: "workflow/rules/accelerometer.smk"
 include: "workflow/rules/gyroscope.smk"
 include: "workflow/rules/calibration.smk"
+include: "workflow/rules/partial.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -26,3 +27,8 @@ rule all:
     input:
         all_targets,
     default_target: True
+
+
+rule real:
+    input:
+        real_targets,

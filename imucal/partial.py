@@ -81,6 +81,36 @@ class Outcome:
                 "reason": self.reason}
 
 
+def declared_sensors(dataset, recording: str) -> tuple[str, ...]:
+    """Sensors a recording of a dataset holds, from ``dataset.yaml`` alone (before ingest).
+
+    A native raw CSV holds all three; a declared reader the sensors its column maps name.
+    """
+    declaration = dataset.readers.get(recording)
+    if declaration is None:
+        return SENSORS
+
+    def columns(d: Mapping) -> set[str]:
+        if "parts" in d:
+            return set().union(*(columns(p) for p in d["parts"]))
+        if "streams" in d:
+            return set().union(*(columns(p) for p in d["streams"]))
+        return set(d.get("columns", {}))
+
+    names = columns(declaration)
+    return tuple(s for s in SENSORS if any(c.startswith(f"{s}_") for c in names))
+
+
+def is_full_protocol(dataset) -> bool:
+    """The paper's protocol: native-format rotation3d and cube with all three sensors.
+
+    Such a session runs the stage-per-rule workflow; any other runs :func:`run_stages`.
+    """
+    return all(
+        dataset.has(r) and declared_sensors(dataset, r) == SENSORS for r in ("rotation3d", "cube")
+    )
+
+
 def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
     """Sensors with at least one finite sample in an ingested table."""
     present = []
@@ -118,7 +148,8 @@ class _Session:
 
     def __init__(self, tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame,
                  gravity_m_s2: float, field_norm: float, ratetable: Mapping | None,
-                 saturation_m_s2: float | None, saturation_rad_s: float | None):
+                 saturation_m_s2: float | None, saturation_rad_s: float | None,
+                 notes: Mapping[str, str]):
         self.tables = {k: v for k, v in tables.items() if k != "reference"}
         self.segments = segments
         self.gravity_m_s2 = gravity_m_s2
@@ -127,6 +158,7 @@ class _Session:
         self.saturation_m_s2 = saturation_m_s2
         self.saturation_rad_s = saturation_rad_s
         self.sensors = {name: sensors_of(t) for name, t in self.tables.items()}
+        self.notes = dict(notes)
         self.done: dict[str, dict] = {}
 
     def with_sensor(self, recording: str, sensor: str) -> bool:
@@ -134,6 +166,17 @@ class _Session:
 
     def has_phases(self, recording: str = "rotation3d") -> bool:
         return recording in self.tables and not _rows(self.segments, recording, ("phase",)).empty
+
+    def need_phases(self, sensor: str) -> None:
+        """Raise NotApplicable unless rotation3d has phases and ``sensor`` samples."""
+        if self.has_phases() and self.with_sensor("rotation3d", sensor):
+            return
+        why = f"needs rotation3d phases about x, y, z with {sensor} samples"
+        if "rotation3d" in self.notes:
+            why += f" ({self.notes['rotation3d']})"
+        elif "rotation3d" not in self.tables:
+            why += " (no rotation3d recording)"
+        raise NotApplicable(why)
 
     def poses(self, recording: str) -> pd.DataFrame:
         return _rows(self.segments, recording, ("position", "static"))
@@ -158,8 +201,7 @@ def _mag_step1(s: _Session) -> dict:
 
 def _mag_step2(s: _Session) -> dict:
     _need("mag_step1" in s.done, "needs the ellipsoid fit (mag_step1)")
-    _need(s.has_phases() and s.with_sensor("rotation3d", "mag"),
-          "needs rotation3d phases about x, y, z with magnetometer samples")
+    s.need_phases("mag")
     return stages.align_mag(s.tables["rotation3d"], s.segments, s.done["mag_step1"])
 
 
@@ -223,8 +265,7 @@ def _acc_cube(s: _Session) -> dict:
 
 def _acc_align(s: _Session) -> dict:
     _need("acc_cube" in s.done, "needs the cube fit (acc_cube)")
-    _need(s.has_phases() and s.with_sensor("rotation3d", "acc"),
-          "needs rotation3d phases with accelerometer data")
+    s.need_phases("acc")
     from imucal.filtering import lowpass_recording
 
     low = lowpass_recording(s.tables["rotation3d"], order=4, cutoff_hz=5.0)
@@ -267,8 +308,7 @@ def _gyr_table(s: _Session) -> dict:
 
 def _gyr_align(s: _Session) -> dict:
     _need("gyr_bias" in s.done, "needs the gyroscope bias")
-    _need(s.has_phases() and s.with_sensor("rotation3d", "gyr"),
-          "needs rotation3d phases with gyroscope data")
+    s.need_phases("gyr")
     from imucal.filtering import lowpass_recording
 
     low = lowpass_recording(s.tables["rotation3d"], order=4, cutoff_hz=5.0)
@@ -381,6 +421,7 @@ def run_stages(
     ratetable: Mapping | None = None,
     saturation_m_s2: float | None = None,
     saturation_rad_s: float | None = None,
+    notes: Mapping[str, str] | None = None,
 ) -> list[Outcome]:
     """Run every stage the session allows, in :data:`STAGES` order.
 
@@ -396,6 +437,9 @@ def run_stages(
     saturation_m_s2, saturation_rad_s : float, optional
         Sensor ranges; samples at them are left out of the fits that check it. None: the
         recordings' ranges are unknown (readers of SI data), nothing is left out.
+    notes : mapping of str to str, optional
+        Segmentation notes per recording (why its protocol was not found); they join the
+        reasons of the stages that needed it.
 
     Returns
     -------
@@ -403,7 +447,7 @@ def run_stages(
         One per stage of :data:`STAGES`.
     """
     session = _Session(tables, segments, gravity_m_s2, field_norm, ratetable,
-                       saturation_m_s2, saturation_rad_s)
+                       saturation_m_s2, saturation_rad_s, notes or {})
     outcomes = []
     for name, runner in RUNNERS.items():
         try:
@@ -475,3 +519,49 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
                                  {"bias": np.asarray(artifact["std_ls_rad_s"])},
                                  "bias only (nominal scale, sensor frame)").to_dict()
     return dict(artifact["calibration"])
+
+
+def full_protocol_stages(recordings: Mapping | set, *, has_reference: bool) -> list[dict]:
+    """The stage listing (``stages.json``) of a session run by the stage-per-rule workflow.
+
+    Parameters
+    ----------
+    recordings : collection of str
+        The dataset's recording names (it has rotation3d and cube with all sensors).
+    has_reference : bool
+
+    Returns
+    -------
+    list of dict
+        {stage, what, status, reason} per stage of :data:`STAGES` plus the validation.
+    """
+    skipped = {
+        "acc_known_orientation": "not applicable: the cube fit and T_R,acc of the full protocol "
+        "are used (no ferraris recording)",
+        "gyr_known_rotation": "not applicable: no ferraris recording",
+        "gyr_pose_to_pose": "not applicable: the full protocol calibrates the gyroscope with the "
+        "platform (and rate table)",
+    }
+    if "ratetable" not in recordings:
+        skipped["gyr_table"] = "not applicable: needs a ratetable recording"
+    rows = [
+        {"stage": name, "what": what, "status": "skipped" if name in skipped else "run",
+         "reason": skipped.get(name, what)}
+        for name, what in STAGES.items()
+    ]
+    rows.append({
+        "stage": "validate", "what": "validation against the reference",
+        "status": "run",
+        "reason": "against the reference" if has_reference
+        else "reference-free checks only: the dataset has no reference recording",
+    })
+    return rows
+
+
+def stage_results(outcomes: list[Outcome]) -> dict[str, dict]:
+    """Per sensor, the artifacts of its stages that ran (the report's stage results)."""
+    out: dict[str, dict] = {s: {} for s in SENSORS}
+    for o in outcomes:
+        if o.status == "run":
+            out[o.name.split("_", 1)[0]][o.name] = o.artifact
+    return out

@@ -61,6 +61,8 @@ SEGMENT_COLUMNS = (
 KINDS = ("static", "phase", "transition", "position", "run")
 #: Recordings the segmentation knows, in protocol order.
 RECORDINGS = ("rotation3d", "cube", "ratetable", "static")
+#: Recordings of partial protocols whose automatic segments are their static poses.
+POSE_RECORDINGS = ("poses", "tumble", "ferraris")
 
 #: Half the 45-deg step between cube positions: gravity directions closer than this are one.
 SAME_POSITION_DEG = 22.5
@@ -650,6 +652,54 @@ def segment_static(
     return _frame([_row("static", "s01", "static", t, a, b)])
 
 
+def segment_poses(
+    recording: str,
+    t_s: np.ndarray,
+    acc: np.ndarray,
+    gyr: np.ndarray | None,
+    settings: DetectorSettings = DetectorSettings(),
+) -> pd.DataFrame:
+    """Hand-placed static poses (``poses``, ``tumble``, ``ferraris`` without a section list).
+
+    Every static interval becomes a segment of kind 'static' (``s01``, ``s02``, ...). Without a
+    gyroscope (accelerometer-only loggers) quiet means a quiet accelerometer alone.
+
+    Parameters
+    ----------
+    recording : str
+    t_s : ndarray, shape (n,)
+    acc : ndarray, shape (n, 3)
+        m/s^2.
+    gyr : ndarray, shape (n, 3) or None
+        rad/s.
+    settings : DetectorSettings
+
+    Returns
+    -------
+    DataFrame
+        Segments table rows; empty if the module never rests ``min_static_s``.
+    """
+    if gyr is not None:
+        t, acc, gyr = _check_inputs(t_s, acc, gyr)
+        try:
+            intervals = find_static_intervals(t, acc, gyr, settings).intervals
+        except ValueError:
+            intervals = []
+    else:
+        t, acc, _ = _check_inputs(t_s, acc, np.zeros_like(acc))
+        intervals = find_quiet_intervals(t, acc, settings)
+    merged: list[list[int]] = []
+    for a, b in sorted(intervals):  # windows of one rest broken by a twitch overlap: one pose
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        else:
+            merged.append([a, b])
+    rows = [
+        _row(recording, f"s{k:02d}", "static", t, a, b) for k, (a, b) in enumerate(merged, 1)
+    ]
+    return _frame(rows)
+
+
 def manual_segments(recording: str, t_s: np.ndarray, entries: list[dict]) -> pd.DataFrame:
     """Segments given by hand in ``dataset.yaml`` for one recording.
 
@@ -737,8 +787,10 @@ def segment_recording(
     DataFrame
         Segments table rows of this recording.
     """
-    if recording not in RECORDINGS:
-        raise ValueError(f"recording {recording!r}: expected one of {RECORDINGS}")
+    if recording not in RECORDINGS + POSE_RECORDINGS:
+        raise ValueError(f"recording {recording!r}: expected one of {RECORDINGS + POSE_RECORDINGS}")
+    if recording in POSE_RECORDINGS:
+        return _segment_pose_recording(recording, table, settings)
     missing = [c for c in (*ACC, *GYR) if c not in table.columns]
     if missing:
         raise ValueError(
@@ -770,6 +822,26 @@ def segment_recording(
     return out
 
 
+def _segment_pose_recording(
+    recording: str, table: pd.DataFrame, settings: DetectorSettings
+) -> pd.DataFrame:
+    """Static poses of a recording with an accelerometer (and maybe a gyroscope), else none."""
+    if not all(c in table.columns for c in ACC):
+        return _frame([])  # magnetometer-only: nothing rests in a way we can tell
+    has_gyr = all(c in table.columns for c in GYR)
+    cols = list(ACC) + (list(GYR) if has_gyr else [])
+    values = table[cols].to_numpy(dtype=float)
+    keep = np.flatnonzero(np.isfinite(values).all(axis=1))
+    t = table[TIME].to_numpy(dtype=float)[keep]
+    acc = values[keep, :3]
+    gyr = values[keep, 3:] if has_gyr else None
+    out = segment_poses(recording, t, acc, gyr, settings)
+    if len(out):
+        out["start_index"] = keep[out["start_index"].to_numpy()]
+        out["end_index"] = keep[out["end_index"].to_numpy() - 1] + 1
+    return out
+
+
 def segment_dataset(
     tables: dict[str, pd.DataFrame],
     *,
@@ -780,6 +852,7 @@ def segment_dataset(
     min_static_s: float = 1.0,
     rest_tol_dps: float = 2.0,
     scale_tol: float = 0.2,
+    fallback: bool = False,
 ) -> pd.DataFrame:
     """The segments table of a dataset: automatic, or manual for recordings named in ``manual``.
 
@@ -793,6 +866,10 @@ def segment_dataset(
         ``Dataset.segments``: replaces the automatic segments of every recording it names.
     window_s, p_false, min_static_s, rest_tol_dps, scale_tol
         See ``DetectorSettings``.
+    fallback : bool
+        For partial sessions: a recording whose protocol is not found (e.g. hand-held turns
+        without the rests the rotation3d matching needs) keeps only its static poses, and the
+        reason goes to ``attrs['notes']`` (recording -> message) instead of an error.
 
     Returns
     -------
@@ -806,15 +883,24 @@ def segment_dataset(
         raise ValueError(
             f"manual segments name recording(s) {unknown}; the dataset has {sorted(tables)}"
         )
-    frames = []
+    frames, notes = [], {}
     for name in [r for r in RECORDINGS if r in tables] + sorted(set(tables) - set(RECORDINGS)):
         mine = [e for e in manual if e["recording"] == name]
         t = tables[name][TIME].to_numpy(dtype=float)
         if mine:
             frames.append(manual_segments(name, t, mine))
-        else:
+            continue
+        try:
             frames.append(
                 segment_recording(name, tables[name], ratetable=ratetable, settings=settings)
             )
+        except ValueError as err:
+            if not fallback:
+                raise
+            notes[name] = f"{name}: automatic segmentation failed ({err}); static poses only"
+            logger.warning(notes[name])
+            frames.append(_segment_pose_recording(name, tables[name], settings))
         logger.info("%s: %d segments", name, len(frames[-1]))
-    return pd.concat(frames, ignore_index=True) if frames else _frame([])
+    out = pd.concat(frames, ignore_index=True) if frames else _frame([])
+    out.attrs["notes"] = notes
+    return out

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from imucal.columns import ACC, AXES, GYR, TIME
+from imucal.columns import ACC, AXES, GYR, MAG, TIME
 
 #: Okabe-Ito colours (colour-blind safe) per segment kind and per axis.
 KIND_COLOURS = {
@@ -27,7 +27,8 @@ def plot_segments(
     Parameters
     ----------
     table : DataFrame
-        Ingested recording (``t_s``, ``acc_*`` in m/s^2, ``gyr_*`` in rad/s).
+        Ingested recording (``t_s`` and any of ``gyr_*`` in rad/s, ``acc_*`` in m/s^2,
+        ``mag_*``; NaN where a merged stream has no sample of that sensor).
     segments : DataFrame
         Segments table (``recording``, ``label``, ``kind``, ``start_s``, ``end_s``, ``turns``).
     recording : str, optional
@@ -38,28 +39,45 @@ def plot_segments(
     Returns
     -------
     matplotlib.figure.Figure
-        Two panels sharing the time axis: gyro axes and norm in deg/s, accelerometer axes in
-        m/s^2. Segments are shaded by kind and labelled at the top (phases and transitions with
+        One panel per sensor present, sharing the time axis: gyro axes and norm in deg/s,
+        accelerometer axes in m/s^2, magnetometer (normalised). Segments are shaded by kind and labelled at the top (phases and transitions with
         their raw turns).
     """
-    missing = [c for c in (TIME, *ACC, *GYR) if c not in table.columns]
-    if missing:
-        raise ValueError(f"recording lacks column(s) {missing}; expected the ingested layout")
+    if TIME not in table.columns:
+        raise ValueError(f"recording lacks the column {TIME!r}; expected the ingested layout")
+    panels = [
+        (sensor, cols, factor, label)
+        for sensor, cols, factor, label in (
+            ("gyr", GYR, np.degrees(1.0), "raw rate (deg/s)"),
+            ("acc", ACC, 1.0, "raw specific force (m/s$^2$)"),
+            ("mag", MAG, 1.0, "raw field (normalised)"),
+        )
+        if all(c in table.columns for c in cols)
+    ]
+    if not panels:
+        raise ValueError(
+            f"recording has none of the sensor columns {[*GYR, *ACC, *MAG]}; nothing to plot"
+        )
     if recording is not None:
         segments = segments[segments["recording"] == recording]
-    t = table[TIME].to_numpy(dtype=float)
-    gyr = np.degrees(table[list(GYR)].to_numpy(dtype=float))
-    acc = table[list(ACC)].to_numpy(dtype=float)
-    fig = Figure(figsize=(12, 6), layout="constrained")
-    ax_g, ax_a = fig.subplots(2, 1, sharex=True)
-    for k, axis in enumerate(AXES):
-        ax_g.plot(t, gyr[:, k], lw=0.7, color=AXIS_COLOURS[axis], label=f"gyr {axis}")
-        ax_a.plot(t, acc[:, k], lw=0.7, color=AXIS_COLOURS[axis], label=f"acc {axis}")
-    ax_g.plot(t, np.linalg.norm(gyr, axis=1), lw=0.7, ls="--", color="#999999", label="|gyr|")
+    fig = Figure(figsize=(12, 2 + 2.2 * len(panels)), layout="constrained")
+    axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (sensor, cols, factor, label) in zip(axes, panels):
+        values = table[list(cols)].to_numpy(dtype=float) * factor
+        fresh = np.isfinite(values).all(axis=1)  # merged streams: this sensor's own rows
+        t = table[TIME].to_numpy(dtype=float)[fresh]
+        values = values[fresh]
+        for k, axis in enumerate(AXES):
+            ax.plot(t, values[:, k], lw=0.7, color=AXIS_COLOURS[axis], label=f"{sensor} {axis}")
+        if sensor == "gyr":
+            ax.plot(t, np.linalg.norm(values, axis=1), lw=0.7, ls="--", color="#999999",
+                    label="|gyr|")
+        ax.set_ylabel(label)
+    ax_g, ax_a = axes[0], axes[-1]
     seen = set()
     for row in segments.itertuples(index=False):
         colour = KIND_COLOURS.get(row.kind, "#999999")
-        for ax in (ax_g, ax_a):
+        for ax in axes:
             ax.axvspan(
                 row.start_s,
                 row.end_s,
@@ -81,10 +99,8 @@ def plot_segments(
             fontsize=7,
             rotation=90 if len(segments) > 14 else 0,
         )
-    ax_g.set_ylabel("raw rate (deg/s)")
-    ax_a.set_ylabel("raw specific force (m/s$^2$)")
     ax_a.set_xlabel("time (s)")
-    for ax in (ax_g, ax_a):
+    for ax in axes:
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7)
     if title:
         fig.suptitle(title)

@@ -2,10 +2,19 @@
 # No rules here.
 from pathlib import Path
 
+import yaml
+
 import imucal
 from imucal.dataset import IMU_RECORDINGS, RECORDING_NAMES, read_dataset
+from imucal.partial import is_full_protocol
 
 DATASETS = sorted(config["datasets"])
+#: The public recordings (config/real/*.yaml, data into ../shared/data/real), run by `real`.
+REAL_DATASETS = {
+    name: folder
+    for path in sorted(Path(workflow.basedir, "config", "real").glob("*.yaml"))
+    for name, folder in (yaml.safe_load(path.read_text()) or {}).get("datasets", {}).items()
+}
 #: Package version as a param of every fit rule: an upgrade of imucal reruns them.
 IMUCAL_VERSION = imucal.__version__
 
@@ -15,9 +24,22 @@ wildcard_constraints:
     recording="|".join(RECORDING_NAMES),
 
 
+def folder_of(name):
+    """Folder of a dataset (config `datasets`, else the public recordings of config/real)."""
+    folders = {**REAL_DATASETS, **config["datasets"]}
+    if name not in folders:
+        raise ValueError(f"dataset {name!r} is neither in config 'datasets' nor in config/real")
+    return str(Path(folders[name]))
+
+
 def dataset_folder(wildcards):
     """Folder of a dataset, relative paths taken from the working directory."""
-    return str(Path(config["datasets"][wildcards.dataset]))
+    return folder_of(wildcards.dataset)
+
+
+def full_protocol(name):
+    """The session follows the paper's protocol (stage-per-rule workflow), else `partial`."""
+    return is_full_protocol(read_dataset(folder_of(name)))
 
 
 def dataset_info(wildcards):
@@ -50,6 +72,23 @@ def ingested_imu(wildcards):
         for name in IMU_RECORDINGS
         if name in info.recordings
     }
+
+
+def ingested_imu_all(wildcards):
+    """Every ingested recording of the module (all roles, not the reference), by name."""
+    info = dataset_info(wildcards)
+    return {
+        name: f"results/{wildcards.dataset}/ingest/{name}.parquet"
+        for name in info.recordings
+        if name != "reference"
+    }
+
+
+def stages_listing(wildcards):
+    """stages.json comes from the path the session takes."""
+    d = wildcards.dataset
+    path = "full" if full_protocol(d) else "partial"
+    return f"results/{d}/{path}/stages.json"
 
 
 def has_recording(wildcards, recording):
@@ -92,15 +131,29 @@ def gravity(wildcards):
     return dataset_info(wildcards).gravity_m_s2
 
 
+def dataset_targets(name):
+    """Final outputs of one dataset: its report, calibration, stage listing and plots."""
+    recordings = read_dataset(folder_of(name)).recordings
+    targets = [f"results/{name}/ingest/summary.json", f"reports/{name}.html"]
+    targets += [f"results/{name}/stages.json"]
+    if full_protocol(name):
+        targets += [f"results/{name}/calibration.json", f"results/{name}/tables.csv"]
+    else:
+        targets += [f"results/{name}/partial/calibration.json"]
+    targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
+    return targets
+
+
 def all_targets(wildcards):
     """Final outputs of every configured dataset (read lazily, only when `all` is requested)."""
-    targets = []
-    for name in DATASETS:
-        recordings = read_dataset(config["datasets"][name]).recordings
-        targets += [f"results/{name}/ingest/summary.json", f"reports/{name}.html"]
-        targets += [f"results/{name}/calibration.json", f"results/{name}/tables.csv"]
-        targets += [f"results/{name}/segments/{r}.png" for r in IMU_RECORDINGS if r in recordings]
-    return targets
+    return [t for name in DATASETS for t in dataset_targets(name)]
+
+
+def real_targets(wildcards):
+    """Final outputs of every public recording of config/real."""
+    if not REAL_DATASETS:
+        raise ValueError("config/real holds no dataset configs")
+    return [t for name in sorted(REAL_DATASETS) for t in dataset_targets(name)]
 
 
 def mag_step1_inputs(wildcards):
@@ -137,10 +190,19 @@ def reference_input(wildcards):
 
 
 def report_inputs(wildcards):
-    """Every figure of a dataset and the run-time benchmarks of its fit rules."""
+    """Artifacts, figures and run-time benchmarks of a dataset's report, by the path it took."""
     d = wildcards.dataset
     info = dataset_info(wildcards)
-    figures = [
+    inputs = {"summary": f"results/{d}/ingest/summary.json", "stages": f"results/{d}/stages.json"}
+    figures = [f"results/{d}/segments/{r}.png" for r in info.recordings if r != "reference"]
+    if not full_protocol(d):
+        inputs.update({k: f"results/{d}/partial/{k}.json" for k in ("mag", "acc", "gyr")})
+        inputs["calibration"] = f"results/{d}/partial/calibration.json"
+        benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
+        return {**inputs, "figures": figures, "benchmarks": benchmarks}
+    inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
+    inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
+    figures += [
         f"results/{d}/figures/{name}.png"
         for name in ("mag_raw", "mag_step1", "mag_phases", "mag_step2", "acc_cube", "acc_phases")
         + ("gyr_bias", "gyr_phases")
@@ -158,7 +220,4 @@ def report_inputs(wildcards):
             f"results/{d}/figures/validation_magnitudes.png",
             f"results/{d}/figures/validation_xcorr.png",
         ]
-    figures += [
-        f"results/{d}/segments/{r}.png" for r in IMU_RECORDINGS if r in info.recordings
-    ]
-    return {"figures": figures, "benchmarks": benchmarks}
+    return {**inputs, "figures": figures, "benchmarks": benchmarks}

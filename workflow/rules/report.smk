@@ -54,13 +54,6 @@ rule report:
         "../envs/imucal.yaml"
     input:
         unpack(report_inputs),
-        summary="results/{dataset}/ingest/summary.json",
-        calibration="results/{dataset}/calibration.json",
-        mag="results/{dataset}/mag.json",
-        acc="results/{dataset}/acc.json",
-        gyr="results/{dataset}/gyr.json",
-        validation="results/{dataset}/validation.json",
-        tables="results/{dataset}/tables.csv",
     output:
         html="reports/{dataset}.html",
     log:

@@ -27,7 +27,7 @@ rule segment:
     conda:
         "../envs/imucal.yaml"
     input:
-        unpack(ingested_imu),
+        unpack(ingested_imu_all),
         dataset_yaml=dataset_yaml,
     output:
         segments="results/{dataset}/segments.parquet",
@@ -41,6 +41,7 @@ rule segment:
         min_static_s=config["segmentation"]["min_static_s"],
         rest_tol_dps=config["segmentation"]["rest_tol_dps"],
         scale_tol=config["segmentation"]["scale_tol"],
+        full_protocol=lambda wildcards: full_protocol(wildcards.dataset),
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/segment.py"

@@ -4,7 +4,7 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.dataset import IMU_RECORDINGS, read_dataset
+from imucal.dataset import read_dataset
 from imucal.io import read_recording, write_recording
 from imucal.segmentation import segment_dataset
 
@@ -14,7 +14,7 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 try:
     dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
-    names = [name for name in IMU_RECORDINGS if name in snakemake.input.keys()]  # noqa: SIM118 (a Namedlist: `in` tests values)
+    names = [name for name in dataset.recordings if name != "reference"]
     loaded = {name: read_recording(getattr(snakemake.input, name)) for name in names}
     tables = {name: table for name, (table, _) in loaded.items()}
     # a section list of dataset.yaml was resolved at ingest (metadata 'sections')
@@ -33,11 +33,13 @@ try:
         min_static_s=p.min_static_s,
         rest_tol_dps=p.rest_tol_dps,
         scale_tol=p.scale_tol,
+        fallback=not p.full_protocol,
     )
     write_recording(
         segments,
         snakemake.output.segments,
-        {"dataset": dataset.name, "imucal_version": p.imucal_version},
+        {"dataset": dataset.name, "imucal_version": p.imucal_version,
+         "notes": segments.attrs.get("notes", {})},
     )
     logging.info(
         "%d segments -> %s\n%s", len(segments), snakemake.output.segments, segments.to_string()

@@ -1,0 +1,59 @@
+# Sessions that do not follow the paper's whole protocol (public recordings, hand-held data):
+# every stage the recordings allow, in one rule (imucal.partial), and the stage listing
+# results/{dataset}/stages.json of every session.
+
+
+rule partial:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        unpack(ingested_imu_all),
+        segments="results/{dataset}/segments.parquet",
+        dataset_yaml=dataset_yaml,
+    output:
+        calibration="results/{dataset}/partial/calibration.json",
+        stages="results/{dataset}/partial/stages.json",
+        mag="results/{dataset}/partial/mag.json",
+        acc="results/{dataset}/partial/acc.json",
+        gyr="results/{dataset}/partial/gyr.json",
+    log:
+        "results/{dataset}/logs/partial.log",
+    benchmark:
+        "results/{dataset}/benchmarks/partial.tsv"
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/partial.py"
+
+
+rule stages_full:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        dataset_yaml=dataset_yaml,
+        calibration="results/{dataset}/calibration.json",
+    output:
+        stages="results/{dataset}/full/stages.json",
+    log:
+        "results/{dataset}/logs/stages_full.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/stages_full.py"
+
+
+rule stages:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        stages=stages_listing,
+    output:
+        stages=report(
+            "results/{dataset}/stages.json",
+            caption="../report/stages.rst",
+            category="Stages",
+        ),
+    log:
+        "results/{dataset}/logs/stages.log",
+    script:
+        "../scripts/copy_json.py"

@@ -1,0 +1,42 @@
+"""Rule partial: every stage a partial session allows, the skipped ones with their reason."""
+
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from imucal import partial
+from imucal.calibration import FORMAT_VERSION
+from imucal.dataset import read_dataset
+from imucal.io import read_recording, read_segments, write_json
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+
+dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
+names = [n for n in dataset.recordings if n != "reference"]
+tables = {name: read_recording(snakemake.input[name])[0] for name in names}
+_, segment_meta = read_recording(snakemake.input.segments)
+outcomes = partial.run_stages(
+    tables,
+    read_segments(snakemake.input.segments),
+    notes=segment_meta.get("notes", {}),
+    gravity_m_s2=dataset.gravity_m_s2,
+    field_norm=dataset.field_norm,
+    ratetable=dataset.ratetable,
+)
+for o in outcomes:
+    logging.info("%-22s %-8s %s", o.name, o.status, o.reason)
+final = partial.final_calibration(outcomes)
+calibration = {
+    "format_version": FORMAT_VERSION,
+    **{sensor: entry["calibration"] for sensor, entry in final["sensors"].items()},
+    "missing": final["missing"],
+    "frame": "B of the session's own protocol (see each sensor's method)",
+}
+write_json(calibration, snakemake.output.calibration)
+write_json({"dataset": dataset.name, "stages": [o.summary() for o in outcomes]},
+           snakemake.output.stages)
+for sensor, artifacts in partial.stage_results(outcomes).items():
+    write_json(artifacts, snakemake.output[sensor])
