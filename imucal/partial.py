@@ -41,7 +41,7 @@ STAGES = {
     "gyr_bias": "gyroscope bias from static data (eqs. 34-35)",
     "gyr_table": "gyroscope rate-table fit (eq. 33)",
     "gyr_align": "gyroscope alignment T_R from the rotation3d phases (eqs. 28-31)",
-    "gyr_known_rotation": "gyroscope from known-angle rotations (Ferraris)",
+    "gyr_known_rotation": "gyroscope from rotations of known angle (Ferraris; hand turns)",
     "gyr_pose_to_pose": "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
     "gyr_scale": "gyroscope scale from acc/mag angles, tool-free (eq. 36)",
 }
@@ -319,19 +319,27 @@ def _gyr_known_rotation(s: _Session) -> dict:
     from imucal import ferraris
 
     _need("gyr_bias" in s.done, "needs the gyroscope bias")
-    _need(s.with_sensor("ferraris", "gyr"), "needs a ferraris recording with gyroscope data")
-    rows = _rows(s.segments, "ferraris", ("phase",))
-    _need("angle_deg" in rows.columns and len(rows) >= 3,
-          f"{len(rows)} rotation sections with a known angle, expected >= 3")
+    recording, rows = None, None
+    for name in ("ferraris", "rotation3d"):
+        if s.with_sensor(name, "gyr"):
+            rows = _rows(s.segments, name, ("phase",))
+            if "angle_deg" in rows.columns:
+                rows = rows[np.isfinite(rows["angle_deg"].astype(float))]
+            if "angle_deg" in rows.columns and len(rows):
+                recording = name
+                break
+    _need(recording is not None, "needs rotation sections of known angle (a ferraris recording, "
+          "or rotation3d phases with angle_deg) with gyroscope data")
+    _need(len(rows) >= 3, f"{len(rows)} rotation sections with a known angle, expected >= 3")
     known = np.array([
         np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()
     ])
     fit = ferraris.fit_known_rotations(
-        _cut(s.tables["ferraris"], rows, GYR), known, _bias(s),
+        _cut(s.tables[recording], rows, GYR), known, _bias(s),
         labels=[str(x) for x in rows["label"]],
     )
     artifact = stages._plain(fit)
-    artifact["calibration"] = fit.calibration.to_dict()
+    artifact.update(recording=recording, calibration=fit.calibration.to_dict())
     return artifact
 
 

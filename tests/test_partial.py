@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,8 @@ from imucal.dataset import read_dataset
 from imucal.ingest import ingest_recording
 from imucal.segmentation import segment_dataset
 from imucal.sim import simulate
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -87,3 +90,40 @@ def test_a_fit_that_fails_on_the_data_is_skipped_with_its_message(session):
     reason = {o.name: o.reason for o in outcomes}["acc_cube"]
     assert reason.startswith("not applicable: needs >= 9 static poses")
     assert all(o.status == "skipped" for o in outcomes if o.name.startswith("acc"))
+
+
+def test_declared_sensors_decide_the_workflow_path(tmp_path):
+    demo = read_dataset(REPO / "data" / "demo")
+    assert partial.is_full_protocol(demo)
+    assert partial.declared_sensors(demo, "cube") == ("acc", "gyr", "mag")
+    folder = tmp_path / "acc_only"
+    folder.mkdir()
+    (folder / "log.csv").write_text("ax,ay,az\n0,0,1\n0,0,1\n")
+    (folder / "dataset.yaml").write_text(
+        "name: acc_only\ngravity_m_s2: 9.81\nrecordings:\n  poses:\n    reader: table\n"
+        "    file: log.csv\n    columns: {acc_x: ax, acc_y: ay, acc_z: az}\n    rate_hz: 100\n"
+        "    units: {acc: g}\n"
+    )
+    dataset = read_dataset(folder)
+    assert partial.declared_sensors(dataset, "poses") == ("acc",)
+    assert not partial.is_full_protocol(dataset)
+
+
+def test_known_angle_hand_turns_on_rotation3d_phases(session):
+    """Phases with angle_deg (hand turns of a stated angle) feed the known-rotation gyro fit."""
+    dataset, tables, segments, truth = session
+    seg = segments.copy()
+    phases = (seg["recording"] == "rotation3d") & (seg["kind"] == "phase")
+    # the simulated phases turn (2, -2, 2) turns about x, y, z of B (ProtocolConfig)
+    seg.loc[phases, "angle_deg"] = seg.loc[phases, "label"].map({"x": 720, "y": -720, "z": 720})
+    outcomes = partial.run_stages(
+        {k: tables[k] for k in ("rotation3d", "static")}, seg, gravity_m_s2=dataset.gravity_m_s2
+    )
+    known = next(o for o in outcomes if o.name == "gyr_known_rotation")
+    assert known.status == "run", known.reason
+    final = partial.final_calibration(outcomes)
+    assert final["sensors"]["gyr"]["stage"] == "gyr_known_rotation"
+    gyr = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
+    # three 720-degree sections, noise-limited angles (~1e-4 rad) -> matrix error ~1e-5; the
+    # phases also include their ramps, so the issue's 2e-3 limit is a loose, honest bound
+    assert np.abs(gyr - truth["gyr"]["matrix"]).max() < 2e-3

@@ -344,3 +344,30 @@ def test_simulated_session_boundaries(tmp_path, effects):
     assert rot["sense"].tolist() == rot["sense_true"].tolist()
     phases = both[both["kind_true"] == "phase"]
     assert phases["turns"].tolist() == phases["turns_true"].tolist()
+
+
+# --- partial protocols: static poses, fallback ------------------------------------------------
+
+
+def test_poses_are_the_static_intervals_with_and_without_a_gyro():
+    t, acc, gyr, (t0, t1) = synthetic_turn(0.002, 0.01)
+    table = pd.DataFrame({TIME: t, **dict(zip(ACC, acc.T)), **dict(zip(GYR, gyr.T))})
+    both = segment_dataset({"poses": table})
+    assert both["label"].tolist() == ["s01", "s02"] and set(both["kind"]) == {"static"}
+    assert both.iloc[0]["end_s"] <= t0 + 0.5 and both.iloc[1]["start_s"] >= t1 - 0.5
+    # an accelerometer-only logger: quiet means a quiet accelerometer
+    acc_only = segment_dataset({"poses": table.drop(columns=list(GYR))})
+    assert acc_only["label"].tolist() == ["s01", "s02"]
+    # a magnetometer-only recording has no poses to tell
+    mag_only = pd.DataFrame({TIME: t, **dict(zip(MAG, acc.T / G))})
+    assert segment_dataset({"tumble": mag_only}).empty
+
+
+def test_fallback_keeps_static_poses_and_says_why(session):
+    t, acc, gyr = cut(session[1]["rotation3d"], 62.0)  # stops before phase z
+    table = pd.DataFrame({TIME: t, **dict(zip(ACC, acc.T)), **dict(zip(GYR, gyr.T))})
+    with pytest.raises(ValueError, match="full-turn phase"):
+        segment_dataset({"rotation3d": table})
+    segments = segment_dataset({"rotation3d": table}, fallback=True)
+    assert set(segments["kind"]) == {"static"} and len(segments) >= 2
+    assert "automatic segmentation failed" in segments.attrs["notes"]["rotation3d"]
