@@ -222,7 +222,7 @@ def _acc_known_orientation(s: _Session) -> dict:
         positions, directions, s.gravity_m_s2, labels=[str(x) for x in rows["label"]]
     )
     artifact = stages._plain(fit)
-    artifact["calibration"] = fit.calibration.to_dict()
+    artifact.update(calibration=fit.calibration.to_dict(), gravity_m_s2=s.gravity_m_s2)
     return artifact
 
 
@@ -572,4 +572,51 @@ def stage_results(outcomes: list[Outcome]) -> dict[str, dict]:
     for o in outcomes:
         if o.status == "run":
             out[o.name.split("_", 1)[0]][o.name] = o.artifact
+    return out
+
+
+def figures(outcomes: list[Outcome], tables: Mapping[str, pd.DataFrame]) -> dict:
+    """Figures of the stages that ran (file stem -> matplotlib Figure).
+
+    ``mag_raw`` / ``mag_step1`` (the ellipsoid fit's samples before and after), ``acc_cube`` or
+    ``acc_known_orientation`` (|a| - g per pose before and after), ``gyr_pose_to_pose``
+    (gravity-direction error per interval before and after).
+    """
+    from imucal import magnetometer
+    from imucal.plots import inertial as plots
+    from imucal.plots.magnetometer import plot_field
+
+    done = {o.name: o.artifact for o in outcomes if o.status == "run"}
+    out = {}
+    if "mag_step1" in done:
+        fit = magnetometer.EllipsoidFit.from_dict(dict(done["mag_step1"]))
+        t, raw = magnetometer.field_samples(tables[done["mag_step1"]["source"]])
+        source = done["mag_step1"]["source"]
+        out["mag_raw"] = plot_field(t, raw, f"Magnetometer, raw ({source})")
+        out["mag_step1"] = plot_field(
+            t, fit.apply(raw), f"After step 1, the ellipsoid fit ({fit.used}; {source})",
+            fit.field_norm,
+        )
+    if "acc_cube" in done:
+        a = done["acc_cube"]
+        out["acc_cube"] = plots.plot_before_after_errors(
+            a["labels"], a["magnitude_error_before_m_s2"], a["magnitude_error_after_m_s2"],
+            "m/s^2", f"Accelerometer fit (eq. 32) on {a['recording']} (in-sample)",
+            quantity="|a| - g",
+        )
+    if "acc_known_orientation" in done:
+        a = done["acc_known_orientation"]
+        raw_norm = np.linalg.norm(np.asarray(a["position_means"], dtype=float), axis=1)
+        out["acc_known_orientation"] = plots.plot_before_after_errors(
+            a["labels"], raw_norm - a["gravity_m_s2"], a["magnitude_error_m_s2"], "m/s^2",
+            "Accelerometer from faces of known orientation (in-sample)", quantity="|a| - g",
+        )
+    if "gyr_pose_to_pose" in done:
+        g = done["gyr_pose_to_pose"]
+        n = len(g["angle_errors_deg"])
+        out["gyr_pose_to_pose"] = plots.plot_before_after_errors(
+            [f"{k + 1}" for k in range(n)], g["angle_errors_before_deg"], g["angle_errors_deg"],
+            "deg", "Gyroscope pose to pose (in-sample; before: nominal scale)",
+            quantity="gravity-direction error",
+        )
     return out

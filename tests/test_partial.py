@@ -79,6 +79,10 @@ def test_hand_placed_poses_give_cube_fit_and_pose_to_pose_gyro(session):
     gyr = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
     assert np.abs(acc - upper).max() < 2e-3  # the acc limit (measured 2.6e-4)
     assert np.abs(gyr - q.T @ np.array(truth["gyr"]["matrix"])).max() < 2e-3  # measured 4.7e-4
+    figures = partial.figures(outcomes, {"poses": tables["cube"], "static": tables["static"]})
+    assert set(figures) == {"mag_raw", "mag_step1", "acc_cube", "gyr_pose_to_pose"}
+    bars = figures["gyr_pose_to_pose"].axes[1].patches
+    assert len(bars) == len(poses[(poses["recording"] == "poses")]) - 1  # one per interval
 
 
 def test_a_fit_that_fails_on_the_data_is_skipped_with_its_message(session):

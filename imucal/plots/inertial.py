@@ -17,22 +17,55 @@ AFTER_COLOUR = "#0072B2"
 AXIS_COLOURS = {"x": "#D55E00", "y": "#0072B2", "z": "#000000"}
 
 
+def plot_before_after_errors(
+    labels: Sequence[str],
+    before: np.ndarray,
+    after: np.ndarray,
+    unit: str,
+    title: str,
+    quantity: str = "|v| - reference",
+) -> Figure:
+    """Per-item errors before and after a calibration (absolute, log scale; signed after).
+
+    Parameters
+    ----------
+    labels : sequence of str, length n
+    before, after : ndarray, shape (n,)
+        Errors in ``unit``.
+    unit : str
+    title : str
+    quantity : str
+        What the error is, for the axis labels.
+    """
+    if not len(labels) == len(before) == len(after):
+        raise ValueError(
+            f"{len(labels)} labels for {len(before)} and {len(after)} errors; expected equal"
+        )
+    return _before_after_bars(labels, np.asarray(before, float), np.asarray(after, float),
+                              unit, title, quantity)
+
+
 def _before_after_bars(
-    labels: Sequence[str], before: np.ndarray, after: np.ndarray, unit: str, title: str
+    labels: Sequence[str],
+    before: np.ndarray,
+    after: np.ndarray,
+    unit: str,
+    title: str,
+    quantity: str = "|v| - reference",
 ) -> Figure:
     fig = Figure(figsize=(8, 5.5), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True)
     x = np.arange(len(labels))
     top.bar(x - 0.2, np.abs(before), 0.4, color=BEFORE_COLOUR, label="uncalibrated")
     top.bar(x + 0.2, np.abs(after), 0.4, color=AFTER_COLOUR, label="calibrated")
-    top.set_ylabel(f"| |v| - reference |  ({unit})")
+    top.set_ylabel(f"|{quantity}|  ({unit})")
     top.set_yscale("log")
     top.legend(loc="upper right")
     top.set_title(title)
     # the calibrated residuals on their own linear scale, with sign
     bottom.bar(x, after, 0.6, color=AFTER_COLOUR)
     bottom.axhline(0, color="0.5", lw=0.8)
-    bottom.set_ylabel(f"calibrated |v| - reference  ({unit})")
+    bottom.set_ylabel(f"calibrated: {quantity}  ({unit})")
     bottom.set_xticks(x, labels, rotation=90 if len(labels) > 14 else 0)
     return fig
 

@@ -199,6 +199,7 @@ def report_inputs(wildcards):
         inputs.update({k: f"results/{d}/partial/{k}.json" for k in ("mag", "acc", "gyr")})
         inputs["calibration"] = f"results/{d}/partial/calibration.json"
         benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
+        inputs["figure_dir"] = f"results/{d}/partial/figures"
         return {**inputs, "figures": figures, "benchmarks": benchmarks}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")

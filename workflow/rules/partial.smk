@@ -16,6 +16,7 @@ rule partial:
         mag="results/{dataset}/partial/mag.json",
         acc="results/{dataset}/partial/acc.json",
         gyr="results/{dataset}/partial/gyr.json",
+        figures=directory("results/{dataset}/partial/figures"),
     log:
         "results/{dataset}/logs/partial.log",
     benchmark:

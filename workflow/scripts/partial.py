@@ -40,3 +40,7 @@ write_json({"dataset": dataset.name, "stages": [o.summary() for o in outcomes]},
            snakemake.output.stages)
 for sensor, artifacts in partial.stage_results(outcomes).items():
     write_json(artifacts, snakemake.output[sensor])
+figure_dir = Path(snakemake.output.figures)
+figure_dir.mkdir(parents=True, exist_ok=True)
+for name, figure in partial.figures(outcomes, tables).items():
+    figure.savefig(figure_dir / f"{name}.png", dpi=110)

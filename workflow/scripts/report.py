@@ -20,7 +20,8 @@ context = build_report_context(
     validation=snakemake.input.get("validation"),
     tables=snakemake.input.get("tables"),
     stages=snakemake.input.stages,
-    figures=list(snakemake.input.figures),
+    figures=list(snakemake.input.figures)
+    + (sorted(Path(snakemake.input.figure_dir).glob("*.png")) if "figure_dir" in snakemake.input.keys() else []),  # noqa: SIM118
     benchmarks=list(snakemake.input.benchmarks),
     config=dict(snakemake.params.config),
     git_commit=snakemake.params.git_commit,
