@@ -30,29 +30,18 @@ def plot_before_after_errors(
     Parameters
     ----------
     labels : sequence of str, length n
-    before, after : ndarray, shape (n,)
+    before, after : array_like, shape (n,)
         Errors in ``unit``.
     unit : str
     title : str
     quantity : str
         What the error is, for the axis labels.
     """
+    before, after = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
     if not len(labels) == len(before) == len(after):
         raise ValueError(
             f"{len(labels)} labels for {len(before)} and {len(after)} errors; expected equal"
         )
-    return _before_after_bars(labels, np.asarray(before, float), np.asarray(after, float),
-                              unit, title, quantity)
-
-
-def _before_after_bars(
-    labels: Sequence[str],
-    before: np.ndarray,
-    after: np.ndarray,
-    unit: str,
-    title: str,
-    quantity: str = "|v| - reference",
-) -> Figure:
     fig = Figure(figsize=(8, 5.5), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True)
     x = np.arange(len(labels))
@@ -82,7 +71,7 @@ def plot_cube_magnitude_errors(fit: CubeFit) -> Figure:
     matplotlib.figure.Figure
         Top: absolute error (log scale) before and after; bottom: signed error after, m/s^2.
     """
-    return _before_after_bars(
+    return plot_before_after_errors(
         fit.labels,
         fit.magnitude_error_before_m_s2,
         fit.magnitude_error_after_m_s2,
@@ -110,7 +99,7 @@ def plot_rate_table_errors(fit: RateTableFit, labels: Sequence[str]) -> Figure:
             f"{len(labels)} labels for {len(fit.magnitude_error_before_rad_s)} runs; "
             "expected one label per run"
         )
-    return _before_after_bars(
+    return plot_before_after_errors(
         labels,
         np.degrees(fit.magnitude_error_before_rad_s),
         np.degrees(fit.magnitude_error_after_rad_s),
