@@ -1,7 +1,9 @@
-"""Effects on the sensor readings: g_sensitivity, saturation, temperature_drift."""
+"""Effects on the sensor readings: g_sensitivity, saturation, temperature_drift,
+scale_nonlinearity."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,6 +85,12 @@ class Saturation(Effect):
     def dataset_overrides(self) -> dict:
         return {"range_counts": {s: getattr(self, s) for s in SENSORS}}
 
+    def scaled(self, factor: float) -> Effect:
+        """The gyroscope's range times ``factor`` (rounded to a count); the others kept."""
+        if not factor > 0:
+            raise ValueError(f"effect {self.name!r}: scale factor must be > 0, got {factor}")
+        return dataclasses.replace(self, gyr=int(round(self.gyr * factor)))
+
     def magnitude(self) -> Magnitude:
         """The gyroscope's clip level (the rate table is where a range is exceeded)."""
         return Magnitude(float(self.gyr), "counts", "largest |count| of the gyroscope")
@@ -158,3 +166,60 @@ class TemperatureDrift(Effect):
 
     def magnitude(self) -> Magnitude:
         return Magnitude(abs(self.gyr_per_k), "rad/s/K", "|gyro bias drift per kelvin|")
+
+
+@register
+@dataclass(frozen=True)
+class ScaleNonlinearity(Effect):
+    """The sensing element's response is a cubic of its input, relative to the full scale.
+
+    With ``u`` the sensor-frame input (``matrix^-1 true``, SI, the reading without bias and
+    noise) and ``FS = 32767 * sensitivity`` the sensor's full scale (SI), every axis reads
+
+    ``u + FS (k2 (u / FS)^2 + k3 (u / FS)^3)``
+
+    so ``k2`` (even: same sign for +-u, an asymmetry) and ``k3`` (odd) are the deviations at
+    full scale as fractions of the full scale; the linear term stays the truth's.
+
+    Parameters
+    ----------
+    acc_k2, acc_k3, gyr_k2, gyr_k3, mag_k2, mag_k3 : float
+        Dimensionless. Realistic (MPU-9250 datasheet, effects.md #5): gyro nonlinearity
+        0.1 % FS (``gyr_k3`` 1e-3, ``gyr_k2`` 5e-4), accelerometer 0.5 % FS (``acc_k3`` 5e-3,
+        ``acc_k2`` 2e-3); magnetometer 0.
+
+    Notes
+    -----
+    Its signature is a residual of the rate-table plateaus that is curved in the rate (the
+    static cube, at +-1 g only, cannot separate ``k2`` from a bias).
+    """
+
+    name = "scale_nonlinearity"
+    scalable = ("acc_k2", "acc_k3", "gyr_k2", "gyr_k3", "mag_k2", "mag_k3")
+    acc_k2: float = 2e-3
+    acc_k3: float = 5e-3
+    gyr_k2: float = 5e-4
+    gyr_k3: float = 1e-3
+    mag_k2: float = 0.0
+    mag_k3: float = 0.0
+
+    def on_readings(
+        self, readings: Signals, true: Signals, state: KinematicState, ctx: RecordingContext
+    ) -> Signals:
+        out = readings
+        for s in SENSORS:
+            k2, k3 = getattr(self, f"{s}_k2"), getattr(self, f"{s}_k3")
+            if k2 == 0 and k3 == 0:
+                continue
+            cal = ctx.require(self.name, "calibration").sensor(s)
+            full_scale = INT16_MAX * ctx.sensitivity[s]
+            x = errormodel.invert(cal.matrix, np.zeros(3), true.sensor(s)) / full_scale
+            out = out.with_sensor(s, out.sensor(s) + full_scale * (k2 * x**2 + k3 * x**3))
+        return out
+
+    def magnitude(self) -> Magnitude:
+        return Magnitude(
+            abs(self.gyr_k2) + abs(self.gyr_k3),
+            "1",
+            "largest gyro deviation at +-full scale, fraction of full scale (|k2| + |k3|)",
+        )
