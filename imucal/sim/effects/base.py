@@ -187,9 +187,7 @@ class Effect:
                 f"effect {self.name!r} has no parameter that scales its magnitude; "
                 f"set its parameters {sorted(self.params())} instead"
             )
-        return dataclasses.replace(
-            self, **{k: getattr(self, k) * factor for k in self.scalable}
-        )
+        return dataclasses.replace(self, **{k: getattr(self, k) * factor for k in self.scalable})
 
 
 def register(cls: type[Effect]) -> type[Effect]:

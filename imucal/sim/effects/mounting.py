@@ -68,7 +68,9 @@ class PlacementError(Effect):
     def __post_init__(self) -> None:
         for key in ("cube_sigma_deg", "table_sigma_deg"):
             if not getattr(self, key) >= 0:
-                raise ValueError(f"placement_error {key} must be >= 0 deg, got {getattr(self, key)}")
+                raise ValueError(
+                    f"placement_error {key} must be >= 0 deg, got {getattr(self, key)}"
+                )
 
     def on_plan(self, plan: RecordingPlan, ctx: RecordingContext) -> RecordingPlan:
         if plan.recording == "cube":
@@ -114,7 +116,9 @@ class PlacementError(Effect):
                 delta = Rotation.from_rotvec(d)
                 new = _retarget(piece, current, piece.end * delta)
             elif piece.profile == "ramp":  # a run: the table spins about the world vertical
-                new = dataclasses.replace(piece, start=current, axis_b=delta.inv().apply(piece.axis_b))
+                new = dataclasses.replace(
+                    piece, start=current, axis_b=delta.inv().apply(piece.axis_b)
+                )
             else:
                 new = dataclasses.replace(piece, start=current)
             out.append(new)
@@ -180,7 +184,9 @@ class LargeMisalignment(Effect):
             alpha = dec.alpha_rad / norm * angle
             matrix = errormodel.compose(dec.scale, dec.xi_rad, alpha)
             sensors.append(
-                SensorCalibration(s, cal.bias, matrix, cal.unit, method=f"{cal.method}, {self.name}")
+                SensorCalibration(
+                    s, cal.bias, matrix, cal.unit, method=f"{cal.method}, {self.name}"
+                )
             )
         return dataclasses.replace(truth, calibration=ImuCalibration(*sensors))
 

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imucal.columns import SENSORS
 from imucal import errormodel
+from imucal.columns import SENSORS
 from imucal.sim.effects.base import Effect, Magnitude, RecordingContext, register
 from imucal.sim.motion import KinematicState
 from imucal.sim.packets import PacketLog
@@ -89,7 +89,7 @@ class Saturation(Effect):
         """The gyroscope's range times ``factor`` (rounded to a count); the others kept."""
         if not factor > 0:
             raise ValueError(f"effect {self.name!r}: scale factor must be > 0, got {factor}")
-        return dataclasses.replace(self, gyr=int(round(self.gyr * factor)))
+        return dataclasses.replace(self, gyr=round(self.gyr * factor))
 
     def magnitude(self) -> Magnitude:
         """The gyroscope's clip level (the rate table is where a range is exceeded)."""
