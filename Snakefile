@@ -20,6 +20,7 @@ include: "workflow/rules/accelerometer.smk"
 include: "workflow/rules/gyroscope.smk"
 include: "workflow/rules/calibration.smk"
 include: "workflow/rules/report.smk"
+include: "workflow/rules/gap.smk"
 
 
 rule all:

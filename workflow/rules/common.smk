@@ -105,6 +105,7 @@ def all_targets(wildcards):
         targets += [f"results/{name}/ingest/summary.json", f"reports/{name}.html"]
         targets += [f"results/{name}/calibration.json", f"results/{name}/tables.csv"]
         targets += [f"results/{name}/segments/{r}.png" for r in IMU_RECORDINGS if r in recordings]
+        targets += [f"results/{name}/gap/diagnosis.json"]
     return targets
 
 
@@ -162,4 +163,26 @@ def report_inputs(wildcards):
     figures += [
         f"results/{d}/segments/{r}.png" for r in IMU_RECORDINGS if r in info.recordings
     ]
-    return {"figures": figures, "benchmarks": benchmarks}
+    gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
+    return {"figures": figures, "benchmarks": benchmarks, "gap": gap}
+
+
+#: The blind check's hidden plan (imucal.gap.blind); rules see only names and exclusions.
+from imucal.gap.blind import blind_plan, public_plan
+
+_BLIND = config["blind"]
+_BLIND_PLAN = blind_plan(
+    _BLIND["seed"], _BLIND["seeds_per_effect"], _BLIND["n_null"], _BLIND["unknown"]
+)
+BLIND_SESSIONS = [s["name"] for s in _BLIND_PLAN]
+_BLIND_EXCLUDE = public_plan(_BLIND_PLAN)
+
+
+def blind_spec(wildcards):
+    """The hidden spec of one blind session (only the render rule takes it)."""
+    return next(s for s in _BLIND_PLAN if s["name"] == wildcards.session)
+
+
+def blind_exclude(wildcards):
+    """Effects left out of the diagnosis's library for one blind session."""
+    return _BLIND_EXCLUDE[wildcards.session]
