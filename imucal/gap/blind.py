@@ -19,8 +19,9 @@ import numpy as np
 from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
 from imucal.sim.effects import EFFECTS, make_effect, stream_rng
 
-#: A short protocol for the blind sessions (same structure, shorter holds).
-BLIND_PROTOCOL = {"static_s": 120.0, "run_plateau_s": 4.0, "run_pause_s": 1.5}
+#: The blind sessions: the default protocol with a 120 s static recording (shorter rate-table
+#: plateaus, 4 s, split runs in the automatic segmentation).
+BLIND_PROTOCOL = {"static_s": 120.0}
 
 
 def blind_plan(

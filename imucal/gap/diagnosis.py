@@ -144,6 +144,7 @@ def diagnose(
             "loo_false_alarm": float(np.mean(null_full.leave_one_out_flags(alpha))),
         },  # fmt: skip
         "twin": twin.describe(),
+        "pipeline_notes": list(fit.extra.get("notes", [])),
         "settings": {
             "seed": seed, "min_heldout_shrink": min_heldout_shrink, "crn_seeds": crn_seeds,
             "detect_z": detect_z, "exclude": list(exclude),

@@ -134,14 +134,24 @@ def calibrate_session(
     bias, _ = stages.estimate_gyr_bias(imu, segments)
     o, _ = stages.gyr_bias_value(bias, "ls")
     align = stages.align_gyr(low, segments, o, exact=exact)
-    scale = stages.estimate_gyr_scale(imu["rotation3d"], segments, bias, align, acc, mag)
+    notes = []
+    try:
+        scale = stages.estimate_gyr_scale(imu["rotation3d"], segments, bias, align, acc, mag)
+    except ValueError as err:
+        # eq. 36 integrates on the receive timestamps and refuses repeated ones; with a rate
+        # table the final calibration does not need it, so the diagnosis goes on and says so
+        if "ratetable" not in imu:
+            raise
+        notes.append(f"eq. 36 (gyro scale without tools) failed: {err}")
+        scale = None
     table = table_align = None
     if "ratetable" in imu:
         table, _ = stages.fit_gyr_table(
             imu["ratetable"], segments, saturation_limit_rad_s=options.limit("gyr")
         )
         table_align = stages.align_gyr(low, segments, table["bias"], table["upper"], exact=exact)
-    gyr, _ = stages.combine_gyr(bias, align, scale, table, table_align, exact=exact)
+    scale_used = scale or {"scale": [1.0, 1.0, 1.0], "std_scale": [float("nan")] * 3}
+    gyr, _ = stages.combine_gyr(bias, align, scale_used, table, table_align, exact=exact)
     calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None
     if reference is not None:
@@ -153,7 +163,7 @@ def calibrate_session(
     }  # fmt: skip
     return SessionFit(
         imu, reference, segments, low, calibration, artifacts, alignment, start,
-        {"options": options},
+        {"options": options, "notes": notes},
     )
 
 

@@ -390,6 +390,8 @@ def _centripetal(fit: SessionFit, half) -> dict:
 
 
 def _scale(fit: SessionFit, half) -> dict:
+    if fit.artifacts["scale"] is None:
+        return {}
     per_phase = fit.artifacts["scale"]["per_phase"]
     final = errormodel.decompose(fit.calibration.sensor("gyr").matrix).scale
     out = {}
