@@ -88,6 +88,16 @@ def render_blind_session(spec: Mapping, folder: str | Path, sealed: str | Path) 
     ))  # fmt: skip
 
 
+def failed_diagnosis(dataset: str, error: str) -> dict:
+    """The diagnosis record of a session the pipeline refused (scored as a miss)."""
+    return {
+        "format_version": 1, "dataset": dataset, "failed": error,
+        "gap": {"total": None, "null_p95": None, "significant": None},
+        "locations": [], "effects": [], "explained": [],
+        "remaining": {"total": None, "significant": None, "locations": []},
+    }  # fmt: skip
+
+
 def _estimated_magnitude(effect: str, params) -> float | None:
     if params is None:
         return None
@@ -121,7 +131,8 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
         first = diag["explained"][0] if diag["explained"] else "none"
         row = {"name": name, "effect": truth_effect, "explained": diag["explained"],
                "gap_significant": diag["gap"]["significant"],
-               "remaining_significant": diag["remaining"]["significant"]}  # fmt: skip
+               "remaining_significant": diag["remaining"]["significant"],
+               "failed": diag.get("failed")}  # fmt: skip
         if spec["exclude"]:
             named_wrong = [e for e in diag["explained"] if e != truth_effect]
             row.update(

@@ -36,6 +36,10 @@ rule gap_diagnose:
         "../scripts/gap_diagnose.py"
 
 
+# reports/blind.html is the blind check's page, not a dataset's lab report
+ruleorder: blind_score > report
+
+
 rule blind_render:
     conda:
         "../envs/imucal.yaml"
