@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from imucal.sim import EFFECTS, PRESETS, parse_effect, simulate
+from imucal.sim.effects import CANONICAL, REALISTIC
 
 
 def _effect(spec: str):
@@ -13,6 +14,14 @@ def _effect(spec: str):
         return parse_effect(spec)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def _effects_epilog() -> str:
+    lines = ["effects and their defaults (a typical realistic magnitude; see docs/simulator.md):"]
+    for name in CANONICAL:
+        params = ",".join(f"{k}={v}" for k, v in REALISTIC[name].items())
+        lines.append(f"  {name}:{params}")
+    return "\n".join(lines)
 
 
 def _add_simulate(sub: argparse._SubParsersAction) -> None:
@@ -23,6 +32,8 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
             "Render a complete calibration session (rotation3d, cube, ratetable, static, "
             "reference, truth.json) from a known truth; the same seed gives identical files."
         ),
+        epilog=_effects_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("out_dir", help="dataset folder to write (created if needed)")
     p.add_argument("--preset", choices=PRESETS, default="paper", help="truth preset")

@@ -553,6 +553,7 @@ def build_report_context(
     snakemake_version: str | None = None,
     imucal_version: str | None = None,
     generated: str | None = None,
+    gap: Sequence[str | Path] | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -731,7 +732,19 @@ def build_report_context(
             for r in bench.itertuples()
         ],
         "benchmarks_total_s": format_number(float(bench["s"].sum()), 4) if len(bench) else None,
+        "gap": _gap_section(gap),
     }
+
+
+def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
+    """Context of the gap-diagnosis partial (``_gap.html.j2``): diagnosis.json, then figures."""
+    if not paths:
+        return None
+    from imucal.gap.figures import report_context
+
+    diagnosis, *figures = [Path(p) for p in paths]
+    return report_context(_load_json(diagnosis, "gap diagnosis"),
+                          {f.stem: embed_figure(f) for f in figures})  # fmt: skip
 
 
 def _plain(obj: Any) -> Any:

@@ -7,7 +7,15 @@ Modules (one concept each): :mod:`.truth` (sensor errors, world, noise, presets)
 model), :mod:`.session` (render and write a dataset folder). See docs/simulator.md.
 """
 
-from imucal.sim.effects import EFFECTS, Effect, make_effect, parse_effect
+from imucal.sim.effects import (
+    CANONICAL,
+    EFFECTS,
+    REALISTIC,
+    Effect,
+    Magnitude,
+    make_effect,
+    parse_effect,
+)
 from imucal.sim.motion import KinematicState, Motion, Piece, evaluate_motion
 from imucal.sim.protocol import ProtocolConfig, RecordingPlan, Segment
 from imucal.sim.reference import ReferenceClock
@@ -22,11 +30,14 @@ from imucal.sim.session import (
 from imucal.sim.truth import PRESETS, Truth, World, make_truth
 
 __all__ = [
+    "CANONICAL",
     "EFFECTS",
     "PRESETS",
+    "REALISTIC",
     "SENSITIVITY",
     "Effect",
     "KinematicState",
+    "Magnitude",
     "Motion",
     "Piece",
     "ProtocolConfig",

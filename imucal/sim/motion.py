@@ -176,6 +176,12 @@ def _profile(piece: Piece, tau_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return theta, rate, acc
 
 
+def piece_angle(piece: Piece, tau_s: np.ndarray) -> np.ndarray:
+    """Angle (rad) turned about ``piece.axis_b`` at local times ``tau_s`` (s), wobble excluded."""
+    tau = np.clip(np.asarray(tau_s, dtype=float), 0.0, piece.duration_s)
+    return _profile(piece, tau)[0]
+
+
 def _wobble(piece: Piece, tau_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Wobble angle ``a sin^2(pi u) sin(2 pi k u)``, u = tau/T, and its two derivatives."""
     T, a, k = piece.duration_s, piece.wobble_rad, piece.wobble_cycles

@@ -69,7 +69,8 @@ class Session:
     sensitivity : dict
         SI unit per count per sensor.
     plans : dict
-        Recording -> :class:`~imucal.sim.protocol.RecordingPlan` (motion and true segments).
+        Recording -> nominal :class:`~imucal.sim.protocol.RecordingPlan` (motion and true
+        segments, what the pipeline is told).
     logs : dict
         Recording -> :class:`~imucal.sim.packets.PacketLog` (what the raw CSV holds).
     clock : ReferenceClock
@@ -77,6 +78,12 @@ class Session:
         The reference's export table.
     clipped : dict
         Recording -> sensor -> number of counts clipped to the int16 range.
+    rendered : dict
+        Recording -> the plan actually rendered (after the effects' ``on_plan``; the same as
+        ``plans`` unless an effect such as ``placement_error`` changed the motion).
+    realised : dict
+        Effect name -> recording -> random draws the effects recorded (see
+        :meth:`~imucal.sim.effects.RecordingContext.record`).
     """
 
     name: str
@@ -91,6 +98,8 @@ class Session:
     clock: ReferenceClock
     reference: pd.DataFrame
     clipped: dict
+    rendered: dict = dataclasses.field(default_factory=dict)
+    realised: dict = dataclasses.field(default_factory=dict)
 
     def frame(self, recording: str) -> pd.DataFrame:
         """The raw-CSV table of an IMU recording."""
@@ -128,6 +137,7 @@ class Session:
         out.update(
             {
                 "effects": {e.name: e.params() for e in self.effects},
+                **({"effects_realised": self.realised} if self.realised else {}),
                 "seed": self.seed,
                 "convention": CONVENTION,
                 "frame": FRAME,
@@ -190,6 +200,7 @@ def _render_recording(
     ctx: RecordingContext,
     seq_start: int,
 ) -> tuple[PacketLog, dict]:
+    """Render one recording of the motion ``plan.motion`` (``ctx.motion`` is the same)."""
     n = int(np.floor(plan.motion.duration_s * RATE_HZ)) + 1
     state = evaluate_motion(plan.motion, np.arange(n) / RATE_HZ)
     true = true_signals(state, truth.world)
@@ -244,7 +255,9 @@ def simulate_session(
     Notes
     -----
     The recordings follow one another on a session clock (``SESSION_GAP_S`` apart), which the
-    16-bit counter and time-dependent effects (temperature) run on.
+    16-bit counter and time-dependent effects (temperature, bias instability) run on. The
+    effects' ``on_truth`` runs first (the returned session holds the changed truth), then per
+    recording ``on_plan`` (the session's ``plans`` and truth.json keep the nominal plans).
     """
     names = [e.name for e in effects]
     if len(set(names)) != len(names):
@@ -257,6 +270,8 @@ def simulate_session(
             "the ground truth is in truth.json."
         )
     config = ProtocolConfig() if config is None else config
+    for effect in effects:
+        truth = effect.on_truth(truth)
     protocol_rng = stream_rng(seed, "protocol")
     plans = {rec: planner(config, protocol_rng) for rec, planner in PLANNERS.items()}
     starts, t = {}, 0.0
@@ -264,9 +279,15 @@ def simulate_session(
         starts[rec] = t
         t += plan.motion.duration_s + SESSION_GAP_S
     origin = _seq_origin(plans, starts, stream_rng(seed, "seq"))
-    logs, clipped = {}, {}
+    logs, clipped, rendered, realised = {}, {}, {}, {}
     for rec, plan in plans.items():
-        ctx = RecordingContext(rec, RATE_HZ, starts[rec], sensitivity, seed)
+        ctx = RecordingContext(
+            rec, RATE_HZ, starts[rec], sensitivity, seed, None, truth.calibration, realised
+        )
+        for effect in effects:
+            plan = effect.on_plan(plan, ctx)
+        rendered[rec] = plan
+        ctx = dataclasses.replace(ctx, motion=plan.motion)
         seq_start = (origin + round(starts[rec] * RATE_HZ)) % SEQ_MODULUS
         logs[rec], clipped[rec] = _render_recording(plan, truth, effects, ctx, seq_start)
     clock = ReferenceClock()
@@ -274,7 +295,7 @@ def simulate_session(
         clock = effect.on_reference_clock(clock)
     ref_rng = stream_rng(seed, "reference")
     reference = render_reference(
-        plans["rotation3d"].motion,
+        rendered["rotation3d"].motion,
         truth.world,
         truth.mounting,
         truth.reference_noise,
@@ -285,7 +306,7 @@ def simulate_session(
     )
     return Session(
         name, description, seed, truth, config, tuple(effects), sensitivity, plans, logs, clock,
-        reference, clipped,
+        reference, clipped, rendered, realised,
     )  # fmt: skip
 
 

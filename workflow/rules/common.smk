@@ -138,6 +138,7 @@ def dataset_targets(name):
     targets += [f"results/{name}/stages.json"]
     if full_protocol(name):
         targets += [f"results/{name}/calibration.json", f"results/{name}/tables.csv"]
+        targets += [f"results/{name}/gap/diagnosis.json"]
     else:
         targets += [f"results/{name}/partial/calibration.json"]
     targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
@@ -221,4 +222,26 @@ def report_inputs(wildcards):
             f"results/{d}/figures/validation_magnitudes.png",
             f"results/{d}/figures/validation_xcorr.png",
         ]
-    return {**inputs, "figures": figures, "benchmarks": benchmarks}
+    gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
+    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap}
+
+
+#: The blind check's hidden plan (imucal.gap.blind); rules see only names and exclusions.
+from imucal.gap.blind import blind_plan, public_plan
+
+_BLIND = config["blind"]
+_BLIND_PLAN = blind_plan(
+    _BLIND["seed"], _BLIND["seeds_per_effect"], _BLIND["n_null"], _BLIND["unknown"]
+)
+BLIND_SESSIONS = [s["name"] for s in _BLIND_PLAN]
+_BLIND_EXCLUDE = public_plan(_BLIND_PLAN)
+
+
+def blind_spec(wildcards):
+    """The hidden spec of one blind session (only the render rule takes it)."""
+    return next(s for s in _BLIND_PLAN if s["name"] == wildcards.session)
+
+
+def blind_exclude(wildcards):
+    """Effects left out of the diagnosis's library for one blind session."""
+    return _BLIND_EXCLUDE[wildcards.session]

@@ -26,5 +26,6 @@ context = build_report_context(
     config=dict(snakemake.params.config),
     git_commit=snakemake.params.git_commit,
     imucal_version=snakemake.params.imucal_version,
+    gap=list(snakemake.input.gap) if "gap" in snakemake.input.keys() else None,  # noqa: SIM118
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")

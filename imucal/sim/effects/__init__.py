@@ -1,8 +1,13 @@
-"""Effects beyond the paper's error model, by canonical name (see :mod:`.base` for the hooks)."""
+"""Effects beyond the paper's error model, by canonical name (see :mod:`.base` for the hooks).
+
+:data:`REALISTIC` maps every effect name to its typical realistic parameters (the class
+defaults); ``make_effect(name).magnitude()`` gives the headline size in SI.
+"""
 
 from imucal.sim.effects.base import (
     EFFECTS,
     Effect,
+    Magnitude,
     RecordingContext,
     make_effect,
     parse_effect,
@@ -10,23 +15,63 @@ from imucal.sim.effects.base import (
     stream_rng,
 )
 from imucal.sim.effects.kinematic import EarthRotation, LeverArm
-from imucal.sim.effects.sensor import GSensitivity, Saturation, TemperatureDrift
+from imucal.sim.effects.magnetic import MagLatency, PlatformMagnetic, platform_yaw
+from imucal.sim.effects.mounting import PLACEMENT_CONVENTION, LargeMisalignment, PlacementError
+from imucal.sim.effects.noise import BiasInstability
+from imucal.sim.effects.sensor import (
+    GSensitivity,
+    Saturation,
+    ScaleNonlinearity,
+    TemperatureDrift,
+)
 from imucal.sim.effects.timing import PacketLoss, TimeOffset, TimingJitter
 
+#: The canonical effects of issue 6, in the order of docs/simulator.md.
+CANONICAL = (
+    "temperature_drift",
+    "bias_instability",
+    "g_sensitivity",
+    "scale_nonlinearity",
+    "saturation",
+    "time_offset",
+    "packet_loss",
+    "timing_jitter",
+    "mag_latency",
+    "platform_magnetic",
+    "lever_arm",
+    "earth_rotation",
+    "placement_error",
+    "large_misalignment",
+)
+
+#: Effect name -> its typical realistic parameters (MEMS-class module, MTx-class reference).
+REALISTIC = {name: EFFECTS[name].realistic() for name in CANONICAL}
+
 __all__ = [
+    "CANONICAL",
     "EFFECTS",
+    "PLACEMENT_CONVENTION",
+    "REALISTIC",
+    "BiasInstability",
     "EarthRotation",
     "Effect",
     "GSensitivity",
+    "LargeMisalignment",
     "LeverArm",
+    "MagLatency",
+    "Magnitude",
     "PacketLoss",
+    "PlacementError",
+    "PlatformMagnetic",
     "RecordingContext",
     "Saturation",
+    "ScaleNonlinearity",
     "TemperatureDrift",
     "TimeOffset",
     "TimingJitter",
     "make_effect",
     "parse_effect",
+    "platform_yaw",
     "register",
     "stream_rng",
 ]

@@ -9,30 +9,48 @@ hook                        level
 ``on_true_signals``         kinematics / true signals in B (lever arm, Earth rate, ...)
 ``on_readings``             sensor readings in SI before quantisation (drift, g-sensitivity, ...)
 ``on_packets``              the packet log: rows, timestamps, counter, extra columns
+``on_truth``                the truth, once, before anything is rendered (``large_misalignment``)
+``on_plan``                 the motion of a recording, before it is rendered (``placement_error``);
+                            the segments written to truth.json stay the nominal ones
+``on_true_signals``         kinematics / true signals in B (lever arm, Earth rate, ...)
+``on_readings``             sensor readings in SI before quantisation (drift, g-sensitivity, ...)
+``on_packets``              the packet log: rows, timestamps, counter, extra columns
 ``on_reference_clock``      the reference's clock (offset, drift)
 ``dataset_overrides``       keys of dataset.yaml the effect changes (e.g. ``range_counts``)
 ==========================  =====================================================================
 
-The IMU hooks run for every IMU recording, the reference hook once. At each hook the effects run
+The truth hook runs once, the IMU hooks for every IMU recording, the reference hook once. At each hook the effects run
 in the order given, stably sorted by their class attribute ``priority`` (default 0; an effect that
 must act last at its level, such as ``saturation`` at the ADC, has a higher one). Each effect draws its random numbers from its own stream (:meth:`RecordingContext.rng`
 keyed by effect name and recording), so switching one effect on or off leaves the random numbers
 of everything else unchanged.
+
+Every effect also states its size: the class defaults are a *typical realistic magnitude*
+(MEMS-class module, MTx-class reference; docs/simulator.md gives the sources),
+:meth:`Effect.realistic` returns them, :meth:`Effect.magnitude` one headline number in SI with its
+unit (what a blind check scores), and :meth:`Effect.scaled` the same effect with the headline
+multiplied by a factor. Random draws an effect makes (e.g. per-position placement errors) are
+recorded with :meth:`RecordingContext.record` and end up in ``truth.json["effects_realised"]``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import zlib
-from dataclasses import dataclass
-from typing import ClassVar
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from imucal.sim.motion import KinematicState
+from imucal.calibration import ImuCalibration
+from imucal.sim.motion import KinematicState, Motion
 from imucal.sim.packets import PacketLog
 from imucal.sim.reference import ReferenceClock
 from imucal.sim.sensors import Signals
+
+if TYPE_CHECKING:
+    from imucal.sim.protocol import RecordingPlan
+    from imucal.sim.truth import Truth
 
 #: Canonical effect name -> effect class.
 EFFECTS: dict[str, type[Effect]] = {}
@@ -59,6 +77,13 @@ class RecordingContext:
     sensitivity : dict
         SI unit per count, per sensor.
     seed : int
+    motion : Motion or None
+        The motion actually rendered (after ``on_plan``); None outside a session.
+    calibration : ImuCalibration or None
+        The true calibration (after ``on_truth``); None outside a session.
+    realised : dict
+        Effect name -> recording -> key -> value: random draws recorded by the effects
+        (:meth:`record`); shared by all recordings of a session.
     """
 
     recording: str
@@ -66,9 +91,35 @@ class RecordingContext:
     session_start_s: float
     sensitivity: dict
     seed: int
+    motion: Motion | None = None
+    calibration: ImuCalibration | None = None
+    realised: dict = field(default_factory=dict, compare=False)
 
     def rng(self, stream: str) -> np.random.Generator:
         return stream_rng(self.seed, f"{stream}/{self.recording}")
+
+    def record(self, effect: str, key: str, value) -> None:
+        """Keep a realised random draw (JSON-ready ``value``) of ``effect`` for truth.json."""
+        self.realised.setdefault(effect, {}).setdefault(self.recording, {})[key] = value
+
+    def require(self, effect: str, what: str):
+        """``motion`` or ``calibration``, or a ValueError naming the effect that needs it."""
+        value = getattr(self, what)
+        if value is None:
+            raise ValueError(
+                f"effect {effect!r} needs the recording's {what}; render it with "
+                "imucal.sim.simulate_session, which provides it"
+            )
+        return value
+
+
+@dataclass(frozen=True)
+class Magnitude:
+    """Headline size of an effect: ``value`` in ``unit`` (SI), and what it means."""
+
+    value: float
+    unit: str
+    meaning: str
 
 
 @dataclass(frozen=True)
@@ -77,6 +128,14 @@ class Effect:
 
     name: ClassVar[str] = ""
     priority: ClassVar[int] = 0
+    #: Parameters that scale linearly with :meth:`magnitude` (used by :meth:`scaled`).
+    scalable: ClassVar[tuple[str, ...]] = ()
+
+    def on_truth(self, truth: Truth) -> Truth:
+        return truth
+
+    def on_plan(self, plan: RecordingPlan, ctx: RecordingContext) -> RecordingPlan:
+        return plan
 
     def on_true_signals(
         self, signals: Signals, state: KinematicState, ctx: RecordingContext
@@ -100,6 +159,35 @@ class Effect:
     def params(self) -> dict:
         """Parameter name -> value (JSON-ready)."""
         return dataclasses.asdict(self)
+
+    @classmethod
+    def realistic(cls) -> dict:
+        """The typical realistic parameters (the class defaults), name -> value."""
+        return dataclasses.asdict(cls())
+
+    def magnitude(self) -> Magnitude:
+        """The headline size of the effect in SI (see each effect's docstring)."""
+        raise NotImplementedError(f"effect {self.name!r} does not define its magnitude")
+
+    def scaled(self, factor: float) -> Effect:
+        """The same effect with :meth:`magnitude` multiplied by ``factor`` (> 0).
+
+        Multiplies the parameters listed in ``scalable``; the others are kept.
+
+        Raises
+        ------
+        ValueError
+            If ``factor`` is not > 0, the effect has no scalable parameter, or the scaled
+            parameters are out of range (the effect's own check).
+        """
+        if not factor > 0:
+            raise ValueError(f"effect {self.name!r}: scale factor must be > 0, got {factor}")
+        if not self.scalable:
+            raise ValueError(
+                f"effect {self.name!r} has no parameter that scales its magnitude; "
+                f"set its parameters {sorted(self.params())} instead"
+            )
+        return dataclasses.replace(self, **{k: getattr(self, k) * factor for k in self.scalable})
 
 
 def register(cls: type[Effect]) -> type[Effect]:

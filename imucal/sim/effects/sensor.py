@@ -1,13 +1,16 @@
-"""Effects on the sensor readings: g_sensitivity, saturation, temperature_drift."""
+"""Effects on the sensor readings: g_sensitivity, saturation, temperature_drift,
+scale_nonlinearity."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from imucal import errormodel
 from imucal.columns import SENSORS
-from imucal.sim.effects.base import Effect, RecordingContext, register
+from imucal.sim.effects.base import Effect, Magnitude, RecordingContext, register
 from imucal.sim.motion import KinematicState
 from imucal.sim.packets import PacketLog
 from imucal.sim.sensors import INT16_MAX, Signals
@@ -24,10 +27,12 @@ class GSensitivity(Effect):
     Parameters
     ----------
     kx, ky, kz : float
-        rad/s per m/s^2 (typical MEMS: 1e-4 .. 1e-3).
+        rad/s per m/s^2. Realistic: |k| about 0.1-0.2 deg/s/g = 1.8e-4-3.6e-4 (MPU-6050
+        datasheet 0.1 deg/s/g, ADXRS300 0.2 deg/s/g; effects.md #4).
     """
 
     name = "g_sensitivity"
+    scalable = ("kx", "ky", "kz")
     kx: float = 2e-4
     ky: float = -1.5e-4
     kz: float = 1e-4
@@ -38,6 +43,10 @@ class GSensitivity(Effect):
         k = np.array([self.kx, self.ky, self.kz])
         return readings.with_sensor("gyr", readings.gyr + true.acc * k)
 
+    def magnitude(self) -> Magnitude:
+        k = float(np.linalg.norm([self.kx, self.ky, self.kz]))
+        return Magnitude(k, "rad/s per m/s^2", "|k|, gyro output per specific force")
+
 
 @register
 @dataclass(frozen=True)
@@ -47,13 +56,16 @@ class Saturation(Effect):
     Parameters
     ----------
     acc, gyr, mag : int
-        Largest |count| each sensor can output, 1..32767.
+        Largest |count| each sensor can output, 1..32767. Realistic: the MPU class's default
+        ranges, which rate tables often exceed (effects.md #8): with the default sensitivities
+        ``acc`` 8191 counts = 2 g and ``gyr`` 16375 counts = 250 deg/s; the magnetometer is
+        not clipped.
     """
 
     name = "saturation"
     priority = 100  # the ADC clips whatever the other sensor effects produced
     acc: int = 8191
-    gyr: int = INT16_MAX
+    gyr: int = 16375
     mag: int = INT16_MAX
 
     def __post_init__(self) -> None:
@@ -73,33 +85,57 @@ class Saturation(Effect):
     def dataset_overrides(self) -> dict:
         return {"range_counts": {s: getattr(self, s) for s in SENSORS}}
 
+    def scaled(self, factor: float) -> Effect:
+        """The gyroscope's range times ``factor`` (rounded to a count); the others kept."""
+        if not factor > 0:
+            raise ValueError(f"effect {self.name!r}: scale factor must be > 0, got {factor}")
+        return dataclasses.replace(self, gyr=round(self.gyr * factor))
+
+    def magnitude(self) -> Magnitude:
+        """The gyroscope's clip level (the rate table is where a range is exceeded)."""
+        return Magnitude(float(self.gyr), "counts", "largest |count| of the gyroscope")
+
 
 @register
 @dataclass(frozen=True)
 class TemperatureDrift(Effect):
-    """The module warms up over the session; biases drift with temperature; adds ``temp_c``.
+    """The module warms up over the session; biases and scales drift; adds ``temp_c``.
 
     ``T(t) = start_c + rise_c (1 - exp(-t / tau_s))`` on the session clock (recordings follow one
-    another, see :func:`imucal.sim.session.simulate_session`). Each reading shifts by
-    ``coefficient * (T - start_c)`` on all three axes; the truth holds at ``start_c``.
+    another, see :func:`imucal.sim.session.simulate_session`). With ``dT = T - start_c`` and the
+    sensor-frame input ``u = matrix^-1 true`` (what the sensing element sees), a reading becomes
+    ``(1 + scale_per_k dT) u + bias + bias_per_k dT + noise`` on all three axes; the truth
+    holds at ``start_c``.
 
     Parameters
     ----------
     start_c, rise_c : float
-        Temperature at the start of the session and its total rise (deg C).
+        Temperature at the start of the session and its total rise (deg C). Realistic warm-up:
+        a few K over 5-15 min (effects.md #1).
     tau_s : float
         Warm-up time constant (s), > 0.
     acc_per_k, gyr_per_k, mag_per_k : float
-        Bias drift per kelvin (m/s^2/K, rad/s/K, normalised/K).
+        Bias drift per kelvin (m/s^2/K, rad/s/K, normalised/K). Realistic (typical, below the
+        MPU-9250 datasheet's +-1.5 mg/K and +-0.24 deg/s/K spreads): 0.3 mg/K, 0.03 deg/s/K.
+    acc_scale_per_k, gyr_scale_per_k, mag_scale_per_k : float
+        Relative scale drift per kelvin (1/K). Realistic: acc 0.026 %/K (MPU-9250 datasheet),
+        gyro 0.01 %/K (+-4 % over -40..85 deg C is the worst case), magnetometer 0.
     """
 
     name = "temperature_drift"
+    scalable = (
+        "acc_per_k", "gyr_per_k", "mag_per_k", "acc_scale_per_k", "gyr_scale_per_k",
+        "mag_scale_per_k",
+    )  # fmt: skip
     start_c: float = 22.0
     rise_c: float = 8.0
     tau_s: float = 600.0
     acc_per_k: float = 0.003
     gyr_per_k: float = 0.0005
     mag_per_k: float = 0.0
+    acc_scale_per_k: float = 2.6e-4
+    gyr_scale_per_k: float = 1e-4
+    mag_scale_per_k: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.tau_s > 0:
@@ -116,8 +152,74 @@ class TemperatureDrift(Effect):
         dt = self.temperature_c(np.arange(len(true.acc)), ctx) - self.start_c
         out = readings
         for s in SENSORS:
-            out = out.with_sensor(s, out.sensor(s) + getattr(self, f"{s}_per_k") * dt[:, None])
+            drift = getattr(self, f"{s}_per_k") * dt[:, None]
+            k_scale = getattr(self, f"{s}_scale_per_k")
+            if k_scale != 0:
+                cal = ctx.require(self.name, "calibration").sensor(s)
+                u = errormodel.invert(cal.matrix, np.zeros(3), true.sensor(s))
+                drift = drift + k_scale * dt[:, None] * u
+            out = out.with_sensor(s, out.sensor(s) + drift)
         return out
 
     def on_packets(self, log: PacketLog, ctx: RecordingContext) -> PacketLog:
         return log.with_column(TEMPERATURE_COLUMN, np.round(self.temperature_c(log.sample, ctx), 2))
+
+    def magnitude(self) -> Magnitude:
+        return Magnitude(abs(self.gyr_per_k), "rad/s/K", "|gyro bias drift per kelvin|")
+
+
+@register
+@dataclass(frozen=True)
+class ScaleNonlinearity(Effect):
+    """The sensing element's response is a cubic of its input, relative to the full scale.
+
+    With ``u`` the sensor-frame input (``matrix^-1 true``, SI, the reading without bias and
+    noise) and ``FS = 32767 * sensitivity`` the sensor's full scale (SI), every axis reads
+
+    ``u + FS (k2 (u / FS)^2 + k3 (u / FS)^3)``
+
+    so ``k2`` (even: same sign for +-u, an asymmetry) and ``k3`` (odd) are the deviations at
+    full scale as fractions of the full scale; the linear term stays the truth's.
+
+    Parameters
+    ----------
+    acc_k2, acc_k3, gyr_k2, gyr_k3, mag_k2, mag_k3 : float
+        Dimensionless. Realistic (MPU-9250 datasheet, effects.md #5): gyro nonlinearity
+        0.1 % FS (``gyr_k3`` 1e-3, ``gyr_k2`` 5e-4), accelerometer 0.5 % FS (``acc_k3`` 5e-3,
+        ``acc_k2`` 2e-3); magnetometer 0.
+
+    Notes
+    -----
+    Its signature is a residual of the rate-table plateaus that is curved in the rate (the
+    static cube, at +-1 g only, cannot separate ``k2`` from a bias).
+    """
+
+    name = "scale_nonlinearity"
+    scalable = ("acc_k2", "acc_k3", "gyr_k2", "gyr_k3", "mag_k2", "mag_k3")
+    acc_k2: float = 2e-3
+    acc_k3: float = 5e-3
+    gyr_k2: float = 5e-4
+    gyr_k3: float = 1e-3
+    mag_k2: float = 0.0
+    mag_k3: float = 0.0
+
+    def on_readings(
+        self, readings: Signals, true: Signals, state: KinematicState, ctx: RecordingContext
+    ) -> Signals:
+        out = readings
+        for s in SENSORS:
+            k2, k3 = getattr(self, f"{s}_k2"), getattr(self, f"{s}_k3")
+            if k2 == 0 and k3 == 0:
+                continue
+            cal = ctx.require(self.name, "calibration").sensor(s)
+            full_scale = INT16_MAX * ctx.sensitivity[s]
+            x = errormodel.invert(cal.matrix, np.zeros(3), true.sensor(s)) / full_scale
+            out = out.with_sensor(s, out.sensor(s) + full_scale * (k2 * x**2 + k3 * x**3))
+        return out
+
+    def magnitude(self) -> Magnitude:
+        return Magnitude(
+            abs(self.gyr_k2) + abs(self.gyr_k3),
+            "1",
+            "largest gyro deviation at +-full scale, fraction of full scale (|k2| + |k3|)",
+        )

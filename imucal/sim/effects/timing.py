@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imucal.sim.effects.base import Effect, RecordingContext, register
+from imucal.sim.effects.base import Effect, Magnitude, RecordingContext, register
 from imucal.sim.packets import PacketLog
 from imucal.sim.reference import ReferenceClock
 
@@ -53,6 +53,7 @@ class PacketLoss(Effect):
     """
 
     name = "packet_loss"
+    scalable = ("fraction",)
     fraction: float = 0.005
     model: str = "gilbert"
     burst_mean: float = 4.0
@@ -78,22 +79,34 @@ class PacketLoss(Effect):
             lost = _gilbert_losses(len(log), self.fraction, self.burst_mean, rng)
         return log.select(~lost)
 
+    def magnitude(self) -> Magnitude:
+        """Long-run fraction of lost packets (realistic 0.1-5 % in bursts, effects.md #10)."""
+        return Magnitude(self.fraction, "1", "long-run fraction of lost packets")
+
 
 @register
 @dataclass(frozen=True)
 class TimingJitter(Effect):
-    """Irregular receive timestamps: each packet is stamped after a random delay.
+    """Irregular receive timestamps: each packet is stamped by the host after a random latency.
 
-    The delay is exponential with mean (and std) ``std_s``; stamps are then made non-decreasing
-    (a packet cannot be logged before the one received earlier), so bursts share stamps.
+    Model: receive time ``t_k = max_{j <= k} (k_j / rate + d_j)`` with the module's sample time
+    ``k / rate`` and a non-negative latency ``d_j`` ~ exponential, mean (= std) ``std_s``
+    (radio retries, USB/OS scheduling). The receiver logs packets in arrival order, so a packet
+    cannot be stamped before one received earlier: a late packet holds back those queued behind
+    it and they are stamped together (bursts with equal or near-equal stamps, as in real
+    host-receive logs). So ``t_k >= k / rate``, ``t`` is non-decreasing but *not* strictly
+    increasing, and ``seq`` stays regular: sample times are recovered from the counter
+    (:func:`imucal.validation.packet_times`), never from differences of ``t_s``.
 
     Parameters
     ----------
     std_s : float
-        Mean and standard deviation of the delay (s), >= 0.
+        Mean and standard deviation of the latency (s), >= 0. Realistic: a few ms
+        (effects.md #9, "OS/USB/RF timestamp jitter in the ms range").
     """
 
     name = "timing_jitter"
+    scalable = ("std_s",)
     std_s: float = 0.003
 
     def __post_init__(self) -> None:
@@ -103,6 +116,9 @@ class TimingJitter(Effect):
     def on_packets(self, log: PacketLog, ctx: RecordingContext) -> PacketLog:
         delay = ctx.rng(f"effect/{self.name}").exponential(self.std_s, len(log))
         return log.with_times(np.maximum.accumulate(log.t_s + delay))
+
+    def magnitude(self) -> Magnitude:
+        return Magnitude(self.std_s, "s", "mean (= std) of the receive latency")
 
 
 @register
@@ -118,11 +134,21 @@ class TimeOffset(Effect):
         s; positive: the reference started earlier, events appear later on its time axis.
     drift_ppm : float
         Rate error of the reference clock, parts per million.
+
+    Notes
+    -----
+    Realistic: up to a few tenths of a second between independently started devices (effects.md
+    #10), crystal drift 20-100 ppm. The delay of the magnetometer against acc/gyro inside the
+    module is ``mag_latency``'s ``delay_s``.
     """
 
     name = "time_offset"
+    scalable = ("offset_s", "drift_ppm")
     offset_s: float = 0.3
     drift_ppm: float = 0.0
 
     def on_reference_clock(self, clock: ReferenceClock) -> ReferenceClock:
         return ReferenceClock(offset_s=self.offset_s, drift_ppm=self.drift_ppm)
+
+    def magnitude(self) -> Magnitude:
+        return Magnitude(abs(self.offset_s), "s", "|offset| of the reference clock")

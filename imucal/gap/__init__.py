@@ -1,0 +1,14 @@
+"""Sim-to-real gap diagnosis (issue 6): where a recorded session departs from its twin, which
+unmodelled effect causes it, and how far adding the effect to the twin closes it.
+
+Modules: :mod:`.pipeline` (the calibration stages in process), :mod:`.twin` (the session's twin
+under the paper's model), :mod:`.statistics` (the locations of the gap map), :mod:`.null`
+(replicas, scores, Holm, total gap), :mod:`.effects` (estimators and signatures),
+:mod:`.attribution` (held-out forward selection), :mod:`.diagnosis` (diagnosis.json),
+:mod:`.figures` (report section), :mod:`.blind` (the blind check). See docs/gap.md.
+"""
+
+from imucal.gap.diagnosis import FORMAT_VERSION, diagnose
+from imucal.gap.pipeline import PipelineOptions, SessionFit, calibrate_session
+
+__all__ = ["FORMAT_VERSION", "PipelineOptions", "SessionFit", "calibrate_session", "diagnose"]

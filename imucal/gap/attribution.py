@@ -1,0 +1,178 @@
+"""Attribution: which effects close the gap, selected forward on held-out data.
+
+For each effect of the library the estimator runs on the session and on every replica (its null
+gives a detection score). An effect whose estimate is outside the null is added to the twin at
+its estimate and rendered with the seeds of the first replicas (common random numbers: the
+simulator draws each effect from its own stream, so the difference to those replicas is the
+effect alone); the mean difference of the statistics shifts the null. The held-out check uses
+parameters estimated on half A of the segments and measures the gap on half B. Effects are
+accepted forward, largest held-out shrink first, while the gap is significant, the effect is
+detected and its held-out shrink reaches ``min_heldout_shrink``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from imucal.gap.effects import EffectModel
+from imucal.gap.null import NullModel, holm, run_replica, total_gap, transform
+from imucal.gap.twin import Twin
+
+
+@dataclass
+class Candidate:
+    """One effect's evaluation (mutable while the selection runs)."""
+
+    name: str
+    params: dict | None
+    params_a: dict | None
+    detect: float
+    detect_z: float
+    shift: dict = field(default_factory=dict)
+    shift_b: dict = field(default_factory=dict)
+    gap_before: float | None = None
+    gap_after: float | None = None
+    heldout_before: float | None = None
+    heldout_after: float | None = None
+    accepted: bool = False
+    evaluated: bool = False
+    note: str = ""
+
+    @property
+    def shrink(self):
+        if self.gap_after is None or not self.gap_before:
+            return None
+        return 1 - self.gap_after / self.gap_before
+
+    @property
+    def heldout_shrink(self):
+        if self.heldout_after is None or not self.heldout_before:
+            return None
+        return 1 - self.heldout_after / self.heldout_before
+
+
+def _shift(twin: Twin, effect, replicas, half, n_seeds: int) -> dict:
+    """Change of the transformed statistics of ``half`` when ``effect`` is added.
+
+    Returns
+    -------
+    dict
+        Key -> (mean change, variance of the change across seeds).
+    """
+    diffs: dict = {}
+    for rep in replicas[:n_seeds]:
+        with_effect = run_replica(twin, rep.seed, (effect,))
+        for k, v in with_effect.stats[half].items():
+            if k in rep.stats[half]:
+                diffs.setdefault(k, []).append(transform(k, v) - transform(k, rep.stats[half][k]))
+    return {
+        k: (float(np.mean(v)), float(np.var(v, ddof=1)) if len(v) > 1 else 0.0)
+        for k, v in diffs.items()
+    }
+
+
+def _add(a: Mapping, b: Mapping) -> dict:
+    out = dict(a)
+    for k, (m, v) in b.items():
+        m0, v0 = out.get(k, (0.0, 0.0))
+        out[k] = (m0 + m, v0 + v)
+    return out
+
+
+def attribute(
+    twin: Twin,
+    fit,
+    stats: Mapping,
+    replicas: Sequence,
+    null_full: NullModel,
+    null_b: NullModel,
+    models: Mapping[str, EffectModel],
+    *,
+    alpha: float,
+    min_heldout_shrink: float,
+    n_seeds: int,
+    detect_z: float,
+) -> tuple[list[Candidate], list[str], dict, dict]:
+    """Forward selection of effects (see the module docstring).
+
+    Returns
+    -------
+    candidates : list of Candidate
+    rounds : list of dict
+        Per selection round, effect -> held-out shrink (evaluated effects).
+    explained : list of str
+        Accepted effects, in order.
+    shift, shift_b : dict
+        Total null shift of the accepted effects (full statistics, half B).
+    """
+    cands = []
+    for name, model in models.items():
+        est = model.estimate(fit, None)
+        est_a = model.estimate(fit, "A")
+        if est is None:
+            cands.append(Candidate(name, None, None, float("nan"), float("nan"),
+                                   note="the session cannot show this effect"))  # fmt: skip
+            continue
+        null_detect = [model.estimate(r.fit, None) for r in replicas]
+        vals = np.array([e.detect for e in null_detect if e is not None], dtype=float)
+        spread = np.std(vals, ddof=1) * np.sqrt(1 + 1 / len(vals)) if len(vals) > 2 else np.inf
+        # a null that is constant (no lost packet in any replica) gets a relative resolution
+        spread = max(spread, 1e-9 * max(abs(np.mean(vals)), abs(est.detect)), 1e-300)
+        z = float(np.clip((est.detect - np.mean(vals)) / spread, -1e6, 1e6))
+        cands.append(Candidate(name, est.params, est_a.params if est_a else None, est.detect, float(z)))
+    shift: dict = {}
+    shift_b: dict = {}
+    explained: list[str] = []
+    rounds: list[dict] = []
+    t_full = lambda d: null_full.t(stats[None], d)  # noqa: E731
+    t_b = lambda d: null_b.t(stats["B"], d)  # noqa: E731
+    while True:
+        t_now = t_full(shift)
+        significant = bool(holm(null_full.p_values(t_now), alpha).any())
+        open_ = [c for c in cands if not c.accepted and c.params is not None]
+        if not significant or not open_:
+            break
+        gap_now, gap_b_now = total_gap(t_now), total_gap(t_b(shift_b))
+        best = None
+        for c in open_:
+            c.gap_before, c.heldout_before = gap_now, gap_b_now
+            if abs(c.detect_z) < detect_z:
+                c.note = f"estimate within the null (|z| = {abs(c.detect_z):.1f} < {detect_z:g})"
+                c.gap_after = c.heldout_after = None
+                c.evaluated = False
+                continue
+            if not c.shift:
+                effect = models[c.name].simulator_effect(c.params)
+                c.shift = _shift(twin, effect, replicas, None, n_seeds)
+                effect_a = models[c.name].simulator_effect(c.params_a or c.params)
+                c.shift_b = _shift(twin, effect_a, replicas, "B", n_seeds)
+            c.evaluated = True
+            c.note = ""
+            c.gap_after = total_gap(t_full(_add(shift, c.shift)))
+            c.heldout_after = total_gap(t_b(_add(shift_b, c.shift_b)))
+            if best is None or (c.heldout_shrink or -np.inf) > (best.heldout_shrink or -np.inf):
+                best = c
+        rounds.append({c.name: c.heldout_shrink for c in open_ if c.evaluated})
+        if best is None or (best.heldout_shrink or 0.0) < min_heldout_shrink:
+            break
+        best.accepted = True
+        explained.append(best.name)
+        shift, shift_b = _add(shift, best.shift), _add(shift_b, best.shift_b)
+    return cands, explained, shift, shift_b, rounds
+
+
+def confusable(rounds: Sequence[Mapping], explained: Sequence[str], threshold: float) -> list:
+    """Effects that qualified in the round an accepted effect won but were not accepted later:
+    once the winner was in the twin they no longer closed anything, so the data explain the
+    same locations with either."""
+    out = []
+    for winner, shrinks in zip(explained, rounds, strict=False):
+        rivals = [n for n, s in shrinks.items()
+                  if n != winner and n not in explained and (s or 0) >= threshold]  # fmt: skip
+        if rivals:
+            out.append({"accepted": winner, "rivals": rivals,
+                        "heldout_shrink": {n: shrinks[n] for n in [winner, *rivals]}})  # fmt: skip
+    return out

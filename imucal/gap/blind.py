@@ -1,0 +1,175 @@
+"""The blind check: sessions rendered with hidden effects, diagnosed without their answer keys,
+then unsealed and scored.
+
+The plan (which session hides which effect) is drawn from a seed and known only to
+:func:`render_blind_session`, which writes the session folder without ``truth.json`` and the
+answer key under a separate ``sealed`` path that no diagnosis rule takes as input. Session
+names (``b00``, ``b01``, ...) do not reveal the effect. :func:`score_blind` reads the keys
+after every diagnosis is done.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
+from imucal.sim.effects import EFFECTS, make_effect, stream_rng
+
+#: The blind sessions: the default protocol with a 120 s static recording (shorter rate-table
+#: plateaus, 4 s, split runs in the automatic segmentation).
+BLIND_PROTOCOL = {"static_s": 120.0}
+
+
+def blind_plan(
+    seed: int, seeds_per_effect: int, n_null: int, unknown: Mapping[str, int], effects=None
+) -> list[dict]:
+    """The hidden assignment of effects to session names.
+
+    Parameters
+    ----------
+    seed : int
+    seeds_per_effect : int
+        Sessions per library effect, each at the effect's realistic magnitude (the simulator's
+        defaults).
+    n_null : int
+        Sessions without any effect.
+    unknown : dict
+        Effect -> number of unknown-effect sessions (the effect is injected and left out of
+        the diagnosis's library).
+    effects : list of str, optional
+        Effects to hide; default every simulator effect.
+
+    Returns
+    -------
+    list of dict
+        ``name``, ``effect`` (None for no effect), ``seed``, ``exclude`` (effects left out of the
+        library when diagnosing it), in name order.
+    """
+    effects = sorted(EFFECTS) if effects is None else list(effects)
+    specs = [{"effect": e, "exclude": []} for e in effects for _ in range(seeds_per_effect)]
+    specs += [{"effect": None, "exclude": []} for _ in range(n_null)]
+    specs += [{"effect": e, "exclude": [e]} for e, n in unknown.items() for _ in range(n)]
+    order = stream_rng(seed, "blind/plan").permutation(len(specs))
+    out = []
+    for i, j in enumerate(order):
+        out.append({"name": f"b{i:02d}", "seed": int(seed * 1000 + i), **specs[j]})
+    return sorted(out, key=lambda s: s["name"])
+
+
+def public_plan(plan: list[dict]) -> dict:
+    """What the diagnosis may know: session name -> effects left out of the library."""
+    return {s["name"]: list(s["exclude"]) for s in plan}
+
+
+def render_blind_session(spec: Mapping, folder: str | Path, sealed: str | Path) -> None:
+    """Render one blind session to ``folder`` and its answer key to ``sealed`` (JSON)."""
+    effects = () if spec["effect"] is None else (make_effect(spec["effect"]),)
+    truth = make_truth("random", stream_rng(spec["seed"], "truth"))
+    config = ProtocolConfig(**BLIND_PROTOCOL)
+    session = simulate_session(
+        truth, spec["seed"], config, effects, name=spec["name"],
+        description="blind session (answer key sealed)",
+    )  # fmt: skip
+    folder = Path(folder)
+    write_session(session, folder)
+    key = json.loads((folder / "truth.json").read_text())
+    (folder / "truth.json").unlink()
+    magnitude = None
+    if effects:
+        m = effects[0].magnitude()
+        magnitude = {"value": m.value, "unit": m.unit, "meaning": m.meaning}
+    Path(sealed).parent.mkdir(parents=True, exist_ok=True)
+    Path(sealed).write_text(json.dumps(
+        {"spec": dict(spec), "magnitude": magnitude, "truth": key}, indent=1, default=float
+    ))  # fmt: skip
+
+
+def failed_diagnosis(dataset: str, error: str) -> dict:
+    """The diagnosis record of a session the pipeline refused (scored as a miss)."""
+    return {
+        "format_version": 1, "dataset": dataset, "failed": error,
+        "gap": {"total": None, "null_p95": None, "significant": None},
+        "locations": [], "effects": [], "explained": [],
+        "remaining": {"total": None, "significant": None, "locations": []},
+    }  # fmt: skip
+
+
+def _estimated_magnitude(effect: str, params) -> float | None:
+    if params is None:
+        return None
+    try:
+        return float(make_effect(effect, **params).magnitude().value)
+    except (ValueError, TypeError, NotImplementedError):
+        return None
+
+
+def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -> dict:
+    """Unsealed scoring of the blind check.
+
+    Returns
+    -------
+    dict
+        ``confusion`` (true effect -> first explained effect or 'none' -> count), ``top1``
+        (fraction of effect sessions whose first explained effect is the hidden one),
+        ``null_explained_empty`` (k of n no-effect sessions), ``magnitude_rel_error`` (per
+        effect, median |est - true| / true), ``heldout_shrink_true`` (median over effect
+        sessions of the true effect's held-out shrink, 0 when not evaluated), ``unknown``
+        (per unknown-effect session: flagged, locations, named), ``sessions`` (the detail).
+    """
+    confusion: dict = {}
+    sessions, hits, n_eff, shrinks, rel = [], 0, 0, [], {}
+    null_ok = n_null = 0
+    unknown = []
+    for name in sorted(keys):
+        key, diag = keys[name], diagnoses[name]
+        spec = key["spec"]
+        truth_effect = spec["effect"] or "none"
+        first = diag["explained"][0] if diag["explained"] else "none"
+        row = {"name": name, "effect": truth_effect, "explained": diag["explained"],
+               "gap_significant": diag["gap"]["significant"],
+               "remaining_significant": diag["remaining"]["significant"],
+               "failed": diag.get("failed")}  # fmt: skip
+        if spec["exclude"]:
+            named_wrong = [e for e in diag["explained"] if e != truth_effect]
+            row.update(
+                unknown=True,
+                flagged=bool(diag["remaining"]["significant"]) and not named_wrong,
+                remaining_locations=[
+                    "/".join((d["stage"], d["sensor"], d["axis"], d["statistic"]))
+                    for d in diag["remaining"]["locations"][:6]
+                ],
+            )
+            unknown.append(row)
+            sessions.append(row)
+            continue
+        confusion.setdefault(truth_effect, {}).setdefault(first, 0)
+        confusion[truth_effect][first] += 1
+        if spec["effect"] is None:
+            n_null += 1
+            null_ok += not diag["explained"]
+        else:
+            n_eff += 1
+            hits += first == truth_effect
+            entry = next((e for e in diag["effects"] if e["name"] == truth_effect), None)
+            hs = entry["heldout_shrink"] if entry and entry["heldout_shrink"] is not None else 0.0
+            shrinks.append(hs)
+            est = _estimated_magnitude(truth_effect, entry["params"] if entry else None)
+            true = key["magnitude"]["value"] if key["magnitude"] else None
+            if est is not None and true:
+                rel.setdefault(truth_effect, []).append(abs(est - true) / abs(true))
+            row.update(heldout_shrink=hs, magnitude_true=true, magnitude_est=est)
+        sessions.append(row)
+    return {
+        "top1": hits / n_eff if n_eff else None,
+        "n_effect_sessions": n_eff,
+        "null_explained_empty": [null_ok, n_null],
+        "median_heldout_shrink_true": float(np.median(shrinks)) if shrinks else None,
+        "magnitude_rel_error": {k: float(np.median(v)) for k, v in sorted(rel.items())},
+        "confusion": confusion,
+        "unknown": unknown,
+        "sessions": sessions,
+    }

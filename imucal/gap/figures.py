@@ -1,0 +1,157 @@
+"""Figures and template context of the report's gap section (figures are returned, never saved).
+
+* :func:`plot_gap_map`: heat map of the scores, locations (stage / sensor / axis / segment) by
+  statistic, in a colour-blind-safe diverging map (``cividis`` of |z| on a log scale, the sign
+  printed in the cell);
+* :func:`plot_effects`: the ranked effects, gap before and after adding each to the twin, in
+  sample and held out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
+
+
+def plot_gap_map(diagnosis: Mapping) -> Figure:
+    """Heat map of |z| per location (rows: stage/sensor/axis/segment, columns: statistic)."""
+    locs = diagnosis["all_locations"]
+    rows = sorted({(d["stage"], d["sensor"], d["axis"], d["segment"]) for d in locs})
+    cols = sorted({d["statistic"] for d in locs})
+    z = np.full((len(rows), len(cols)), np.nan)
+    flag = np.zeros(z.shape, dtype=bool)
+    for d in locs:
+        i = rows.index((d["stage"], d["sensor"], d["axis"], d["segment"]))
+        j = cols.index(d["statistic"])
+        z[i, j], flag[i, j] = d["z"], d["in_gap"]
+    fig = Figure(figsize=(max(6, 0.55 * len(cols) + 3), max(4, 0.22 * len(rows) + 1.5)))
+    ax = fig.add_subplot()
+    a = np.abs(z)
+    im = ax.imshow(np.where(np.isfinite(a), np.maximum(a, 0.1), np.nan), cmap="cividis",
+                   norm=LogNorm(0.1, max(10.0, np.nanmax(a) if np.isfinite(a).any() else 10)),
+                   aspect="auto")  # fmt: skip
+    for i, j in zip(*np.where(flag), strict=True):
+        ax.text(j, i, "+" if z[i, j] > 0 else "-", ha="center", va="center", color="red",
+                fontsize=9, fontweight="bold")  # fmt: skip
+    ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=7)
+    ax.set_yticks(range(len(rows)), ["/".join(r) for r in rows], fontsize=6)
+    ax.set_xlabel("statistic")
+    ax.set_ylabel("stage / sensor / axis / segment")
+    fig.colorbar(im, ax=ax, label="|z| against the twin's null (marked: in the gap, Holm)")
+    ax.set_title(f"Gap map of {diagnosis['dataset']}")
+    fig.tight_layout()
+    return fig
+
+
+def plot_effects(diagnosis: Mapping) -> Figure:
+    """Gap before and after each evaluated effect, in sample and held out (log scale)."""
+    ev = [e for e in diagnosis["effects"] if e["evaluated"]]
+    fig = Figure(figsize=(7, 1.2 + 0.5 * max(len(ev), 1)))
+    ax = fig.add_subplot()
+    if not ev:
+        ax.text(0.5, 0.5, "no effect's estimate was outside the null", ha="center",
+                va="center", transform=ax.transAxes)  # fmt: skip
+        ax.set_axis_off()
+        return fig
+    y = np.arange(len(ev))
+    ax.barh(y - 0.2, [e["gap_before"] for e in ev], 0.4, color="#999999", label="gap before")
+    ax.barh(y + 0.2, [e["gap_after"] for e in ev], 0.4, color="#0072B2", label="gap after")
+    for i, e in enumerate(ev):
+        ax.text(e["gap_before"], i - 0.2, f"  shrink {e['shrink']:.0%}, held out "
+                f"{e['heldout_shrink']:.0%}{' (accepted)' if e['accepted'] else ''}",
+                va="center", fontsize=7)  # fmt: skip
+    ax.axvline(diagnosis["gap"]["null_p95"], color="#D55E00", ls="--", label="null 95 %")
+    ax.set_xscale("log")
+    ax.set_yticks(y, [e["name"] for e in ev])
+    ax.set_xlabel("total gap (sum of squared scores)")
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    return fig
+
+
+def verdict(diagnosis: Mapping) -> str:
+    """A plain-language summary of the diagnosis."""
+    gap = diagnosis["gap"]
+    if not gap["significant"]:
+        return ("The session behaves like its twin: no location is outside what noise alone "
+                f"gives (total gap {gap['total']:.0f}, null 95 % {gap['null_p95']:.0f}).")  # fmt: skip
+    top = ", ".join(f"{d['stage']}/{d['sensor']}/{d['axis']} {d['statistic']} (z = {d['z']:.3g})"
+                    for d in diagnosis["locations"][:3])  # fmt: skip
+    text = (f"The session departs from its twin at {len(diagnosis['locations'])} location(s), "
+            f"most at {top}; total gap {gap['total']:.3g} against a null 95 % of "
+            f"{gap['null_p95']:.3g}. ")  # fmt: skip
+    acc = [e for e in diagnosis["effects"] if e["accepted"]]
+    if acc:
+        text += "Explained by " + "; then ".join(
+            f"{e['name']} ({_params(e['params'])}: held-out shrink {e['heldout_shrink']:.0%})"
+            for e in acc) + ". "  # fmt: skip
+    rem = diagnosis["remaining"]
+    if rem["significant"]:
+        where = ", ".join(f"{d['stage']}/{d['sensor']}/{d['axis']} {d['statistic']}"
+                          for d in rem["locations"][:3])  # fmt: skip
+        text += f"A significant gap remains unexplained at {where}."
+    else:
+        text += "The gap left is within what noise alone gives."
+    return text
+
+
+def _params(params: Mapping) -> str:
+    return ", ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in params.items())
+
+
+def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
+    """Context of the ``_gap.html.j2`` partial: verdict, tables, embedded figure data."""
+    return {
+        "verdict": verdict(diagnosis),
+        "gap": diagnosis["gap"],
+        "locations": diagnosis["locations"][:20],
+        "effects": diagnosis["effects"],
+        "explained": diagnosis["explained"],
+        "remaining": diagnosis["remaining"],
+        "confusable": diagnosis.get("confusable", []),
+        "null": diagnosis.get("null", {}),
+        "figures": dict(figures),
+    }
+
+
+def render_blind_page(score: Mapping) -> str:
+    """The blind check's report page (self-contained HTML)."""
+    from html import escape
+
+    effects = sorted(score["confusion"])
+    named = sorted({n for row in score["confusion"].values() for n in row})
+    head = "".join(f"<th>{escape(n)}</th>" for n in named)
+    body = "".join(
+        f"<tr><th>{escape(t)}</th>"
+        + "".join(f"<td>{score['confusion'][t].get(n, '')}</td>" for n in named)
+        + "</tr>"
+        for t in effects
+    )
+    unknown = "".join(
+        f"<li>{escape(u['name'])}: {escape(u['effect'])} left out of the library; flagged "
+        f"unexplained: <b>{u['flagged']}</b>; named {escape(str(u['explained']))}; remaining "
+        f"at {escape(', '.join(u['remaining_locations']))}</li>"
+        for u in score["unknown"]
+    )
+    rel = "".join(f"<li>{escape(k)}: {v:.0%}</li>" for k, v in score["magnitude_rel_error"].items())
+    null_ok, n_null = score["null_explained_empty"]
+    top1 = score["top1"]
+    shrink = score["median_heldout_shrink_true"]
+    return f"""<!doctype html><html><head><meta charset="utf-8"><title>Blind check</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:auto}}td,th{{border:1px solid #ccc;
+padding:2px 6px;text-align:center}}table{{border-collapse:collapse}}</style></head><body>
+<h1>Blind check of the gap diagnosis</h1>
+<p>Top-1 identification: <b>{'n/a' if top1 is None else f'{top1:.0%}'}</b> of
+{score['n_effect_sessions']} effect sessions. No-effect sessions with nothing explained:
+<b>{null_ok} of {n_null}</b>. Median held-out shrink of the true effect:
+<b>{'n/a' if shrink is None else f'{shrink:.0%}'}</b>. Diagnosis time per session: median
+{score['diagnosis_seconds']['median']:.0f} s, max {score['diagnosis_seconds']['max']:.0f} s.</p>
+<h2>Confusion matrix</h2><p>Rows: hidden effect; columns: first explained effect.</p>
+<table><tr><th>hidden \\ named</th>{head}</tr>{body}</table>
+<h2>Unknown-effect sessions</h2><ul>{unknown}</ul>
+<h2>Relative error of the estimated magnitude (median)</h2><ul>{rel}</ul>
+</body></html>
+"""

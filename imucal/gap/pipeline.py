@@ -1,0 +1,194 @@
+"""The calibration pipeline run in process on in-memory tables (the real session and its twins).
+
+The gap statistics of a recorded session and of its twin replicas must come from the same code
+path, so both go through :func:`calibrate_session`, which calls the stage functions of
+:mod:`imucal.stages` in the workflow's order (as ``tests/test_pipeline.py`` does), without
+Snakemake and without files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from imucal import stages, validation
+from imucal.calibration import ImuCalibration
+from imucal.columns import GYR, SEQ, TIME
+from imucal.filtering import lowpass_recording
+from imucal.segmentation import segment_dataset
+
+
+@dataclass(frozen=True)
+class PipelineOptions:
+    """Settings of the workflow that change the fit (``config.yaml``; schema defaults).
+
+    Attributes
+    ----------
+    exact_rotation : bool
+    lowpass_order : int
+    lowpass_cutoff_hz : float
+    gravity_m_s2 : float
+    field_norm : float
+    range_counts, sensitivity : dict
+        Sensor -> largest |count|, SI unit per count (``dataset.yaml``).
+    ratetable : dict or None
+        ``{'axes': [...], 'rates_dps': [...]}``.
+    """
+
+    gravity_m_s2: float
+    sensitivity: Mapping
+    range_counts: Mapping
+    ratetable: Mapping | None
+    field_norm: float = 1.0
+    exact_rotation: bool = True
+    lowpass_order: int = 4
+    lowpass_cutoff_hz: float = 5.0
+
+    def limit(self, sensor: str) -> float:
+        """Sensor range in SI units."""
+        return float(self.range_counts[sensor]) * float(self.sensitivity[sensor])
+
+
+@dataclass(frozen=True)
+class SessionFit:
+    """Everything the pipeline produced for one session (real or replica).
+
+    Attributes
+    ----------
+    imu : dict of str to DataFrame
+        Ingested IMU recordings.
+    reference : DataFrame or None
+    segments : DataFrame
+    lowpass : DataFrame
+        Low-pass filtered rotation3d.
+    calibration : ImuCalibration
+    artifacts : dict
+        Stage artifacts: 'mag', 'cube', 'acc', 'bias', 'align', 'scale', 'table' (None without a
+        rate table), 'gyr'.
+    time_alignment : TimeAlignment or None
+        Reference clock against rotation3d (None without a reference).
+    reference_start_s : float or None
+        ``t_s`` of the reference's first sample (its own clock).
+    """
+
+    imu: dict
+    reference: pd.DataFrame | None
+    segments: pd.DataFrame
+    lowpass: pd.DataFrame
+    calibration: ImuCalibration
+    artifacts: dict
+    time_alignment: object | None
+    reference_start_s: float | None
+    extra: dict = field(default_factory=dict)
+
+
+def calibrate_session(
+    imu: Mapping[str, pd.DataFrame],
+    reference: pd.DataFrame | None,
+    options: PipelineOptions,
+    segments: pd.DataFrame | None = None,
+) -> SessionFit:
+    """Segment (unless ``segments`` is given) and calibrate a session, stage by stage.
+
+    Parameters
+    ----------
+    imu : dict of str to DataFrame
+        Ingested IMU recordings ('rotation3d' and 'cube' required; 'ratetable', 'static'
+        optional), SI units.
+    reference : DataFrame or None
+        Ingested reference (its own axes and clock).
+    options : PipelineOptions
+    segments : DataFrame, optional
+        The segments table; automatic segmentation when None.
+
+    Returns
+    -------
+    SessionFit
+    """
+    missing = [r for r in ("rotation3d", "cube") if r not in imu]
+    if missing:
+        raise ValueError(f"the gap diagnosis needs the recordings {missing}; got {sorted(imu)}")
+    imu = dict(imu)
+    if segments is None:
+        segments = segment_dataset(imu, ratetable=dict(options.ratetable or {}) or None)
+    low = lowpass_recording(
+        imu["rotation3d"], order=options.lowpass_order, cutoff_hz=options.lowpass_cutoff_hz
+    )
+    exact = options.exact_rotation
+    mag = stages.align_mag(
+        imu["rotation3d"],
+        segments,
+        stages.fit_mag_step1(imu["rotation3d"], imu["cube"], field_norm=options.field_norm),
+        exact=exact,
+    )
+    cube, _ = stages.fit_acc_cube(
+        imu["cube"],
+        segments,
+        gravity_m_s2=options.gravity_m_s2,
+        saturation_limit_m_s2=options.limit("acc"),
+    )
+    acc = stages.align_acc(low, segments, cube, exact=exact)
+    bias, _ = stages.estimate_gyr_bias(imu, segments)
+    o, _ = stages.gyr_bias_value(bias, "ls")
+    align = stages.align_gyr(low, segments, o, exact=exact)
+    notes = []
+    try:
+        scale = stages.estimate_gyr_scale(imu["rotation3d"], segments, bias, align, acc, mag)
+    except ValueError as err:
+        # eq. 36 integrates on the receive timestamps and refuses repeated ones; with a rate
+        # table the final calibration does not need it, so the diagnosis goes on and says so
+        if "ratetable" not in imu:
+            raise
+        notes.append(f"eq. 36 (gyro scale without tools) failed: {err}")
+        scale = None
+    table = table_align = None
+    if "ratetable" in imu:
+        table, _ = stages.fit_gyr_table(
+            imu["ratetable"], segments, saturation_limit_rad_s=options.limit("gyr")
+        )
+        table_align = stages.align_gyr(low, segments, table["bias"], table["upper"], exact=exact)
+    scale_used = scale or {"scale": [1.0, 1.0, 1.0], "std_scale": [float("nan")] * 3}
+    gyr, _ = stages.combine_gyr(bias, align, scale_used, table, table_align, exact=exact)
+    calibration = stages.combine_calibration(acc, gyr, mag)
+    alignment = start = None
+    if reference is not None:
+        alignment = reference_alignment(imu["rotation3d"], reference, calibration)
+        start = float(reference[TIME].iloc[0])
+    artifacts = {
+        "mag": mag, "cube": cube, "acc": acc, "bias": bias, "align": align, "scale": scale,
+        "table": table, "gyr": gyr,
+    }  # fmt: skip
+    return SessionFit(
+        imu, reference, segments, low, calibration, artifacts, alignment, start,
+        {"options": options, "notes": notes},
+    )
+
+
+def reference_alignment(
+    rotation3d: pd.DataFrame, reference: pd.DataFrame, calibration: ImuCalibration
+):
+    """Clock offset and drift of the reference against rotation3d (validation's estimator).
+
+    Returns
+    -------
+    imucal.validation.TimeAlignment
+    """
+    t_mod = validation.packet_times(rotation3d[TIME].to_numpy(), rotation3d[SEQ].to_numpy())
+    t_ref = validation.packet_times(reference[TIME].to_numpy(), reference[SEQ].to_numpy())
+    gyr_mod = calibration.sensor("gyr").apply(
+        rotation3d[list(GYR)].to_numpy(dtype=float), unit="rad/s"
+    )
+    gyr_ref = reference[list(GYR)].to_numpy(dtype=float)
+    return validation.estimate_time_alignment(t_mod, gyr_mod, t_ref, gyr_ref, 6)
+
+
+def calibrated(fit: SessionFit, recording: str, sensor: str) -> np.ndarray:
+    """Calibrated values (frame B, SI) of one sensor of one recording, shape (n, 3)."""
+    from imucal.columns import sensor_columns
+
+    values = fit.imu[recording][list(sensor_columns(sensor))].to_numpy(dtype=float)
+    cal = fit.calibration.sensor(sensor)
+    return cal.apply(values, unit=cal.unit)

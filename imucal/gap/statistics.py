@@ -1,0 +1,522 @@
+"""Location-wise statistics of a calibrated session: the coordinates of the gap map.
+
+A location is ``(stage, sensor, axis, segment, statistic)``. Every statistic is a physical
+quantity computed from the ingested tables, the segments and the session's own fit, the same
+way for a recorded session and for its twin replicas, so that its null distribution comes
+from the replicas. Each can also be computed on one half of the segments (``half='A'`` or
+``'B'``: alternate positions, runs at alternate rates, the phases x/z against y, the first
+and second half of a long recording in time) for the held-out check of the attribution.
+
+Statistics (units in the names of :data:`CATALOGUE`):
+
+* timing: fraction of lost packets from the counter, timestamp scatter about the packet
+  clock, clipped fraction per sensor;
+* noise: Allan deviation of the static recording at 10 s and at a fifth of its length, as
+  log-ratio to the white-noise prediction, and its linear trend;
+* accelerometer cube: RMS and time slope of the ``|a| - g`` position residuals;
+* gyroscope at rest: spread of the calibrated position means, their slope on specific force,
+  their component along the vertical;
+* rate table: RMS of the run-mean residuals, their rate^2 and rate^3 coefficients, runs left
+  out; accelerometer run means against rate^2 (centripetal);
+* gyroscope scale without tools: eq. 36 scale over the final scale, per phase;
+* magnetometer: ``|m| - 1`` RMS, spread of the dip, lag behind the gyroscope per phase;
+* reference: clock offset at the start and drift;
+* temperature channel (when present): slopes of resting residuals on temperature.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from imucal import errormodel, validation
+from imucal.columns import AXES, GYR, SEQ, SENSOR_COLUMNS, SENSORS, TIME
+from imucal.gap.pipeline import SessionFit, calibrated
+
+HALVES = (None, "A", "B")
+#: Column of the temperature channel when a session has one.
+TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")
+
+
+@dataclass(frozen=True)
+class StatisticInfo:
+    """How a statistic is scored against its null.
+
+    Attributes
+    ----------
+    unit : str
+    log : bool
+        Scored as ``log`` of the value (positive scale statistics, closer to Gaussian).
+    floor : float
+        Resolution of the statistic (same unit, after ``log`` if any): added in quadrature to
+        the replica spread so that a statistic that is constant under the null (e.g. zero lost
+        packets) is not scored against a zero spread.
+    """
+
+    unit: str
+    log: bool = False
+    floor: float = 0.0
+
+
+#: Statistic name -> scoring info.
+CATALOGUE = {
+    "loss_fraction": StatisticInfo("1", floor=2e-5),
+    "stamp_scatter_s": StatisticInfo("s", log=True, floor=0.05),
+    "clip_fraction": StatisticInfo("1", floor=2e-5),
+    "adev_10s_excess": StatisticInfo("log ratio", floor=0.02),
+    "adev_long_excess": StatisticInfo("log ratio", floor=0.02),
+    "trend_per_s": StatisticInfo("SI/s"),
+    "resid_rms": StatisticInfo("SI", log=True, floor=0.02),
+    "resid_time_slope": StatisticInfo("SI/s"),
+    "spread": StatisticInfo("rad/s", log=True, floor=0.02),
+    "g_slope": StatisticInfo("rad/s per m/s^2"),
+    "vertical": StatisticInfo("rad/s"),
+    "rate2": StatisticInfo("1/(rad/s)"),
+    "rate3": StatisticInfo("1/(rad/s)^2"),
+    "left_out": StatisticInfo("runs", floor=0.5),
+    "omega2": StatisticInfo("m"),
+    "scale_ratio": StatisticInfo("1"),
+    "dip_spread_rad": StatisticInfo("rad", log=True, floor=0.02),
+    "lag_s": StatisticInfo("s"),
+    "ref_offset_s": StatisticInfo("s", floor=1e-4),
+    "ref_drift_ppm": StatisticInfo("ppm", floor=1.0),
+    "temp_slope": StatisticInfo("SI/K"),
+}
+
+Key = tuple  # (stage, sensor, axis, segment, statistic)
+
+
+def _rows(fit: SessionFit, recording: str, kinds) -> pd.DataFrame:
+    seg = fit.segments
+    kinds = [kinds] if isinstance(kinds, str) else list(kinds)
+    rows = seg[(seg["recording"] == recording) & seg["kind"].isin(kinds)]
+    return rows.sort_values("start_s")
+
+
+def _alternate(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
+    """Every other row (A: 1st, 3rd, ...; B: 2nd, 4th, ...)."""
+    if half is None:
+        return rows
+    return rows.iloc[0 if half == "A" else 1 :: 2]
+
+
+def _time_half(n: int, half: str | None) -> slice:
+    if half is None:
+        return slice(0, n)
+    return slice(0, n // 2) if half == "A" else slice(n // 2, n)
+
+
+def _run_half(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
+    """Runs at alternate |rate| levels (A: 100, 300 deg/s; B: 200, 400; rest runs in both)."""
+    if half is None:
+        return rows
+    levels = sorted({abs(r) for r in rows["rate_dps"] if r != 0})
+    mine = set(levels[0 if half == "A" else 1 :: 2])
+    keep = rows["rate_dps"].abs().isin(mine) | (rows["rate_dps"] == 0)
+    return rows[keep]
+
+
+def _phase_half(labels, half: str | None) -> list:
+    if half is None:
+        return list(labels)
+    return [p for p in labels if (p in ("x", "z")) == (half == "A")]
+
+
+def _means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
+    out = []
+    for r in rows.itertuples(index=False):
+        x = table[int(r.start_index) : int(r.end_index)]
+        x = x[np.all(np.isfinite(x), axis=1)]
+        out.append(x.mean(axis=0) if len(x) else np.full(table.shape[1], np.nan))
+    return np.array(out).reshape(-1, table.shape[1])
+
+
+def _mid_times(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.ndarray:
+    return 0.5 * (rows["start_s"].to_numpy(float) + rows["end_s"].to_numpy(float))
+
+
+def lost_packets(seq: np.ndarray) -> tuple[int, int, np.ndarray]:
+    """Lost packets from a 16-bit counter.
+
+    Returns
+    -------
+    lost : int
+    expected : int
+        Packets the counter says were sent over the rows' span.
+    gaps : ndarray of int
+        Length of every gap (packets), shape (k,).
+    """
+    step = np.diff(validation.unwrap_seq(np.asarray(seq)))
+    gaps = step[step > 1] - 1
+    return int(gaps.sum()), int(step.sum()) + 1, gaps
+
+
+def stamp_residual(t_s: np.ndarray, seq: np.ndarray) -> np.ndarray:
+    """Receive timestamps about the straight line of the packet clock (s), shape (n,)."""
+    k = validation.unwrap_seq(np.asarray(seq)).astype(float)
+    a = np.polyfit(k - k.mean(), t_s, 1)
+    return t_s - np.polyval(a, k - k.mean())
+
+
+def allan_deviation(x: np.ndarray, m: int) -> np.ndarray:
+    """Overlapping Allan deviation at cluster size ``m`` samples, per column.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, k)
+        Rate samples (equally spaced).
+    m : int
+
+    Returns
+    -------
+    ndarray, shape (k,)
+    """
+    c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    n = len(x)
+    if n < 2 * m + 1:
+        return np.full(x.shape[1], np.nan)
+    d = c[2 * m :] - 2 * c[m : n + 1 - m] + c[: n + 1 - 2 * m]
+    return np.sqrt(np.mean(d**2, axis=0) / (2 * m * m))
+
+
+def temperature_column(table: pd.DataFrame) -> str | None:
+    return next((c for c in TEMPERATURE_COLUMNS if c in table.columns), None)
+
+
+def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, float]:
+    """Every statistic of a fitted session (see the module docstring).
+
+    Parameters
+    ----------
+    fit : SessionFit
+    half : {None, 'A', 'B'}
+        All segments, or one half of them.
+
+    Returns
+    -------
+    dict
+        ``(stage, sensor, axis, segment, statistic)`` -> value (units in :data:`CATALOGUE`);
+        a statistic the session cannot give (no rate table, no reference, no temperature
+        channel) is absent, a degenerate one is NaN.
+    """
+    out: dict[Key, float] = {}
+    out.update(_timing(fit, half))
+    if "static" in fit.imu:
+        out.update(_noise(fit, half))
+    out.update(_cube(fit, half))
+    out.update(_gyr_rest(fit, half))
+    if fit.artifacts.get("table") is not None:
+        out.update(_table(fit, half))
+    out.update(_scale(fit, half))
+    out.update(_mag(fit, half))
+    if fit.time_alignment is not None:
+        out.update(_reference(fit, half))
+    out.update(_temperature(fit, half))
+    return out
+
+
+def _timing(fit: SessionFit, half) -> dict:
+    lost = expected = 0
+    scatter = []
+    clipped = {s: 0 for s in SENSORS}
+    total = 0
+    for name, table in fit.imu.items():
+        sl = _time_half(len(table), half)
+        seq = table[SEQ].to_numpy()[sl]
+        t = table[TIME].to_numpy(dtype=float)[sl]
+        n_lost, n_exp, _ = lost_packets(seq)
+        lost, expected = lost + n_lost, expected + n_exp
+        res = stamp_residual(t, seq)
+        scatter.append(res - np.median(res))
+        total += len(t)
+    out = {("ingest", "clock", "-", "all", "loss_fraction"): lost / max(expected, 1)}
+    r = np.concatenate(scatter)
+    out[("ingest", "clock", "-", "all", "stamp_scatter_s")] = float(
+        max(np.sqrt(np.mean(r**2)), 1e-7)
+    )
+    return out | _clipping(fit, half)
+
+
+def _clipping(fit: SessionFit, half) -> dict:
+    """Fraction of samples within one LSB of a sensor's range (range from dataset.yaml)."""
+    opt = fit.extra["options"]
+    out = {}
+    for s in SENSORS:
+        n = hit = 0
+        for table in fit.imu.values():
+            x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[_time_half(len(table), half)]
+            x = x[np.all(np.isfinite(x), axis=1)]
+            limit = opt.limit(s) - 1.5 * float(opt.sensitivity[s])
+            hit += int(np.any(np.abs(x) >= limit, axis=1).sum())
+            n += len(x)
+        out[("ingest", s, "-", "all", "clip_fraction")] = hit / max(n, 1)
+    return out
+
+
+def _noise(fit: SessionFit, half) -> dict:
+    table = fit.imu["static"]
+    t = table[TIME].to_numpy(dtype=float)
+    sl = _time_half(len(t), half)
+    fs = 1 / np.median(np.diff(t))
+    out = {}
+    for s in SENSORS:
+        x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl]
+        tt = t[sl]
+        good = np.all(np.isfinite(x), axis=1)
+        x, tt = x[good], tt[good]
+        rate = fs if s != "mag" else 1 / np.median(np.diff(tt))
+        white = np.std(np.diff(x, axis=0), axis=0) / np.sqrt(2)
+        slope = np.polyfit(tt - tt.mean(), x, 1)[0]
+        m10 = max(int(round(10 * rate)), 1)
+        mlong = max(int(len(x) / 5), 1)
+        for j, a in enumerate(AXES):
+            ad10 = allan_deviation(x[:, [j]], m10)[0]
+            adl = allan_deviation(x[:, [j]], mlong)[0]
+            out[("noise", s, a, "static", "adev_10s_excess")] = float(
+                np.log(ad10 / (white[j] / np.sqrt(m10)))
+            )
+            out[("noise", s, a, "static", "adev_long_excess")] = float(
+                np.log(adl / (white[j] / np.sqrt(mlong)))
+            )
+            out[("noise", s, a, "static", "trend_per_s")] = float(slope[j])
+    return out
+
+
+def _cube(fit: SessionFit, half) -> dict:
+    rows = _alternate(_rows(fit, "cube", "position"), half)
+    acc = _means(calibrated(fit, "cube", "acc"), rows)
+    g = fit.extra["options"].gravity_m_s2
+    r = np.linalg.norm(acc, axis=1) - g
+    tm = _mid_times(fit, "cube", rows)
+    return {
+        ("acc_cube", "acc", "norm", "position", "resid_rms"): float(np.sqrt(np.mean(r**2))),
+        ("acc_cube", "acc", "norm", "position", "resid_time_slope"): float(
+            np.polyfit(tm - tm.mean(), r, 1)[0]
+        ),
+    }
+
+
+def resting_gyro(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray]:
+    """Calibrated gyro and accelerometer means at the cube positions, each shape (p, 3)."""
+    rows = _alternate(_rows(fit, "cube", "position"), half)
+    return _means(calibrated(fit, "cube", "gyr"), rows), _means(calibrated(fit, "cube", "acc"), rows)
+
+
+def _gyr_rest(fit: SessionFit, half) -> dict:
+    w, f = resting_gyro(fit, half)
+    out = {}
+    up = f / np.linalg.norm(f, axis=1, keepdims=True)
+    for j, a in enumerate(AXES):
+        out[("gyr_static", "gyr", a, "position", "spread")] = float(np.sqrt(np.mean(w[:, j] ** 2)))
+        out[("gyr_static", "gyr", a, "position", "g_slope")] = float(np.polyfit(f[:, j], w[:, j], 1)[0])
+    design = np.column_stack([np.ones(len(w)), up[:, 0], up[:, 1], up[:, 2]])
+    # isotropic vertical component: w_p = c + v * up_p (c a constant offset, per axis)
+    a_mat = np.vstack([np.column_stack([np.eye(3)[j][None].repeat(len(w), 0), up[:, j]]) for j in range(3)])
+    coef, *_ = np.linalg.lstsq(a_mat, w.T.ravel(), rcond=None)
+    del design
+    out[("gyr_static", "gyr", "up", "position", "vertical")] = float(coef[3])
+    return out
+
+
+def table_residuals(fit: SessionFit, half) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
+    """Rate-table runs kept by the fit: rows, run-mean residuals (rad/s, (r, 3)), true rates."""
+    table = fit.artifacts["table"]
+    rows = _rows(fit, "ratetable", "run")
+    rows = rows[rows["label"].isin(table["labels"])]
+    rows = _run_half(rows, half)
+    k = np.asarray(table["matrix"], dtype=float)
+    b = np.asarray(table["bias"], dtype=float)
+    raw = fit.imu["ratetable"][list(GYR)].to_numpy(dtype=float)
+    means = _means(raw, rows)
+    unit = {a: np.eye(3)[i] for i, a in enumerate(AXES)}
+    true = np.array([np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)])
+    return rows, errormodel.apply(k, b, means) - true, true
+
+
+def _table(fit: SessionFit, half) -> dict:
+    rows, res, true = table_residuals(fit, half)
+    out = {}
+    for j, a in enumerate(AXES):
+        out[("gyr_table", "gyr", a, "run", "resid_rms")] = float(np.sqrt(np.mean(res[:, j] ** 2)))
+        sel = (rows["axis"] == a).to_numpy()
+        w = true[sel, j]
+        y = res[sel, j]
+        if len(w) >= 4:
+            design = np.column_stack([np.ones_like(w), w, w**2, w**3])
+            c, *_ = np.linalg.lstsq(design, y, rcond=None)
+            out[("gyr_table", "gyr", a, "run", "rate2")] = float(c[2])
+            out[("gyr_table", "gyr", a, "run", "rate3")] = float(c[3])
+    all_runs = _run_half(_rows(fit, "ratetable", "run"), half)
+    out[("gyr_table", "gyr", "-", "run", "left_out")] = float(
+        (~all_runs["label"].isin(fit.artifacts["table"]["labels"])).sum()
+    )
+    out.update(_centripetal(fit, half))
+    return out
+
+
+def centripetal_slopes(fit: SessionFit, half) -> np.ndarray:
+    """Slope of the calibrated acc run means on rate^2, per acc axis (m), shape (3,).
+
+    For each table axis the run means minus that axis's rest-run mean, regressed on rate^2
+    over the runs whose axis is not the acc axis (the centripetal term ``-w^2 r_perp``).
+    """
+    rows = _run_half(_rows(fit, "ratetable", "run"), half)
+    acc = _means(calibrated(fit, "ratetable", "acc"), rows)
+    w2 = np.radians(rows["rate_dps"].to_numpy(float)) ** 2
+    slopes = np.full(3, np.nan)
+    for j, a in enumerate(AXES):
+        xs, ys = [], []
+        for b in AXES:
+            if b == a:
+                continue
+            sel = (rows["axis"] == b).to_numpy()
+            if sel.sum() < 3:
+                continue
+            y = acc[sel, j]
+            x = w2[sel]
+            xs.append(x - x.mean())
+            ys.append(y - y.mean())
+        if xs:
+            x, y = np.concatenate(xs), np.concatenate(ys)
+            slopes[j] = float(x @ y / (x @ x))
+    return slopes
+
+
+def _centripetal(fit: SessionFit, half) -> dict:
+    s = centripetal_slopes(fit, half)
+    return {("acc_table", "acc", a, "run", "omega2"): float(s[j]) for j, a in enumerate(AXES)}
+
+
+def _scale(fit: SessionFit, half) -> dict:
+    if fit.artifacts["scale"] is None:
+        return {}
+    per_phase = fit.artifacts["scale"]["per_phase"]
+    final = errormodel.decompose(fit.calibration.sensor("gyr").matrix).scale
+    out = {}
+    for p in _phase_half(per_phase, half):
+        j = AXES.index(p)
+        out[("gyr_scale", "gyr", p, "phase", "scale_ratio")] = float(
+            per_phase[p]["scale"] / final[j] - 1
+        )
+    return out
+
+
+def magnetometer_lag(fit: SessionFit, phase: str) -> float:
+    """Lag of the calibrated magnetometer behind the gyroscope during one phase (s).
+
+    The field, fixed in the world, turns in B at minus the body rate about the phase axis, so
+    ``angle_m(t) + angle_g(t) = c + rate(t) * lag`` with ``angle_m`` the unwrapped angle of
+    the field's component across the axis and ``angle_g`` the integrated rate; the slope on
+    the rate is the lag (positive: the magnetometer reports late).
+    """
+    rows = _rows(fit, "rotation3d", "phase")
+    r = rows[rows["label"] == phase]
+    if r.empty:
+        return float("nan")
+    r = r.iloc[0]
+    sl = slice(int(r.start_index), int(r.end_index))
+    t = fit.imu["rotation3d"][TIME].to_numpy(dtype=float)[sl]
+    mag = calibrated(fit, "rotation3d", "mag")[sl]
+    gyr = calibrated(fit, "rotation3d", "gyr")[sl]
+    j = AXES.index(phase)
+    u, v = [(j + 1) % 3, (j + 2) % 3]
+    w = gyr[:, j]
+    theta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
+    fresh = np.all(np.isfinite(mag), axis=1)
+    ang = np.unwrap(np.arctan2(mag[fresh, v], mag[fresh, u]))
+    y = ang + theta[fresh]
+    x = w[fresh]
+    design = np.column_stack([np.ones_like(x), x])
+    c, *_ = np.linalg.lstsq(design, y, rcond=None)
+    return float(c[1])
+
+
+def dip_angles(fit: SessionFit, half) -> np.ndarray:
+    """Dip (rad) in every static rotation3d pause and cube position with field samples."""
+    out = []
+    for rec, kind in (("rotation3d", "static"), ("cube", "position")):
+        rows = _alternate(_rows(fit, rec, kind), half)
+        acc = _means(calibrated(fit, rec, "acc"), rows)
+        mag = _means(calibrated(fit, rec, "mag"), rows)
+        ok = np.all(np.isfinite(mag), axis=1)
+        a, m = acc[ok], mag[ok]
+        s = -np.sum(a * m, axis=1) / (np.linalg.norm(a, axis=1) * np.linalg.norm(m, axis=1))
+        out.append(np.arcsin(np.clip(s, -1, 1)))
+    return np.concatenate(out)
+
+
+def _mag(fit: SessionFit, half) -> dict:
+    m = calibrated(fit, "rotation3d", "mag")
+    m = m[np.all(np.isfinite(m), axis=1)]
+    m = m[_time_half(len(m), half)]
+    norm = fit.extra["options"].field_norm
+    out = {
+        ("mag", "mag", "norm", "rotation3d", "resid_rms"): float(
+            np.sqrt(np.mean((np.linalg.norm(m, axis=1) - norm) ** 2))
+        ),
+        ("mag", "mag", "dip", "static", "dip_spread_rad"): float(np.std(dip_angles(fit, half))),
+    }
+    for p in _phase_half(AXES, half):
+        out[("mag", "mag", p, "phase", "lag_s")] = magnetometer_lag(fit, p)
+    return out
+
+
+def _reference(fit: SessionFit, half) -> dict:
+    ta = fit.time_alignment
+    if half is None:
+        offset = ta.offset_s - fit.reference_start_s
+        return {
+            ("validate", "clock", "-", "rotation3d", "ref_offset_s"): float(offset),
+            ("validate", "clock", "-", "rotation3d", "ref_drift_ppm"): float(ta.drift_ppm),
+        }
+    w = np.asarray(ta.window_offset_s)[0 if half == "A" else 1 :: 2]
+    return {
+        ("validate", "clock", "-", "rotation3d", "ref_offset_s"): float(
+            np.mean(w) - fit.reference_start_s
+        )
+    }
+
+
+def resting_samples(fit: SessionFit, half) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """Per resting segment: calibrated gyro mean (3,), ``|a| - g``, temperature (deg C)."""
+    opt = fit.extra["options"]
+    out = []
+    for rec, kind in (("rotation3d", "static"), ("cube", "position"), ("static", "static")):
+        if rec not in fit.imu:
+            continue
+        col = temperature_column(fit.imu[rec])
+        if col is None:
+            continue
+        rows = _alternate(_rows(fit, rec, kind), half)
+        if rec == "static":
+            n = len(fit.imu[rec])
+            edges = np.linspace(0, n, 9).astype(int)
+            rows = pd.DataFrame({"start_index": edges[:-1], "end_index": edges[1:],
+                                 "start_s": 0.0, "end_s": 0.0})  # fmt: skip
+            rows = rows.iloc[0 if half in (None, "A") else 1 :: 1 if half is None else 2]
+        gyr = _means(calibrated(fit, rec, "gyr"), rows)
+        acc = _means(calibrated(fit, rec, "acc"), rows)
+        temp = _means(fit.imu[rec][[col]].to_numpy(dtype=float), rows)[:, 0]
+        for k in range(len(rows)):
+            out.append((gyr[k], float(np.linalg.norm(acc[k]) - opt.gravity_m_s2), float(temp[k])))
+    return out
+
+
+def _temperature(fit: SessionFit, half) -> dict:
+    samples = resting_samples(fit, half)
+    if len(samples) < 4:
+        return {}
+    temp = np.array([s[2] for s in samples])
+    if np.ptp(temp) <= 0:
+        return {}
+    gyr = np.array([s[0] for s in samples])
+    acc = np.array([s[1] for s in samples])
+    x = temp - temp.mean()
+    out = {("temperature", "acc", "norm", "rest", "temp_slope"): float(x @ (acc - acc.mean()) / (x @ x))}
+    for j, a in enumerate(AXES):
+        out[("temperature", "gyr", a, "rest", "temp_slope")] = float(
+            x @ (gyr[:, j] - gyr[:, j].mean()) / (x @ x)
+        )
+    return out

@@ -1,0 +1,340 @@
+"""The twin of a recorded session: the simulator under the paper's error model, configured from
+the session itself.
+
+The twin takes from the session only what the paper's model and the protocol describe: the
+fitted calibration (as the truth), white-noise levels estimated from its static data, gravity
+and the magnetic dip seen by its calibrated sensors, the reference mounting, the sensor ranges
+and sensitivities, and the protocol's timing (segment durations, phase turns and rates, rate
+table rates). It has no effect beyond the paper's model: no packet loss, exact timestamps, a
+reference started with the module. Replicas differ only in their random seed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.spatial.transform import Rotation
+
+from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.gap.pipeline import PipelineOptions, SessionFit, calibrated
+from imucal.ingest import counts_to_si
+from imucal.sim import ProtocolConfig, World, simulate_session
+from imucal.sim.truth import REFERENCE_NOISE, Truth
+
+#: Recordings the simulator renders, in protocol order.
+TWIN_RECORDINGS = ("rotation3d", "cube", "ratetable", "static")
+
+
+@dataclass(frozen=True)
+class Twin:
+    """Everything a twin replica is rendered from.
+
+    Attributes
+    ----------
+    truth : Truth
+        Calibration = the session's fitted calibration; noise from its static data.
+    config : ProtocolConfig
+        Timing of the session's protocol.
+    options : PipelineOptions
+        Pipeline settings (and sensitivities, ranges) of the session.
+    recordings : tuple of str
+        IMU recordings the session has (the twin renders the same).
+    has_reference : bool
+    extra_columns : dict
+        Recording -> column -> (t_s (n,), values (n,)): extra columns of the session (e.g. a
+        temperature channel), carried over to the replicas by recording time so that
+        statistics against them have a null.
+    notes : list of str
+        How each ingredient was estimated.
+    """
+
+    truth: Truth
+    config: ProtocolConfig
+    options: PipelineOptions
+    recordings: tuple
+    has_reference: bool
+    extra_columns: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    def describe(self) -> dict:
+        """JSON-ready summary (noise, world, protocol timing)."""
+        return {
+            "noise": {k: float(v) for k, v in self.truth.noise.items()},
+            "reference_noise": {k: float(v) for k, v in self.truth.reference_noise.items()},
+            "gravity_m_s2": self.truth.world.gravity_m_s2,
+            "dip_deg": float(np.degrees(self.truth.world.dip_rad)),
+            "recordings": list(self.recordings),
+            "has_reference": self.has_reference,
+            "protocol": {
+                k: (list(v) if isinstance(v, tuple) else v)
+                for k, v in self.config.__dict__.items()
+            },
+            "notes": list(self.notes),
+        }
+
+
+def _durations(segments: pd.DataFrame, recording: str, kind: str) -> np.ndarray:
+    rows = segments[(segments["recording"] == recording) & (segments["kind"] == kind)]
+    return (rows["end_s"] - rows["start_s"]).to_numpy(dtype=float)
+
+
+def static_noise(fit: SessionFit, sensitivity: Mapping) -> dict:
+    """White-noise std per sensor (SI, before calibration) from the static data.
+
+    The std of first differences of the raw readings over static segments, divided by sqrt(2)
+    (insensitive to slow drift), with the quantisation variance ``LSB^2/12`` removed (the twin
+    quantises again); the magnetometer on its fresh samples only. Averaged over the axes.
+
+    Returns
+    -------
+    dict
+        Sensor -> std (m/s^2, rad/s, normalised).
+    """
+    names = ["static"] if "static" in fit.imu else ["rotation3d", "cube"]
+    out = {}
+    for s in SENSORS:
+        diffs = []
+        for name in names:
+            rows = fit.segments[
+                (fit.segments["recording"] == name)
+                & fit.segments["kind"].isin(["static", "position"])
+            ]
+            table = fit.imu[name]
+            for r in rows.itertuples(index=False):
+                x = table.iloc[int(r.start_index) : int(r.end_index)][list(SENSOR_COLUMNS[s])]
+                x = x.to_numpy(dtype=float)
+                x = x[np.all(np.isfinite(x), axis=1)]
+                if len(x) > 2:
+                    diffs.append(np.diff(x, axis=0))
+        if not diffs:
+            raise ValueError(f"no static samples of {s} to estimate its noise from")
+        d = np.vstack(diffs)
+        # robust std of the differences (a handling bump in a static segment must not count)
+        var = (1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0)) ** 2 / 2
+        var = var - float(sensitivity[s]) ** 2 / 12
+        out[s] = float(np.sqrt(np.maximum(var, 0.0).mean()))
+    return out
+
+
+def reference_noise(reference: pd.DataFrame | None) -> dict:
+    """White-noise std of the reference per sensor from its second differences (robust)."""
+    if reference is None:
+        return dict(REFERENCE_NOISE)
+    out = {}
+    for s in SENSORS:
+        x = reference[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)
+        d2 = np.diff(x, n=2, axis=0)
+        d2 = d2[np.all(np.isfinite(d2), axis=1)]
+        mad = 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
+        out[s] = float(np.mean(mad) / np.sqrt(6))
+    return out
+
+
+def field_dip_rad(fit: SessionFit) -> float:
+    """Magnetic inclination seen by the calibrated sensors in the static rotation3d pauses.
+
+    ``sin(dip) = -a.m / (|a||m|)`` with gravity's specific force pointing up.
+    """
+    rows = fit.segments[
+        (fit.segments["recording"] == "rotation3d") & (fit.segments["kind"] == "static")
+    ]
+    acc = calibrated(fit, "rotation3d", "acc")
+    mag = calibrated(fit, "rotation3d", "mag")
+    sines = []
+    for r in rows.itertuples(index=False):
+        sl = slice(int(r.start_index), int(r.end_index))
+        m = mag[sl][np.all(np.isfinite(mag[sl]), axis=1)]
+        if len(m) == 0:
+            continue
+        a, m = acc[sl].mean(axis=0), m.mean(axis=0)
+        sines.append(-a @ m / (np.linalg.norm(a) * np.linalg.norm(m)))
+    if not sines:
+        raise ValueError("no static rotation3d pause with magnetometer samples to measure the dip")
+    return float(np.arcsin(np.clip(np.median(sines), -1, 1)))
+
+
+def protocol_config(fit: SessionFit) -> tuple[ProtocolConfig, list[str]]:
+    """The protocol timing of a session, read from its segments and calibrated rates.
+
+    Returns
+    -------
+    config : ProtocolConfig
+    notes : list of str
+    """
+    seg = fit.segments
+    notes = []
+    statics = _durations(seg, "rotation3d", "static")
+    phases = seg[(seg["recording"] == "rotation3d") & (seg["kind"] == "phase")].set_index("label")
+    gyr = calibrated(fit, "rotation3d", "gyr")
+    turns, rates, ramps = [], [], []
+    for axis, default_turns, default_rate in zip("xyz", (2.0, -2.0, 2.0), (50.0, 50.0, 60.0)):
+        if axis not in phases.index:
+            notes.append(f"phase {axis} not found; the twin uses the default protocol's")
+            turns.append(default_turns)
+            rates.append(default_rate)
+            continue
+        r = phases.loc[axis]
+        a, b = int(r.start_index), int(r.end_index)
+        n = b - a
+        middle = np.linalg.norm(gyr[a + n // 5 : b - n // 5], axis=1)
+        rate = float(np.degrees(np.median(middle)))
+        t = float(np.round(r.turns * 2) / 2) or default_turns
+        turns.append(t)
+        rates.append(rate)
+        ramps.append((r.end_s - r.start_s) - abs(t) * 360 / rate)
+    ramp = float(np.clip(np.median(ramps), 0.2, 5.0)) if ramps else 1.5
+    transitions = _durations(seg, "rotation3d", "transition")
+    positions = _durations(seg, "cube", "position")
+    cube = seg[(seg["recording"] == "cube") & (seg["kind"] == "position")].sort_values("start_s")
+    gaps = (cube["start_s"].to_numpy()[1:] - cube["end_s"].to_numpy()[:-1]) if len(cube) > 1 else []
+    kwargs = {
+        "rotation3d_static_s": float(statics[0]) if len(statics) else 11.0,
+        "phase_turns": tuple(turns),
+        "phase_rate_dps": tuple(rates),
+        "phase_ramp_s": ramp,
+        "pause_s": float(np.median(statics[1:])) if len(statics) > 1 else 3.5,
+        "transition_s": float(np.median(transitions)) if len(transitions) else 3.7,
+    }
+    if len(positions):
+        kwargs["cube_position_s"] = (float(positions.min()), float(positions.max()))
+    if len(gaps):
+        kwargs["cube_move_s"] = (float(np.min(gaps)), float(np.max(gaps)))
+    ratetable = fit.imu.get("ratetable")
+    rt = fit.artifacts.get("table")
+    runs = seg[(seg["recording"] == "ratetable") & (seg["kind"] == "run")].sort_values("start_s")
+    if ratetable is not None and len(runs):
+        plateau = float(np.median(runs["end_s"] - runs["start_s"]))
+        gap = float(np.median(runs["start_s"].to_numpy()[1:] - runs["end_s"].to_numpy()[:-1]))
+        run_ramp = 1.0
+        kwargs.update(
+            ratetable_axes=tuple(dict.fromkeys(runs["axis"])),
+            rates_dps=tuple(float(x) for x in sorted(set(runs["rate_dps"]))),
+            run_plateau_s=plateau,
+            run_ramp_s=run_ramp,
+            run_pause_s=float(max(gap - 2 * run_ramp, 0.5)),
+        )
+        notes.append("rate-table spin-up time not observable from the segments; 1 s assumed")
+        del rt
+    if "static" in fit.imu:
+        t = fit.imu["static"][TIME].to_numpy()
+        kwargs["static_s"] = float(t[-1] - t[0])
+    return ProtocolConfig(**kwargs), notes
+
+
+def build_twin(fit: SessionFit, options: PipelineOptions) -> Twin:
+    """The twin of a fitted session (see the module docstring).
+
+    Parameters
+    ----------
+    fit : SessionFit
+        The session run through :func:`imucal.gap.pipeline.calibrate_session`.
+    options : PipelineOptions
+
+    Returns
+    -------
+    Twin
+    """
+    noise = static_noise(fit, options.sensitivity)
+    dip = field_dip_rad(fit)
+    mounting = np.zeros(3)
+    if fit.reference is not None:
+        mounting = _mounting_rotvec(fit)
+    truth = Truth(
+        calibration=fit.calibration,
+        world=World(gravity_m_s2=options.gravity_m_s2, dip_rad=dip),
+        noise=noise,
+        reference_noise=reference_noise(fit.reference),
+        mounting_rotvec_rad=mounting,
+        preset="twin",
+    )
+    config, notes = protocol_config(fit)
+    extra = {}
+    for name, table in fit.imu.items():
+        cols = [c for c in table.columns if c not in (TIME, SEQ) and not c.startswith(("acc_", "gyr_", "mag_"))]
+        if cols:
+            t = table[TIME].to_numpy(dtype=float)
+            extra[name] = {c: (t - t[0], table[c].to_numpy(dtype=float)) for c in cols}
+    notes.append(
+        "noise: robust std of first differences of static raw readings, quantisation removed"
+    )
+    return Twin(
+        truth, config, options, tuple(r for r in TWIN_RECORDINGS if r in fit.imu),
+        fit.reference is not None, extra, notes,
+    )  # fmt: skip
+
+
+def _mounting_rotvec(fit: SessionFit) -> np.ndarray:
+    """Mounting of the reference (``v_B = R v_ref``) from static rotation3d gravity and field."""
+    from imucal import validation as val
+
+    acc = calibrated(fit, "rotation3d", "acc")
+    ta = fit.time_alignment
+    t_mod = val.packet_times(
+        fit.imu["rotation3d"][TIME].to_numpy(), fit.imu["rotation3d"][SEQ].to_numpy()
+    )
+    t_ref = val.packet_times(fit.reference[TIME].to_numpy(), fit.reference[SEQ].to_numpy())
+    # reference sample nearest each module sample through the fitted clock
+    t_on_ref = ta.offset_s + (1 + ta.drift_ppm * 1e-6) * t_mod
+    idx = np.clip(np.searchsorted(t_ref, t_on_ref), 0, len(t_ref) - 1)
+    ref_acc = fit.reference[["acc_x", "acc_y", "acc_z"]].to_numpy(dtype=float)[idx]
+    ref_gyr = fit.reference[["gyr_x", "gyr_y", "gyr_z"]].to_numpy(dtype=float)[idx]
+    gyr = calibrated(fit, "rotation3d", "gyr")
+    good = np.all(np.isfinite(ref_acc), axis=1)
+    lp = np.r_[acc[good], gyr[good] * 10]
+    lr = np.r_[ref_acc[good], ref_gyr[good] * 10]
+    rot, _ = Rotation.align_vectors(lp, lr)
+    return rot.as_rotvec()
+
+
+def _replica_tables(session, twin: Twin) -> tuple[dict, pd.DataFrame | None]:
+    imu = {}
+    for rec in twin.recordings:
+        frame = session.frame(rec)
+        frame = frame.astype({c: "float64" for c in MAG})
+        table = counts_to_si(frame, session.sensitivity)
+        for col, (t0, values) in twin.extra_columns.get(rec, {}).items():
+            t = table[TIME].to_numpy(dtype=float)
+            table[col] = np.interp(t - t[0], t0, values)
+        imu[rec] = table
+    reference = None
+    if twin.has_reference:
+        from imucal.columns import (
+            REF_ACC, REF_COUNTER, REF_GYR, REF_MAG, REF_TICKS_PER_S, REF_TIME_FINE,
+        )  # fmt: skip
+
+        src = session.reference
+        reference = pd.DataFrame(
+            {
+                TIME: src[REF_TIME_FINE].to_numpy(dtype=np.int64) / REF_TICKS_PER_S,
+                SEQ: src[REF_COUNTER].to_numpy(dtype=np.int64),
+                **{c: src[r].to_numpy(dtype=float) for c, r in zip(
+                    ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z", "mag_x", "mag_y", "mag_z"),
+                    (*REF_ACC, *REF_GYR, *REF_MAG), strict=True)},
+            }
+        )  # fmt: skip
+    return imu, reference
+
+
+def render_replica(twin: Twin, seed: int, effects: tuple = ()) -> tuple[dict, pd.DataFrame | None]:
+    """Render one replica of the twin (optionally with simulator effects) as ingested tables.
+
+    Parameters
+    ----------
+    twin : Twin
+    seed : int
+        Seeds the protocol's random choices and the noise. The same seed with and without an
+        effect gives the same noise (the simulator draws each effect from its own stream), so
+        the difference isolates the effect.
+    effects : tuple of imucal.sim.Effect
+
+    Returns
+    -------
+    imu : dict of str to DataFrame
+        Ingested IMU recordings (SI), as :func:`imucal.ingest.ingest_recording` gives them.
+    reference : DataFrame or None
+    """
+    session = simulate_session(twin.truth, seed, twin.config, tuple(effects), name="twin")
+    return _replica_tables(session, twin)

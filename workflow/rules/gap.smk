@@ -1,0 +1,107 @@
+# Sim-to-real gap diagnosis (issue 6): every dataset against its twin (imucal.gap), in the
+# default run; the blind check (`snakemake --cores 2 blind`) renders sessions with hidden
+# effects, keeps their answer keys under results/blind/sealed/ (an input of the scorer only)
+# and scores the diagnoses.
+
+
+rule gap_diagnose:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        unpack(ingested),
+        segments="results/{dataset}/segments.parquet",
+        calibration="results/{dataset}/calibration.json",
+    output:
+        diagnosis="results/{dataset}/gap/diagnosis.json",
+        gap_map="results/{dataset}/gap/gap_map.png",
+        effects="results/{dataset}/gap/effects.png",
+    log:
+        "results/{dataset}/logs/gap_diagnose.log",
+    benchmark:
+        "results/{dataset}/benchmarks/gap_diagnose.tsv"
+    params:
+        folder=dataset_folder,
+        replicas=config["gap"]["replicas"],
+        alpha=config["gap"]["alpha"],
+        seed=config["gap"]["seed"],
+        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
+        crn_seeds=config["gap"]["crn_seeds"],
+        detect_z=config["gap"]["detect_z"],
+        exclude=config["gap"]["exclude"],
+        exact_rotation=config["exact_rotation"],
+        lowpass_order=config["lowpass"]["order"],
+        lowpass_cutoff_hz=config["lowpass"]["cutoff_hz"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_diagnose.py"
+
+
+# reports/blind.html is the blind check's page, not a dataset's lab report
+ruleorder: blind_score > report
+
+
+rule blind_render:
+    conda:
+        "../envs/imucal.yaml"
+    output:
+        folder=directory("results/blind/data/{session}"),
+        key="results/blind/sealed/{session}.json",
+    log:
+        "results/blind/logs/render/{session}.log",
+    benchmark:
+        "results/blind/benchmarks/render/{session}.tsv"
+    params:
+        spec=blind_spec,
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_blind_render.py"
+
+
+rule blind_diagnose:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        folder="results/blind/data/{session}",
+    output:
+        diagnosis="results/blind/diagnoses/{session}.json",
+    log:
+        "results/blind/logs/diagnose/{session}.log",
+    benchmark:
+        "results/blind/benchmarks/diagnose/{session}.tsv"
+    params:
+        exclude=blind_exclude,
+        replicas=config["blind"]["replicas"],
+        alpha=config["gap"]["alpha"],
+        seed=config["gap"]["seed"],
+        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
+        crn_seeds=config["gap"]["crn_seeds"],
+        detect_z=config["gap"]["detect_z"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_blind_diagnose.py"
+
+
+rule blind_score:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        diagnoses=expand("results/blind/diagnoses/{session}.json", session=BLIND_SESSIONS),
+        sealed=expand("results/blind/sealed/{session}.json", session=BLIND_SESSIONS),
+        benchmarks=expand(
+            "results/blind/benchmarks/diagnose/{session}.tsv", session=BLIND_SESSIONS
+        ),
+    output:
+        score="results/blind/score.json",
+        html="reports/blind.html",
+    log:
+        "results/blind/logs/score.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_blind_score.py"
+
+
+rule blind:
+    input:
+        "results/blind/score.json",
+        "reports/blind.html",
