@@ -67,6 +67,31 @@ def _run_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_apply(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "apply",
+        help="calibrate an ingested recording with a calibration.json",
+        description="Calibrate the acc/gyr/mag columns of an ingested recording (parquet, "
+        "results/{dataset}/ingest/{recording}.parquet) to frame B with a calibration.json of "
+        "this package; writes a parquet with the same rows and columns.",
+    )
+    p.add_argument("calibration", help="calibration.json (results/{dataset}/calibration.json)")
+    p.add_argument("recording", help="ingested recording (parquet with imucal metadata)")
+    p.add_argument("out", help="output parquet (written atomically)")
+    p.set_defaults(func=_run_apply)
+
+
+def _run_apply(args: argparse.Namespace) -> int:
+    from imucal.io import read_calibration, read_recording, write_recording
+    from imucal.stages import apply_calibration
+
+    table, metadata = read_recording(args.recording)
+    calibrated, metadata = apply_calibration(table, metadata, read_calibration(args.calibration))
+    write_recording(calibrated, args.out, metadata)
+    print(f"wrote {args.out}: {len(calibrated)} rows calibrated with {args.calibration}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with all subcommands."""
     parser = argparse.ArgumentParser(
@@ -74,13 +99,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     _add_simulate(sub)
+    _add_apply(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``imucal`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except (ValueError, FileNotFoundError) as err:  # bad input: the message says what and where
+        print(f"imucal {args.command}: error: {err}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":
