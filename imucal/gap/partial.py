@@ -828,3 +828,49 @@ def _heldout_or_none(c: Mapping) -> float | None:
 def _heldout(c: Mapping) -> float:
     h = _heldout_or_none(c)
     return -np.inf if h is None else h
+
+
+def diagnose_partial_session(
+    static: pd.DataFrame | None,
+    *,
+    dataset: str,
+    calibration: Mapping | None,
+    sensitivity: Mapping[str, float],
+    gravity_m_s2: float,
+    replicas: int,
+    alpha: float,
+    seed: int,
+    min_heldout_shrink: float,
+    crn_seeds: int,
+    detect_z: float,
+) -> dict:
+    """The gap diagnosis of a partial session: its static recording, or why none is scored.
+
+    Parameters
+    ----------
+    static : DataFrame or None
+        The ingested ``static`` recording, None when the session has none.
+    dataset : str
+    calibration, sensitivity, gravity_m_s2, replicas, alpha, seed, min_heldout_shrink, \
+    crn_seeds, detect_z
+        As in :func:`diagnose_static`.
+
+    Returns
+    -------
+    dict
+        :func:`diagnose_static`'s result, or :func:`unscored_diagnosis` with the reason.
+    """
+    if static is None:
+        return unscored_diagnosis(
+            dataset,
+            "the session has no static recording; the twin of a partial session is rendered "
+            "for a static recording only (its other recordings are hand-held motions the "
+            "simulator's protocol does not describe)",
+        )
+    if not split_streams(static):
+        return unscored_diagnosis(dataset, "the static recording has no stream of >= 100 samples")
+    return diagnose_static(
+        static, dataset=dataset, calibration=calibration, sensitivity=sensitivity,
+        gravity_m_s2=gravity_m_s2, replicas=replicas, alpha=alpha, seed=seed,
+        min_heldout_shrink=min_heldout_shrink, crn_seeds=crn_seeds, detect_z=detect_z,
+    )  # fmt: skip
