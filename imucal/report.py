@@ -743,8 +743,13 @@ def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
     from imucal.gap.figures import report_context
 
     diagnosis, *figures = [Path(p) for p in paths]
-    return report_context(_load_json(diagnosis, "gap diagnosis"),
-                          {f.stem: embed_figure(f) for f in figures})  # fmt: skip
+    d = _load_json(diagnosis, "gap diagnosis")
+    # a partial session's diagnosis (imucal.gap.partial) says what it could score, or why not
+    scope = {"scope": d.get("scope", "full"), "reason": d.get("reason", ""),
+             "not_observable": d.get("not_observable", {})}  # fmt: skip
+    if scope["scope"] == "none":
+        return scope
+    return {**report_context(d, {f.stem: embed_figure(f) for f in figures}), **scope}
 
 
 def _plain(obj: Any) -> Any:

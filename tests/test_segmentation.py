@@ -371,3 +371,151 @@ def test_fallback_keeps_static_poses_and_says_why(session):
     segments = segment_dataset({"rotation3d": table}, fallback=True)
     assert set(segments["kind"]) == {"static"} and len(segments) >= 2
     assert "automatic segmentation failed" in segments.attrs["notes"]["rotation3d"]
+
+
+# --- rate table: clipped runs, short plateaus, split plateaus -------------------------------------
+
+
+def ingested(folder):
+    """The IMU recordings of a simulated dataset folder, ingested (SI units)."""
+    from imucal.ingest import ingest_recording
+
+    ds = read_dataset(folder)
+    names = ("rotation3d", "cube", "ratetable", "static")
+    tables = {
+        n: ingest_recording(ds.recordings[n], recording=n, dataset=ds, imucal_version="test")[0]
+        for n in names
+    }
+    return ds, tables
+
+
+def true_runs(folder) -> pd.DataFrame:
+    segments = json.loads((folder / "truth.json").read_text())["segments"]
+    return pd.DataFrame([s for s in segments if s["recording"] == "ratetable"])
+
+
+def assert_runs_match_truth(found: pd.DataFrame, truth: pd.DataFrame, tol_s: float) -> None:
+    """Labels, axes, senses in order, and plateau boundaries within ``tol_s`` of the truth."""
+    both = truth.merge(found, on="label", how="left", suffixes=("_true", ""))
+    assert found["label"].tolist() == truth["label"].tolist()
+    assert both["axis"].tolist() == both["axis_true"].tolist()
+    assert both["sense"].tolist() == both["sense_true"].tolist()
+    assert np.abs(both["start_s"] - both["start_s_true"]).max() < tol_s
+    assert np.abs(both["end_s"] - both["end_s_true"]).max() < tol_s
+
+
+def test_saturated_ratetable_is_segmented_and_the_fit_leaves_clipped_runs_out(tmp_path):
+    """The gyro range clips the +-300 and +-400 deg/s runs: they are still found, matched by the
+    table order and nominal rate, named in the notes; the rate-table fit drops them and recovers
+    the truth from the others."""
+    from imucal import stages
+    from imucal.sim import parse_effect, simulate
+
+    folder = tmp_path / "sat"
+    simulate(folder, preset="paper", seed=3, effects=(parse_effect("saturation"),), static_s=20.0)
+    ds, tables = ingested(folder)
+    segments = segment_dataset(tables, ratetable=ds.ratetable)
+    runs = segments[segments["recording"] == "ratetable"]
+    # the ramps' clipped ends are cut off: boundaries as close as the unclipped runs' (0.2 s, the
+    # tolerance of test_simulated_session_boundaries)
+    assert_runs_match_truth(runs, true_runs(folder), tol_s=0.2)
+
+    truth = json.loads((folder / "truth.json").read_text())
+    limit = ds.range_counts["gyr"] * ds.sensitivity["gyr"]
+    m_inv = np.linalg.inv(np.array(truth["gyr"]["matrix"]))
+    raw = {  # raw = M^-1 w + b (the truth's model), noise-free
+        row.label: m_inv @ (np.radians(row.rate_dps) * np.eye(3)["xyz".index(row.axis)])
+        + truth["gyr"]["bias"]
+        for row in runs.itertuples()
+    }
+    clipped = [label for label, r in raw.items() if np.abs(r).max() > limit]
+    assert len(clipped) == 12  # every +-300 and +-400 deg/s run (scale ~1.15 x 250 deg/s range)
+    note = segments.attrs["notes"]["ratetable"]
+    assert f"run(s) {', '.join(clipped)} clipped at the gyroscope range" in note
+
+    table, _ = stages.fit_gyr_table(tables["ratetable"], segments, saturation_limit_rad_s=limit)
+    assert table["labels"] == [label for label in runs["label"] if label not in clipped]
+    # 15 runs left (12 dof); the fit's std is the noise from its residuals: 5 std, as in
+    # test_gyroscope's rate-table recovery
+    err_m = np.array(table["matrix"]) - truth["gyr"]["matrix"]
+    err_b = np.array(table["bias"]) - truth["gyr"]["bias"]
+    assert np.all(np.abs(err_m) < 5 * np.array(table["std_matrix"])), err_m
+    assert np.all(np.abs(err_b) < 5 * np.array(table["std_bias"])), err_b
+
+
+@pytest.mark.parametrize("plateau_s", [4.0, 2.5])
+def test_short_plateaus_are_segmented_at_the_true_boundaries(tmp_path, plateau_s):
+    """Plateaus of a few seconds (the blind check's 4 s and 1.5 s pauses) give one run each, at
+    the simulator's plateau within 0.2 s (the detector sees the cosine ramp a few noise sigmas
+    in, ~0.1 s), and no note (nothing clipped or split)."""
+    from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
+    from imucal.sim.effects import stream_rng
+
+    config = ProtocolConfig(run_plateau_s=plateau_s, run_pause_s=1.5, static_s=20.0)
+    truth = make_truth("random", stream_rng(5, "truth"))
+    folder = write_session(simulate_session(truth, 5, config), tmp_path / "short")
+    ds, tables = ingested(folder)
+    runs = segment_dataset({"ratetable": tables["ratetable"]}, ratetable=ds.ratetable)
+    assert_runs_match_truth(runs, true_runs(folder), tol_s=0.2)
+    assert runs.attrs["notes"] == {}
+
+
+def test_a_plateau_split_by_a_disturbance_is_one_run(tmp_path):
+    """A 0.1-s knock in the middle of a 4-s plateau leaves two quiet pieces of ~1.7 s, both of at
+    least min_static_s; they read the same rate and the table did not stop between them: one run,
+    the longer piece, inside the true plateau, and a note says so."""
+    from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
+    from imucal.sim.effects import stream_rng
+
+    config = ProtocolConfig(run_plateau_s=4.0, run_pause_s=1.5, static_s=20.0)
+    folder = write_session(
+        simulate_session(make_truth("random", stream_rng(5, "truth")), 5, config), tmp_path / "k"
+    )
+    ds, tables = ingested(folder)
+    table = tables["ratetable"]
+    truth = true_runs(folder).set_index("label")
+    t = table[TIME].to_numpy()
+    middle = (truth.loc["y+200", "start_s"] + truth.loc["y+200", "end_s"]) / 2
+    knock = (t >= middle - 0.05) & (t < middle + 0.05)
+    gyr = table[list(GYR)].to_numpy()
+    gyr[knock] += np.random.default_rng(0).normal(0, 0.5, (int(knock.sum()), 3))  # 30 deg/s
+    acc = table[list(ACC)].to_numpy()
+    runs = segment_ratetable(t, acc, gyr, ds.ratetable["axes"], ds.ratetable["rates_dps"])
+    assert runs["label"].tolist() == truth.index.tolist()
+    row = runs.set_index("label").loc["y+200"]
+    assert truth.loc["y+200", "start_s"] - 0.2 < row["start_s"] < row["end_s"]
+    assert row["end_s"] < truth.loc["y+200", "end_s"] + 0.2
+    assert row["end_s"] - row["start_s"] > 1.5  # a whole piece, not a fragment of the knock
+    assert not (row["start_s"] < middle < row["end_s"])  # the knock is left out
+    assert runs.attrs["notes"]["ratetable"].endswith(
+        "run(s) y+200 interrupted by a disturbance: the longest quiet piece kept"
+    )
+
+
+def test_clipped_run_reading_above_its_nominal_rate_is_refused(session):
+    """A clipped reading is a lower bound on the raw rate: it refutes a nominal rate it exceeds by
+    more than the scale tolerance, and matches any larger one."""
+    ds = session[0]
+    table = session[1]["ratetable"]
+    t, acc, gyr = table[TIME].to_numpy(), table[list(ACC)].to_numpy(), table[list(GYR)].to_numpy()
+    gyr = gyr.copy()
+    limit = np.radians(300.0)  # clip the conformance gyro at 300 deg/s: x-400 reads ~-345 raw
+    gyr = np.clip(gyr, -limit, limit)
+    # the same table order with the first run's rate given as -200 deg/s: -300 raw (clipped) is
+    # more than 1.2 x 200, the largest raw rate a 20 % scale tolerance allows
+    wrong = [-200.0, *ds.ratetable["rates_dps"][1:]]
+    with pytest.raises(
+        ValueError,
+        match=r"run at 6.\d-15.\d s is about x at -(29|30)\d deg/s raw \(clipped at the sensor range\); "
+        r"expected x -200 deg/s",
+    ):
+        segment_ratetable(t, acc, gyr, ds.ratetable["axes"], wrong)
+    # with the true rates the clipped runs match
+    runs = segment_ratetable(t, acc, gyr, ds.ratetable["axes"], ds.ratetable["rates_dps"])
+    assert runs["label"].tolist() == [
+        f"{ax}{int(r):+d}" for ax in ds.ratetable["axes"] for r in ds.ratetable["rates_dps"]
+    ]
+    assert (
+        "run(s) x-400, x+400, y-400, y+400, z-400, z+400 clipped"
+        in runs.attrs["notes"]["ratetable"]
+    )

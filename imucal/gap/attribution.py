@@ -7,7 +7,9 @@ simulator draws each effect from its own stream, so the difference to those repl
 effect alone); the mean difference of the statistics shifts the null. The held-out check uses
 parameters estimated on half A of the segments and measures the gap on half B. Effects are
 accepted forward, largest held-out shrink first, while the gap is significant, the effect is
-detected and its held-out shrink reaches ``min_heldout_shrink``.
+detected and its held-out shrink reaches ``min_heldout_shrink``. An effect whose estimate fails
+its physics gate (e.g. a rate the Earth cannot have) or that the exact model absorbs
+(``opens_gap`` False) is never evaluated.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ class Candidate:
     accepted: bool = False
     evaluated: bool = False
     note: str = ""
+    blocked: str = ""
 
     @property
     def shrink(self):
@@ -122,7 +125,13 @@ def attribute(
         # a null that is constant (no lost packet in any replica) gets a relative resolution
         spread = max(spread, 1e-9 * max(abs(np.mean(vals)), abs(est.detect)), 1e-300)
         z = float(np.clip((est.detect - np.mean(vals)) / spread, -1e6, 1e6))
-        cands.append(Candidate(name, est.params, est_a.params if est_a else None, est.detect, float(z)))
+        cand = Candidate(name, est.params, est_a.params if est_a else None, est.detect, float(z))
+        if not model.opens_gap:
+            cand.blocked = "reported, not attributed: the pipeline's exact model absorbs it"
+        elif model.gate is not None and abs(z) >= detect_z:
+            cand.blocked = model.gate(est, null_detect, detect_z)
+        cand.note = cand.blocked
+        cands.append(cand)
     shift: dict = {}
     shift_b: dict = {}
     explained: list[str] = []
@@ -139,6 +148,10 @@ def attribute(
         best = None
         for c in open_:
             c.gap_before, c.heldout_before = gap_now, gap_b_now
+            if c.blocked:
+                c.gap_after = c.heldout_after = None
+                c.evaluated = False
+                continue
             if abs(c.detect_z) < detect_z:
                 c.note = f"estimate within the null (|z| = {abs(c.detect_z):.1f} < {detect_z:g})"
                 c.gap_after = c.heldout_after = None

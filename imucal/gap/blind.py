@@ -113,7 +113,8 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
     Returns
     -------
     dict
-        ``confusion`` (true effect -> first explained effect or 'none' -> count), ``top1``
+        ``confusion`` (true effect -> first explained effect, else first noted effect, or
+        'none' -> count), ``top1``
         (fraction of effect sessions whose first explained effect is the hidden one),
         ``null_explained_empty`` (k of n no-effect sessions), ``magnitude_rel_error`` (per
         effect, median |est - true| / true), ``heldout_shrink_true`` (median over effect
@@ -128,11 +129,14 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
         key, diag = keys[name], diagnoses[name]
         spec = key["spec"]
         truth_effect = spec["effect"] or "none"
-        first = diag["explained"][0] if diag["explained"] else "none"
+        # an effect that opens no gap (large misalignment under the exact rotation) is
+        # identified when it is reported in ``noted`` and nothing is explained
+        noted = diag.get("noted", [])
+        first = diag["explained"][0] if diag["explained"] else (noted[0] if noted else "none")
         row = {"name": name, "effect": truth_effect, "explained": diag["explained"],
                "gap_significant": diag["gap"]["significant"],
                "remaining_significant": diag["remaining"]["significant"],
-               "failed": diag.get("failed")}  # fmt: skip
+               "noted": noted, "failed": diag.get("failed")}  # fmt: skip
         if spec["exclude"]:
             named_wrong = [e for e in diag["explained"] if e != truth_effect]
             row.update(

@@ -3,7 +3,8 @@
 ``diagnose`` runs the session through the in-process pipeline, builds its twin, renders the
 null replicas, scores every location, attributes the gap forward and assembles the JSON of
 issue 6 (``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``, ``explained``,
-``remaining``) plus the detail the report needs.
+``remaining``) plus the detail the report needs, and ``noted``: effects present that open no gap
+with this pipeline (large misalignment under the exact rotation), with ``misalignment``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from imucal.gap.attribution import attribute, confusable
-from imucal.gap.effects import library
+from imucal.gap.effects import library, misalignment_report
 from imucal.gap.null import build_null, holm, run_replicas, total_gap
 from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.gap.statistics import CATALOGUE, HALVES, compute_statistics
@@ -102,6 +103,11 @@ def diagnose(
         twin, fit, stats, reps, null_full, null_b, models,
         alpha=alpha, min_heldout_shrink=min_heldout_shrink, n_seeds=crn_seeds, detect_z=detect_z,
     )  # fmt: skip
+    misalignment = (
+        misalignment_report(fit, [r.fit for r in reps], detect_z)
+        if "large_misalignment" in models
+        else None
+    )
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
     effects = []
@@ -137,6 +143,8 @@ def diagnose(
             "locations": _locations(null_full.keys, t_after, reject_after, True),
         },
         "confusable": confusable(rounds, explained, min_heldout_shrink),
+        "noted": ["large_misalignment"] if misalignment and misalignment["present"] else [],
+        "misalignment": misalignment,
         "all_locations": _locations(null_full.keys, t_real, reject, False),
         "null": {
             "replicas": replicas, "alpha": alpha, "n_locations": len(null_full.keys),

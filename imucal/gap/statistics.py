@@ -19,7 +19,11 @@ Statistics (units in the names of :data:`CATALOGUE`):
 * rate table: RMS of the run-mean residuals, their rate^2 and rate^3 coefficients, runs left
   out; accelerometer run means against rate^2 (centripetal);
 * gyroscope scale without tools: eq. 36 scale over the final scale, per phase;
-* magnetometer: ``|m| - 1`` RMS, spread of the dip, lag behind the gyroscope per phase;
+* accelerometer cube directions: RMS angle of the calibrated gravity directions from the
+  nearest nominal cube/V-block direction after one common rotation (placement errors);
+* magnetometer: ``|m| - 1`` RMS, spread of the dip, lag behind the gyroscope per phase,
+  spread of ``|m|`` over the resting poses and the horizontal field that turns with the
+  platform's vertical (outer) axis;
 * reference: clock offset at the start and drift;
 * temperature channel (when present): slopes of resting residuals on temperature.
 """
@@ -27,12 +31,14 @@ Statistics (units in the names of :data:`CATALOGUE`):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import product
 
 import numpy as np
 import pandas as pd
+from scipy.spatial.transform import Rotation
 
 from imucal import errormodel, validation
-from imucal.columns import AXES, GYR, SEQ, SENSOR_COLUMNS, SENSORS, TIME
+from imucal.columns import AXES, GYR, SENSOR_COLUMNS, SENSORS, SEQ, TIME
 from imucal.gap.pipeline import SessionFit, calibrated
 
 HALVES = (None, "A", "B")
@@ -83,7 +89,19 @@ CATALOGUE = {
     "ref_offset_s": StatisticInfo("s", floor=1e-4),
     "ref_drift_ppm": StatisticInfo("ppm", floor=1.0),
     "temp_slope": StatisticInfo("SI/K"),
+    "dir_resid_rad": StatisticInfo("rad", log=True, floor=0.02),
+    "norm_spread": StatisticInfo("1", log=True, floor=0.02),
+    "platform_field": StatisticInfo("1", log=True, floor=0.02),
 }
+
+#: Unit "up" directions a cube or V-block can hold (faces, edges, corners), shape (26, 3).
+NOMINAL_DIRECTIONS = np.array(
+    [v for v in product((-1, 0, 1), repeat=3) if any(v)], dtype=float
+)
+NOMINAL_DIRECTIONS /= np.linalg.norm(NOMINAL_DIRECTIONS, axis=1, keepdims=True)
+#: Largest angle (deg) between a measured gravity direction and its nearest nominal one for a
+#: pose to count as nominal (the 26 directions are >= 35 deg apart).
+NOMINAL_TOLERANCE_DEG = 10.0
 
 Key = tuple  # (stage, sensor, axis, segment, statistic)
 
@@ -290,12 +308,94 @@ def _cube(fit: SessionFit, half) -> dict:
     g = fit.extra["options"].gravity_m_s2
     r = np.linalg.norm(acc, axis=1) - g
     tm = _mid_times(fit, "cube", rows)
-    return {
+    out = {
         ("acc_cube", "acc", "norm", "position", "resid_rms"): float(np.sqrt(np.mean(r**2))),
         ("acc_cube", "acc", "norm", "position", "resid_time_slope"): float(
             np.polyfit(tm - tm.mean(), r, 1)[0]
         ),
     }
+    res = cube_direction_residuals(fit, half)[0]
+    if len(res) >= 3:
+        out[("acc_cube", "acc", "dir", "position", "dir_resid_rad")] = float(
+            np.sqrt(np.mean(np.sum(res**2, axis=1)))
+        )
+    return out
+
+
+def nearest_nominal(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest nominal cube direction of each unit vector.
+
+    Parameters
+    ----------
+    u : ndarray, shape (p, 3)
+        Unit gravity ("up") directions in B.
+
+    Returns
+    -------
+    nominal : ndarray, shape (p, 3)
+    angle_rad : ndarray, shape (p,)
+    """
+    cos = u @ NOMINAL_DIRECTIONS.T
+    k = np.argmax(cos, axis=1)
+    return NOMINAL_DIRECTIONS[k], np.arccos(np.clip(cos[np.arange(len(u)), k], -1, 1))
+
+
+def cube_direction_residuals(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, Rotation]:
+    """Tilt of each cube position's calibrated gravity direction from its nominal direction.
+
+    The calibrated accelerometer means of the positions, as unit vectors, are matched to the
+    nearest of :data:`NOMINAL_DIRECTIONS` (poses further than ``NOMINAL_TOLERANCE_DEG`` are
+    dropped), one common rotation (the cube's mounting in B, Wahba / Kabsch) is fitted, and
+    the residual of each position is the small rotation vector ``n_rot x u`` (rad,
+    perpendicular to gravity). A placement error tilts each pose on its own, which a norm
+    (eq. 32) fit cannot see but these residuals can.
+
+    Returns
+    -------
+    residual_rad : ndarray, shape (p, 3)
+    noise_var_rad2 : ndarray, shape (p,)
+        Variance of one component of each residual from the white noise of the position mean.
+    mounting : Rotation
+        The common rotation (nominal -> measured).
+    """
+    rows = _alternate(_rows(fit, "cube", "position"), half)
+    acc = calibrated(fit, "cube", "acc")
+    means = _means(acc, rows)
+    var = []
+    for r in rows.itertuples(index=False):
+        x = acc[int(r.start_index) : int(r.end_index)]
+        var.append(np.mean(np.var(np.diff(x, axis=0), axis=0) / 2) / max(len(x), 1))
+    norm = np.linalg.norm(means, axis=1)
+    ok = np.isfinite(norm) & (norm > 0)
+    u = means[ok] / norm[ok, None]
+    nominal, angle = nearest_nominal(u)
+    keep = angle < np.radians(NOMINAL_TOLERANCE_DEG)
+    u, nominal = u[keep], nominal[keep]
+    noise = (np.asarray(var)[ok][keep] / norm[ok][keep] ** 2) if len(var) else np.zeros(0)
+    if len(u) < 3:
+        return np.zeros((0, 3)), np.zeros(0), Rotation.identity()
+    rot, _ = Rotation.align_vectors(u, nominal)
+    return np.cross(rot.apply(nominal), u), noise, rot
+
+
+def table_mount_tilts(fit: SessionFit) -> np.ndarray:
+    """Tilt (rad vector, perpendicular to gravity) of each rate-table mounting from nominal.
+
+    The table spins about the vertical, so the calibrated gravity direction at a mounting's
+    rest run is its spin axis in B; its angle from the nearest nominal direction is that
+    mounting's placement tilt. Returns shape (k, 3), one row per mounting with a rest run.
+    """
+    if "ratetable" not in fit.imu:
+        return np.zeros((0, 3))
+    rows = _rows(fit, "ratetable", "run")
+    rows = rows[rows["rate_dps"] == 0]
+    if rows.empty:
+        return np.zeros((0, 3))
+    means = _means(calibrated(fit, "ratetable", "acc"), rows)
+    u = means / np.linalg.norm(means, axis=1, keepdims=True)
+    nominal, angle = nearest_nominal(u)
+    keep = angle < np.radians(NOMINAL_TOLERANCE_DEG)
+    return np.cross(nominal[keep], u[keep])
 
 
 def resting_gyro(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray]:
@@ -447,6 +547,117 @@ def dip_angles(fit: SessionFit, half) -> np.ndarray:
     return np.concatenate(out)
 
 
+def integrate_orientation(t_s: np.ndarray, omega: np.ndarray, q0: np.ndarray) -> np.ndarray:
+    """Orientation B -> world by integrating body rates (trapezoidal increments).
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Sample times (s).
+    omega : ndarray, shape (n, 3)
+        Calibrated angular rate in B (rad/s).
+    q0 : ndarray, shape (4,)
+        Initial orientation, scalar-last quaternion.
+
+    Returns
+    -------
+    ndarray, shape (n, 4)
+        Scalar-last quaternions.
+    """
+    rv = 0.5 * (omega[1:] + omega[:-1]) * np.diff(t_s)[:, None]
+    dq = Rotation.from_rotvec(np.nan_to_num(rv)).as_quat()
+    q = np.empty((len(t_s), 4))
+    x, y, z, w = (float(v) for v in q0)
+    q[0] = x, y, z, w
+    for k, (bx, by, bz, bw) in enumerate(dq.tolist(), start=1):
+        x, y, z, w = (
+            w * bx + x * bw + y * bz - z * by,
+            w * by - x * bz + y * bw + z * bx,
+            w * bz + x * by - y * bx + z * bw,
+            w * bw - x * bx - y * by - z * bz,
+        )
+        q[k] = x, y, z, w
+    return q
+
+
+def platform_motion(fit: SessionFit) -> tuple[Rotation, np.ndarray]:
+    """Orientation and outer-axis angle of the rotation3d recording (cached in ``fit.extra``).
+
+    The calibrated gyro is integrated from the first resting pose, whose calibrated specific
+    force defines the world vertical. The platform's outer axis is taken as the world
+    vertical: its angle ``psi`` is the integral of the world-vertical component of the
+    angular rate (turns about horizontal axes leave it unchanged).
+
+    Returns
+    -------
+    rotation : Rotation, length n
+        B -> world per sample.
+    psi_rad : ndarray, shape (n,)
+    """
+    cache = fit.extra.setdefault("_cache", {})
+    if "platform" not in cache:
+        table = fit.imu["rotation3d"]
+        t = table[TIME].to_numpy(dtype=float)
+        gyr = calibrated(fit, "rotation3d", "gyr")
+        first = _rows(fit, "rotation3d", "static").iloc[:1]
+        up = _means(calibrated(fit, "rotation3d", "acc"), first)[0]
+        r0, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up / np.linalg.norm(up)])
+        rot = Rotation.from_quat(integrate_orientation(t, gyr, r0.as_quat()))
+        w_up = rot.apply(np.nan_to_num(gyr))[:, 2]
+        psi = np.concatenate([[0.0], np.cumsum(0.5 * (w_up[1:] + w_up[:-1]) * np.diff(t))])
+        cache["platform"] = (rot, psi)
+    return cache["platform"]
+
+
+def resting_field(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Calibrated field at the rotation3d resting poses, in B and in the world.
+
+    Returns
+    -------
+    m_b : ndarray, shape (p, 3)
+        Mean calibrated field per pose (B).
+    m_world : ndarray, shape (p, 3)
+        The same turned to the world by the integrated orientation at the pose's middle.
+    psi_rad : ndarray, shape (p,)
+        Platform outer-axis angle at the pose.
+    """
+    rows = _alternate(_rows(fit, "rotation3d", "static"), half)
+    m_b = _means(calibrated(fit, "rotation3d", "mag"), rows)
+    rot, psi = platform_motion(fit)
+    mid = ((rows["start_index"].to_numpy(int) + rows["end_index"].to_numpy(int)) // 2).clip(
+        0, len(psi) - 1
+    )
+    ok = np.all(np.isfinite(m_b), axis=1)
+    return m_b[ok], rot[mid[ok]].apply(m_b[ok]), psi[mid[ok]]
+
+
+def platform_field(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray] | None:
+    """Horizontal field turning with the platform's outer axis, from the resting poses.
+
+    Model: ``m_world,p = m_earth + Rz(psi_p) d`` (a field fixed to the outer axis, in world
+    axes at ``psi = 0``); the horizontal parts are linear in ``(m_earth_h, d_h)``. ``d_z`` is
+    not separable from the Earth's vertical field.
+
+    Returns
+    -------
+    (d_h, m_earth) or None
+        ``d_h`` shape (2,) and ``m_earth`` shape (3,), normalised field units; None when the
+        poses do not span two outer-axis angles at least 20 deg apart.
+    """
+    _, m_w, psi = resting_field(fit, half)
+    if len(psi) < 2:
+        return None
+    spread = np.abs(np.angle(np.exp(1j * (psi[:, None] - psi[None, :]))))
+    if spread.max() < np.radians(20.0):
+        return None
+    c, s = np.cos(psi), np.sin(psi)
+    one, zero = np.ones_like(c), np.zeros_like(c)
+    design = np.vstack([np.column_stack([one, zero, c, -s]), np.column_stack([zero, one, s, c])])
+    coef, *_ = np.linalg.lstsq(design, np.concatenate([m_w[:, 0], m_w[:, 1]]), rcond=None)
+    m_earth = np.array([coef[0], coef[1], float(np.mean(m_w[:, 2]))])
+    return coef[2:], m_earth
+
+
 def _mag(fit: SessionFit, half) -> dict:
     m = calibrated(fit, "rotation3d", "mag")
     m = m[np.all(np.isfinite(m), axis=1)]
@@ -460,6 +671,16 @@ def _mag(fit: SessionFit, half) -> dict:
     }
     for p in _phase_half(AXES, half):
         out[("mag", "mag", p, "phase", "lag_s")] = magnetometer_lag(fit, p)
+    m_b, _, _ = resting_field(fit, half)
+    if len(m_b) >= 2:
+        out[("mag", "mag", "norm", "static", "norm_spread")] = float(
+            max(np.std(np.linalg.norm(m_b, axis=1)), 1e-9)
+        )
+    pf = platform_field(fit, half)
+    if pf is not None:
+        out[("mag", "mag", "h", "static", "platform_field")] = float(
+            max(np.linalg.norm(pf[0]), 1e-9)
+        )
     return out
 
 

@@ -42,6 +42,21 @@ def full_protocol(name):
     return is_full_protocol(read_dataset(folder_of(name)))
 
 
+def datasets_pattern(full):
+    """Regex of the configured and public datasets on one path (full protocol or partial)."""
+    names = [n for n in sorted({**REAL_DATASETS, **config["datasets"]}) if full_protocol(n) == full]
+    return "|".join(names) if names else "(?!)"
+
+
+def gap_partial_inputs(wildcards):
+    """A partial session's calibration, and its static recording when it has one."""
+    d = wildcards.dataset
+    inputs = {"calibration": f"results/{d}/partial/calibration.json"}
+    if has_recording(wildcards, "static"):
+        inputs["static"] = f"results/{d}/ingest/static.parquet"
+    return inputs
+
+
 def dataset_info(wildcards):
     return read_dataset(dataset_folder(wildcards))
 
@@ -141,6 +156,7 @@ def dataset_targets(name):
         targets += [f"results/{name}/gap/diagnosis.json"]
     else:
         targets += [f"results/{name}/partial/calibration.json"]
+        targets += [f"results/{name}/gap/diagnosis.json"]
     targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
     return targets
 
@@ -201,7 +217,9 @@ def report_inputs(wildcards):
         inputs["calibration"] = f"results/{d}/partial/calibration.json"
         benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
         inputs["figure_dir"] = f"results/{d}/partial/figures"
-        return {**inputs, "figures": figures, "benchmarks": benchmarks}
+        benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
+        gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
+        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
     figures += [

@@ -5,6 +5,8 @@
 
 
 rule gap_diagnose:
+    wildcard_constraints:
+        dataset=datasets_pattern(full=True),
     conda:
         "../envs/imucal.yaml"
     input:
@@ -34,6 +36,36 @@ rule gap_diagnose:
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_diagnose.py"
+
+
+# A session off the paper's protocol: the same diagnosis on its static recording (docs/gap-real.md);
+# without one, diagnosis.json says that no location could be scored and why.
+rule gap_diagnose_partial:
+    wildcard_constraints:
+        dataset=datasets_pattern(full=False),
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        unpack(gap_partial_inputs),
+    output:
+        diagnosis="results/{dataset}/gap/diagnosis.json",
+        gap_map="results/{dataset}/gap/gap_map.png",
+        effects="results/{dataset}/gap/effects.png",
+    log:
+        "results/{dataset}/logs/gap_diagnose_partial.log",
+    benchmark:
+        "results/{dataset}/benchmarks/gap_diagnose_partial.tsv"
+    params:
+        folder=dataset_folder,
+        replicas=config["gap"]["replicas"],
+        alpha=config["gap"]["alpha"],
+        seed=config["gap"]["seed"],
+        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
+        crn_seeds=config["gap"]["crn_seeds"],
+        detect_z=config["gap"]["detect_z"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_diagnose_partial.py"
 
 
 # reports/blind.html is the blind check's page, not a dataset's lab report
