@@ -43,8 +43,20 @@ def full_protocol(name):
 
 
 def datasets_pattern(full):
-    """Regex of the configured and public datasets on one path (full protocol or partial)."""
-    names = [n for n in sorted({**REAL_DATASETS, **config["datasets"]}) if full_protocol(n) == full]
+    """Regex of the configured and public datasets on one path (full protocol or partial).
+
+    Evaluated when the workflow is parsed: a dataset whose dataset.yaml cannot be read (e.g.
+    the public recordings' configs in a copy without data/real) is on neither path; asking
+    for its outputs then fails on that dataset alone, with the reader's message.
+    """
+    names = []
+    for name in sorted({**REAL_DATASETS, **config["datasets"]}):
+        try:
+            on_path = full_protocol(name) == full
+        except (FileNotFoundError, ValueError):
+            continue
+        if on_path:
+            names.append(name)
     return "|".join(names) if names else "(?!)"
 
 
