@@ -9,6 +9,7 @@ import pytest
 
 from imucal.gap import effects as gap_effects
 from imucal.gap.effects import EARTH_RATE_RAD_S, Estimate, earth_gate, misalignment_report
+from imucal.gap.null import run_replica
 from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
 from imucal.sim import ProtocolConfig, make_effect, make_truth
@@ -97,8 +98,10 @@ def test_temperature_drift_follows_the_channel(base, null_fits):
 
 def test_saturation_counts_the_clip_level(base, clean_fit):
     """A magnetometer range 10 % below its peak (clipping the gyro breaks the pipeline's
-    segmentation): the clip level in counts is recovered; the clean session (full range) has
-    no clipped sample. The twin renders at the declared range, so it clips too."""
+    segmentation), declared by the dataset: the clip level in counts is recovered; the clean
+    session (full range) has no clipped sample. The twin has no range (the paper's model has
+    none), so its replicas do not clip and the session's clipped fraction is outside their
+    null; the twin with the estimated saturation reproduces the session's fraction."""
     peak = np.nanmax(np.abs(clean_fit.imu["rotation3d"][["mag_x", "mag_y", "mag_z"]].to_numpy()))
     top = int(0.9 * peak / SENSITIVITY["mag"])
     options = PipelineOptions(9.81, SENSITIVITY, {**RANGE, "mag": top}, RATETABLE)
@@ -108,6 +111,10 @@ def test_saturation_counts_the_clip_level(base, clean_fit):
     assert est.params["mag"] == pytest.approx(top, abs=2)
     assert est.detect > 1e-3
     assert gap_effects.LIBRARY["saturation"].estimate(clean_fit, None).detect == 0.0
+    key = ("ingest", "mag", "-", "all", "clip_fraction")
+    assert run_replica(twin, 15).stats[None][key] == 0.0
+    with_effect = run_replica(twin, 15, (make_effect("saturation", **est.params),))
+    assert with_effect.stats[None][key] == pytest.approx(est.detect, rel=0.3)
 
 
 def test_earth_gate_accepts_the_earth_and_refuses_more(null_fits):
