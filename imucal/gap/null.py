@@ -21,7 +21,7 @@ from scipy import stats as sps
 
 from imucal.gap.pipeline import calibrate_session
 from imucal.gap.statistics import CATALOGUE, HALVES, Key, compute_statistics
-from imucal.gap.twin import Twin, render_replica
+from imucal.gap.twin import Twin, render_replica, replica_options
 
 
 def transform(key: Key, value: float) -> float:
@@ -44,7 +44,7 @@ class Replica:
 def run_replica(twin: Twin, seed: int, effects: tuple = ()) -> Replica:
     """Render, refit and measure one replica of the twin (with optional simulator effects)."""
     imu, reference = render_replica(twin, seed, effects)
-    fit = calibrate_session(imu, reference, twin.options)
+    fit = calibrate_session(imu, reference, replica_options(twin, effects))
     return Replica(seed, fit, {h: compute_statistics(fit, h) for h in HALVES})
 
 

@@ -167,6 +167,38 @@ def calibrate_session(
     )
 
 
+def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
+    """The session's calibration with the alignment stages refitted in the given form.
+
+    Repeats step 2 of each sensor (``align_mag``, ``align_acc``, ``align_gyr`` and the rate
+    table's alignment) and ``combine_gyr`` on the session's stage-1 artifacts, with the exact
+    rotation or the paper's small-angle form (eq. 5). The tool-free gyro scale (eq. 36) is
+    kept from the session's fit: it enters only without a rate table, and its dependence on
+    the alignment form is of higher order than the alignment's own.
+
+    Parameters
+    ----------
+    fit : SessionFit
+    exact : bool
+        Exact rotation (True) or the small-angle form (False).
+
+    Returns
+    -------
+    ImuCalibration
+    """
+    a, low, seg = fit.artifacts, fit.lowpass, fit.segments
+    mag = stages.align_mag(fit.imu["rotation3d"], seg, a["mag"]["step1"], exact=exact)
+    acc = stages.align_acc(low, seg, a["cube"], exact=exact)
+    o, _ = stages.gyr_bias_value(a["bias"], "ls")
+    align = stages.align_gyr(low, seg, o, exact=exact)
+    table_align = None
+    if a["table"] is not None:
+        table_align = stages.align_gyr(low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact)
+    scale = a["scale"] or {"scale": [1.0, 1.0, 1.0], "std_scale": [float("nan")] * 3}
+    gyr, _ = stages.combine_gyr(a["bias"], align, scale, a["table"], table_align, exact=exact)
+    return stages.combine_calibration(acc, gyr, mag)
+
+
 def reference_alignment(
     rotation3d: pd.DataFrame, reference: pd.DataFrame, calibration: ImuCalibration
 ):

@@ -3,16 +3,19 @@ the session itself.
 
 The twin takes from the session only what the paper's model and the protocol describe: the
 fitted calibration (as the truth), white-noise levels estimated from its static data, gravity
-and the magnetic dip seen by its calibrated sensors, the reference mounting, the sensor ranges
-and sensitivities, and the protocol's timing (segment durations, phase turns and rates, rate
+and the magnetic dip seen by its calibrated sensors, the reference mounting, the sensor
+sensitivities, and the protocol's timing (segment durations, phase turns and rates, rate
 table rates). It has no effect beyond the paper's model: no packet loss, exact timestamps, a
-reference started with the module. Replicas differ only in their random seed.
+reference started with the module, and no sensor range (the paper's model has none: the twin's
+ADC is the int16 full scale, :func:`replica_options`), so a session that clips opens a gap
+that the saturation effect, at the clip level read from the session, explains. Replicas
+differ only in their random seed.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -22,6 +25,7 @@ from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
 from imucal.gap.pipeline import PipelineOptions, SessionFit, calibrated
 from imucal.ingest import counts_to_si
 from imucal.sim import ProtocolConfig, World, simulate_session
+from imucal.sim.sensors import INT16_MAX
 from imucal.sim.truth import REFERENCE_NOISE, Truth
 
 #: Recordings the simulator renders, in protocol order.
@@ -39,7 +43,8 @@ class Twin:
     config : ProtocolConfig
         Timing of the session's protocol.
     options : PipelineOptions
-        Pipeline settings (and sensitivities, ranges) of the session.
+        Pipeline settings (and sensitivities, declared ranges) of the session; the replicas
+        are fitted with :func:`replica_options`.
     recordings : tuple of str
         IMU recordings the session has (the twin renders the same).
     has_reference : bool
@@ -67,6 +72,7 @@ class Twin:
             "gravity_m_s2": self.truth.world.gravity_m_s2,
             "dip_deg": float(np.degrees(self.truth.world.dip_rad)),
             "recordings": list(self.recordings),
+            "range_counts": dict(replica_options(self).range_counts),
             "has_reference": self.has_reference,
             "protocol": {
                 k: (list(v) if isinstance(v, tuple) else v)
@@ -74,6 +80,28 @@ class Twin:
             },
             "notes": list(self.notes),
         }
+
+
+def replica_options(twin: Twin, effects: tuple = ()) -> PipelineOptions:
+    """Pipeline options of a replica: the session's, with the twin's sensor ranges.
+
+    The twin's sensors have no range below the int16 full scale (the paper's model has none);
+    an effect that sets the dataset's ranges (saturation) gives the replica its clip levels,
+    and the pipeline knows them as a dataset would declare them.
+
+    Parameters
+    ----------
+    twin : Twin
+    effects : tuple of imucal.sim.Effect
+
+    Returns
+    -------
+    PipelineOptions
+    """
+    ranges = {s: INT16_MAX for s in SENSORS}
+    for effect in effects:
+        ranges.update(effect.dataset_overrides().get("range_counts", {}))
+    return replace(twin.options, range_counts=ranges)
 
 
 def _durations(segments: pd.DataFrame, recording: str, kind: str) -> np.ndarray:
@@ -259,6 +287,10 @@ def build_twin(fit: SessionFit, options: PipelineOptions) -> Twin:
             extra[name] = {c: (t - t[0], table[c].to_numpy(dtype=float)) for c in cols}
     notes.append(
         "noise: robust std of first differences of static raw readings, quantisation removed"
+    )
+    notes.append(
+        "sensor ranges: none below the int16 full scale (the paper's model has no range); "
+        f"declared {dict(options.range_counts)} counts"
     )
     return Twin(
         truth, config, options, tuple(r for r in TWIN_RECORDINGS if r in fit.imu),
