@@ -77,7 +77,8 @@ def _shift(twin: Twin, effect, replicas, half, n_seeds: int) -> dict:
     }
 
 
-def _add(a: Mapping, b: Mapping) -> dict:
+def add_shifts(a: Mapping, b: Mapping) -> dict:
+    """Sum two statistic shifts (statistic -> (mean shift, variance)), key by key."""
     out = dict(a)
     for k, (m, v) in b.items():
         m0, v0 = out.get(k, (0.0, 0.0))
@@ -164,8 +165,8 @@ def attribute(
                 c.shift_b = _shift(twin, effect_a, replicas, "B", n_seeds)
             c.evaluated = True
             c.note = ""
-            c.gap_after = total_gap(t_full(_add(shift, c.shift)))
-            c.heldout_after = total_gap(t_b(_add(shift_b, c.shift_b)))
+            c.gap_after = total_gap(t_full(add_shifts(shift, c.shift)))
+            c.heldout_after = total_gap(t_b(add_shifts(shift_b, c.shift_b)))
             if best is None or (c.heldout_shrink or -np.inf) > (best.heldout_shrink or -np.inf):
                 best = c
         rounds.append({c.name: c.heldout_shrink for c in open_ if c.evaluated})
@@ -173,7 +174,7 @@ def attribute(
             break
         best.accepted = True
         explained.append(best.name)
-        shift, shift_b = _add(shift, best.shift), _add(shift_b, best.shift_b)
+        shift, shift_b = add_shifts(shift, best.shift), add_shifts(shift_b, best.shift_b)
     return cands, explained, shift, shift_b, rounds
 
 

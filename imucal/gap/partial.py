@@ -47,7 +47,7 @@ from scipy.optimize import brentq, curve_fit
 
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import AXES, SENSOR_COLUMNS, SENSORS, TIME
-from imucal.gap.attribution import confusable
+from imucal.gap.attribution import add_shifts, confusable
 from imucal.gap.diagnosis import FORMAT_VERSION, LOCATION_FIELDS
 from imucal.gap.null import NullModel, holm, total_gap, transform
 from imucal.gap.statistics import CATALOGUE, HALVES, StatisticInfo, allan_deviation, temperature_column
@@ -624,14 +624,6 @@ def _shift(twin, effect, replicas, half, n_seeds) -> dict:
     return {k: (float(np.mean(v)), float(np.var(v, ddof=1)) if len(v) > 1 else 0.0) for k, v in diffs.items()}
 
 
-def _add(a: Mapping, b: Mapping) -> dict:
-    out = dict(a)
-    for k, (m, v) in b.items():
-        m0, v0 = out.get(k, (0.0, 0.0))
-        out[k] = (m0 + m, v0 + v)
-    return out
-
-
 def _locations(keys, t, reject, only_significant: bool) -> list[dict]:
     out = [
         {**dict(zip(LOCATION_FIELDS, k, strict=True)), "z": float(z), "in_gap": bool(r)}
@@ -763,8 +755,8 @@ def diagnose_static(
                 c["shift"] = _shift(twin, make_effect(c["name"], **c["params"]), reps, None, crn_seeds)
                 c["shift_b"] = _shift(twin, make_effect(c["name"], **c["params_a"]), reps, "B", crn_seeds)
             c["evaluated"], c["note"] = True, ""
-            c["gap_after"] = total_gap(null_full.t(stats[None], _add(shift, c["shift"])))
-            c["heldout_after"] = total_gap(null_b.t(stats["B"], _add(shift_b, c["shift_b"])))
+            c["gap_after"] = total_gap(null_full.t(stats[None], add_shifts(shift, c["shift"])))
+            c["heldout_after"] = total_gap(null_b.t(stats["B"], add_shifts(shift_b, c["shift_b"])))
             if best is None or _heldout(c) > _heldout(best):
                 best = c
         rounds.append({c["name"]: _heldout_or_none(c) for c in open_ if c["evaluated"]})
@@ -772,7 +764,7 @@ def diagnose_static(
             break
         best["accepted"] = True
         explained.append(best["name"])
-        shift, shift_b = _add(shift, best["shift"]), _add(shift_b, best["shift_b"])
+        shift, shift_b = add_shifts(shift, best["shift"]), add_shifts(shift_b, best["shift_b"])
 
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
