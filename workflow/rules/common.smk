@@ -1,5 +1,6 @@
 # Helpers shared by the rules: the dataset table, input functions, wildcard constraints.
 # No rules here.
+from functools import lru_cache
 from pathlib import Path
 
 import yaml
@@ -37,9 +38,15 @@ def dataset_folder(wildcards):
     return folder_of(wildcards.dataset)
 
 
+@lru_cache(maxsize=None)
+def dataset_of(name):
+    """The Dataset of a name, read once per workflow run (input functions ask many times)."""
+    return read_dataset(folder_of(name))
+
+
 def full_protocol(name):
     """The session follows the paper's protocol (stage-per-rule workflow), else `partial`."""
-    return is_full_protocol(read_dataset(folder_of(name)))
+    return is_full_protocol(dataset_of(name))
 
 
 def datasets_pattern(full):
@@ -70,7 +77,7 @@ def gap_partial_inputs(wildcards):
 
 
 def dataset_info(wildcards):
-    return read_dataset(dataset_folder(wildcards))
+    return dataset_of(wildcards.dataset)
 
 
 def dataset_yaml(wildcards):
@@ -160,7 +167,7 @@ def gravity(wildcards):
 
 def dataset_targets(name):
     """Final outputs of one dataset: its report, calibration, stage listing and plots."""
-    recordings = read_dataset(folder_of(name)).recordings
+    recordings = dataset_of(name).recordings
     targets = [f"results/{name}/ingest/summary.json", f"reports/{name}.html"]
     targets += [f"results/{name}/stages.json"]
     if full_protocol(name):
