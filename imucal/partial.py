@@ -21,6 +21,7 @@ Methods per sensor, best first (the first that runs gives the final calibration)
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -122,11 +123,6 @@ def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
     return tuple(present)
 
 
-def _rows(segments: pd.DataFrame, recording: str, kinds: tuple[str, ...]) -> pd.DataFrame:
-    rows = segments[(segments["recording"] == recording) & segments["kind"].isin(kinds)]
-    return rows.sort_values("start_index")
-
-
 def _cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[tuple[np.ndarray, np.ndarray]]:
     """(t_s, values) per segment row, rows with a NaN in ``columns`` dropped."""
     out = []
@@ -149,7 +145,7 @@ class _Session:
     def __init__(self, tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame,
                  gravity_m_s2: float, field_norm: float, ratetable: Mapping | None,
                  saturation_m_s2: float | None, saturation_rad_s: float | None,
-                 notes: Mapping[str, str]):
+                 notes: Mapping[str, str], lowpass: Mapping[str, float]):
         self.tables = {k: v for k, v in tables.items() if k != "reference"}
         self.segments = segments
         self.gravity_m_s2 = gravity_m_s2
@@ -159,13 +155,21 @@ class _Session:
         self.saturation_rad_s = saturation_rad_s
         self.sensors = {name: sensors_of(t) for name, t in self.tables.items()}
         self.notes = dict(notes)
+        self.lowpass = dict(lowpass)
         self.done: dict[str, dict] = {}
+
+    @functools.cached_property
+    def rotation3d_lowpass(self) -> pd.DataFrame:
+        """The low-pass filtered rotation3d recording (both alignment stages use it)."""
+        from imucal.filtering import lowpass_recording
+
+        return lowpass_recording(self.tables["rotation3d"], **self.lowpass)
 
     def with_sensor(self, recording: str, sensor: str) -> bool:
         return recording in self.tables and sensor in self.sensors[recording]
 
     def has_phases(self, recording: str = "rotation3d") -> bool:
-        return recording in self.tables and not _rows(self.segments, recording, ("phase",)).empty
+        return recording in self.tables and not stages.segments_of(self.segments, recording, "phase").empty
 
     def need_phases(self, sensor: str) -> None:
         """Raise NotApplicable unless rotation3d has phases and ``sensor`` samples."""
@@ -179,7 +183,7 @@ class _Session:
         raise NotApplicable(why)
 
     def poses(self, recording: str) -> pd.DataFrame:
-        return _rows(self.segments, recording, ("position", "static"))
+        return stages.segments_of(self.segments, recording, "position", "static")
 
 
 # -- magnetometer --------------------------------------------------------------------------
@@ -221,7 +225,7 @@ def _acc_known_orientation(s: _Session) -> dict:
     fit = ferraris.fit_known_orientations(
         positions, directions, s.gravity_m_s2, labels=[str(x) for x in rows["label"]]
     )
-    artifact = stages._plain(fit)
+    artifact = stages.plain(fit)
     artifact.update(calibration=fit.calibration.to_dict(), gravity_m_s2=s.gravity_m_s2)
     return artifact
 
@@ -255,7 +259,7 @@ def _acc_cube(s: _Session) -> dict:
         [v for _, v in _cut(s.tables[recording], rows, ACC)], s.gravity_m_s2,
         labels=[str(x) for x in rows["label"]], saturation_limit_m_s2=s.saturation_m_s2,
     )
-    artifact = stages._plain(fit)
+    artifact = stages.plain(fit)
     artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
     artifact["calibration"] = accelerometer.make_calibration(
         fit, np.eye(3), "cube fit (eq. 32), sensor frame (no T_R)"
@@ -266,10 +270,7 @@ def _acc_cube(s: _Session) -> dict:
 def _acc_align(s: _Session) -> dict:
     _need("acc_cube" in s.done, "needs the cube fit (acc_cube)")
     s.need_phases("acc")
-    from imucal.filtering import lowpass_recording
-
-    low = lowpass_recording(s.tables["rotation3d"], order=4, cutoff_hz=5.0)
-    return stages.align_acc(low, s.segments, s.done["acc_cube"])
+    return stages.align_acc(s.rotation3d_lowpass, s.segments, s.done["acc_cube"])
 
 
 # -- gyroscope -----------------------------------------------------------------------------
@@ -281,7 +282,7 @@ def _static_gyr(s: _Session) -> list[np.ndarray]:
     ]
     pieces = []
     for name in names:
-        rows = _rows(s.segments, name, ("static", "position"))
+        rows = stages.segments_of(s.segments, name, "static", "position")
         pieces += [v for _, v in _cut(s.tables[name], rows, GYR) if len(v) >= 2]
     return pieces
 
@@ -289,7 +290,7 @@ def _static_gyr(s: _Session) -> list[np.ndarray]:
 def _gyr_bias(s: _Session) -> dict:
     pieces = _static_gyr(s)
     _need(bool(pieces), "no static segment with gyroscope samples")
-    return stages._plain(gyroscope.estimate_bias(pieces))
+    return stages.plain(gyroscope.estimate_bias(pieces))
 
 
 def _bias(s: _Session) -> np.ndarray:
@@ -309,10 +310,7 @@ def _gyr_table(s: _Session) -> dict:
 def _gyr_align(s: _Session) -> dict:
     _need("gyr_bias" in s.done, "needs the gyroscope bias")
     s.need_phases("gyr")
-    from imucal.filtering import lowpass_recording
-
-    low = lowpass_recording(s.tables["rotation3d"], order=4, cutoff_hz=5.0)
-    return stages.align_gyr(low, s.segments, _bias(s))
+    return stages.align_gyr(s.rotation3d_lowpass, s.segments, _bias(s))
 
 
 def _gyr_known_rotation(s: _Session) -> dict:
@@ -322,7 +320,7 @@ def _gyr_known_rotation(s: _Session) -> dict:
     recording, rows = None, None
     for name in ("ferraris", "rotation3d"):
         if s.with_sensor(name, "gyr"):
-            rows = _rows(s.segments, name, ("phase",))
+            rows = stages.segments_of(s.segments, name, "phase")
             if "angle_deg" in rows.columns:
                 rows = rows[np.isfinite(rows["angle_deg"].astype(float))]
             if "angle_deg" in rows.columns and len(rows):
@@ -338,7 +336,7 @@ def _gyr_known_rotation(s: _Session) -> dict:
         _cut(s.tables[recording], rows, GYR), known, _bias(s),
         labels=[str(x) for x in rows["label"]],
     )
-    artifact = stages._plain(fit)
+    artifact = stages.plain(fit)
     artifact.update(recording=recording, calibration=fit.calibration.to_dict())
     return artifact
 
@@ -389,7 +387,7 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
           "accelerometer and gyroscope data")
     directions, intervals = pose_intervals(s.tables[recording], s.poses(recording), acc)
     fit = posetopose.fit_pose_to_pose(directions[:-1], directions[1:], intervals, _bias(s))
-    artifact = stages._plain(fit)
+    artifact = stages.plain(fit)
     artifact.update(recording=recording, calibration=fit.calibration.to_dict())
     return artifact
 
@@ -430,6 +428,8 @@ def run_stages(
     saturation_m_s2: float | None = None,
     saturation_rad_s: float | None = None,
     notes: Mapping[str, str] | None = None,
+    lowpass_order: int = 4,
+    lowpass_cutoff_hz: float = 5.0,
 ) -> list[Outcome]:
     """Run every stage the session allows, in :data:`STAGES` order.
 
@@ -448,6 +448,9 @@ def run_stages(
     notes : mapping of str to str, optional
         Segmentation notes per recording (why its protocol was not found); they join the
         reasons of the stages that needed it.
+    lowpass_order, lowpass_cutoff_hz : int, float
+        Zero-phase Butterworth low-pass of rotation3d before the alignment stages (the
+        workflow's ``lowpass`` config), cutoff in Hz.
 
     Returns
     -------
@@ -455,7 +458,8 @@ def run_stages(
         One per stage of :data:`STAGES`.
     """
     session = _Session(tables, segments, gravity_m_s2, field_norm, ratetable,
-                       saturation_m_s2, saturation_rad_s, notes or {})
+                       saturation_m_s2, saturation_rad_s, notes or {},
+                       {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz})
     outcomes = []
     for name, runner in RUNNERS.items():
         try:

@@ -31,14 +31,14 @@ PAPER_TABLE_II = {
 ALIGNMENT_METHODS = ("full", "paper")
 
 
-def _plain(obj):
+def plain(obj):
     """JSON-ready copy of a dataclass / dict / array tree."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: _plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+        return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
     if isinstance(obj, Mapping):
-        return {str(k): _plain(v) for k, v in obj.items()}
+        return {str(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
+        return [plain(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, np.generic):
@@ -46,8 +46,9 @@ def _plain(obj):
     return obj
 
 
-def _segments_of(segments: pd.DataFrame, recording: str, kind: str) -> pd.DataFrame:
-    rows = segments[(segments["recording"] == recording) & (segments["kind"] == kind)]
+def segments_of(segments: pd.DataFrame, recording: str, *kinds: str) -> pd.DataFrame:
+    """Rows of ``segments`` of ``recording`` whose kind is one of ``kinds``, in time order."""
+    rows = segments[(segments["recording"] == recording) & segments["kind"].isin(kinds)]
     return rows.sort_values("start_index")
 
 
@@ -97,7 +98,7 @@ def fit_acc_cube(
     figures : dict of str to Figure
         'acc_cube': |a| - g per position before/after (paper Fig. 10).
     """
-    rows = _segments_of(segments, "cube", "position")
+    rows = segments_of(segments, "cube", "position")
     positions = _cut(cube, rows, ACC)
     fit = accelerometer.fit_cube(
         positions,
@@ -106,7 +107,7 @@ def fit_acc_cube(
         saturation_limit_m_s2=saturation_limit_m_s2,
         method=method,
     )
-    artifact = _plain(fit)
+    artifact = plain(fit)
     artifact["gravity_m_s2"] = gravity_m_s2
     return artifact, {"acc_cube": inertial_plots.plot_cube_magnitude_errors(fit)}
 
@@ -180,9 +181,9 @@ def estimate_gyr_bias(
     names = ["static"] if "static" in static_tables else [n for n in ("rotation3d", "cube") if n in static_tables]
     pieces, times = [], []
     for name in names:
-        rows = _segments_of(segments, name, "static")
+        rows = segments_of(segments, name, "static")
         if name == "cube":
-            rows = pd.concat([rows, _segments_of(segments, name, "position")])
+            rows = pd.concat([rows, segments_of(segments, name, "position")])
         pieces += _cut(static_tables[name], rows, GYR)
         times += _cut(static_tables[name], rows, (TIME,))
     if not pieces:
@@ -191,7 +192,7 @@ def estimate_gyr_bias(
             "static recording or static pauses"
         )
     bias = gyroscope.estimate_bias(pieces)
-    artifact = _plain(bias)
+    artifact = plain(bias)
     artifact["source"] = names
     t = np.concatenate([x[:, 0] for x in times])
     rates = np.vstack(pieces)
@@ -238,7 +239,7 @@ def align_gyr(
 
 
 def _adjacent_static(segments: pd.DataFrame, phase: pd.Series) -> tuple[pd.Series, pd.Series]:
-    static = _segments_of(segments, "rotation3d", "static")
+    static = segments_of(segments, "rotation3d", "static")
     before = static[static["end_index"] <= phase.start_index]
     after = static[static["start_index"] >= phase.end_index]
     if before.empty or after.empty:
@@ -324,7 +325,7 @@ def estimate_gyr_scale(
     if not measuring:
         raise ValueError("eq. 36 needs a calibrated magnetometer or accelerometer; got neither")
     noise = np.asarray(bias["noise_std_rad_s"], dtype=float)
-    phases = _segments_of(segments, "rotation3d", "phase")
+    phases = segments_of(segments, "rotation3d", "phase")
     per_phase = {}
     for phase in phases.itertuples(index=False):
         before, after = _adjacent_static(segments, phase)
@@ -359,7 +360,7 @@ def estimate_gyr_scale(
             noise_std_rad_s=float(noise[k]),
             angle_std_rad=spread,
         )
-        per_phase[phase.label] = {"angles_rad": angles, **_plain(result)}
+        per_phase[phase.label] = {"angles_rad": angles, **plain(result)}
     missing = [a for a in AXES if a not in per_phase]
     if missing:
         raise ValueError(f"eq. 36 needs the phases x, y, z of rotation3d; missing {missing}")
@@ -388,7 +389,7 @@ def fit_gyr_table(
     figures : dict of str to Figure
         'gyr_table': magnitude errors per run before/after (paper Fig. 15).
     """
-    rows = _segments_of(segments, "ratetable", "run")
+    rows = segments_of(segments, "ratetable", "run")
     runs = _cut(ratetable, rows, GYR)
     keep, warnings = [], []
     for label, run in zip(rows["label"], runs, strict=True):
@@ -406,7 +407,7 @@ def fit_gyr_table(
     fit = gyroscope.fit_rate_table(
         np.array([r.mean(axis=0) for r in runs]), rates, np.array([len(r) for r in runs])
     )
-    artifact = _plain(fit)
+    artifact = plain(fit)
     artifact.update(labels=list(rows["label"]), rates_rad_s=rates.tolist(), warnings=warnings)
     figure = inertial_plots.plot_rate_table_errors(fit, list(rows["label"]))
     return artifact, {"gyr_table": figure}
@@ -602,7 +603,7 @@ def validate_session(
 
     calibrated, _ = apply_calibration(rotation3d, metadata, calibration)
     static_mask = np.zeros(len(rotation3d), dtype=bool)
-    for r in _segments_of(segments, "rotation3d", "static").itertuples(index=False):
+    for r in segments_of(segments, "rotation3d", "static").itertuples(index=False):
         static_mask[int(r.start_index) : int(r.end_index)] = True
     result = validation.validate(
         calibrated, rotation3d, reference, static_mask, min_rate_rad_s, n_windows

@@ -22,6 +22,8 @@ rule partial:
     benchmark:
         "results/{dataset}/benchmarks/partial.tsv"
     params:
+        lowpass_order=config["lowpass"]["order"],
+        lowpass_cutoff_hz=config["lowpass"]["cutoff_hz"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/partial.py"

@@ -22,6 +22,8 @@ outcomes = partial.run_stages(
     tables,
     read_segments(snakemake.input.segments),
     notes=segment_meta.get("notes", {}),
+    lowpass_order=snakemake.params.lowpass_order,
+    lowpass_cutoff_hz=snakemake.params.lowpass_cutoff_hz,
     gravity_m_s2=dataset.gravity_m_s2,
     field_norm=dataset.field_norm,
     ratetable=dataset.ratetable,
