@@ -91,14 +91,9 @@ def declared_sensors(dataset, recording: str) -> tuple[str, ...]:
     if declaration is None:
         return SENSORS
 
-    def columns(d: Mapping) -> set[str]:
-        if "parts" in d:
-            return set().union(*(columns(p) for p in d["parts"]))
-        if "streams" in d:
-            return set().union(*(columns(p) for p in d["streams"]))
-        return set(d.get("columns", {}))
+    from imucal.readers import declared_entries
 
-    names = columns(declaration)
+    names = {c for entry in declared_entries(declaration) for c in entry.get("columns", {})}
     return tuple(s for s in SENSORS if any(c.startswith(f"{s}_") for c in names))
 
 

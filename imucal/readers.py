@@ -105,13 +105,18 @@ class DeclaredRecording:
 # Entry point
 
 
+def declared_entries(declaration: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    """The one-file entries of a declaration (a file, its streams, parts of either), in order."""
+    if "parts" in declaration:
+        return [e for part in declaration["parts"] for e in declared_entries(part)]
+    if "streams" in declaration:
+        return list(declaration["streams"])
+    return [declaration]
+
+
 def declared_files(declaration: Mapping[str, Any]) -> list[Path]:
     """All files a declaration reads, in order (for Snakemake inputs and checksums)."""
-    if "parts" in declaration:
-        return [f for part in declaration["parts"] for f in declared_files(part)]
-    if "streams" in declaration:
-        return [Path(s["file"]) for s in declaration["streams"]]
-    return [Path(declaration["file"])]
+    return [Path(entry["file"]) for entry in declared_entries(declaration)]
 
 
 def read_declared(
