@@ -956,10 +956,7 @@ def segment_recording(
         raise ValueError("recording 'ratetable' needs the table's axes and rates_dps; got none")
     else:
         out = segment_ratetable(t, acc, gyr, ratetable["axes"], ratetable["rates_dps"], settings)
-    if keep is not None and len(out):
-        out["start_index"] = keep[out["start_index"].to_numpy()]
-        out["end_index"] = keep[out["end_index"].to_numpy() - 1] + 1
-    return out
+    return out if keep is None else _to_table_rows(out, keep)
 
 
 def _segment_pose_recording(
@@ -975,7 +972,11 @@ def _segment_pose_recording(
     t = table[TIME].to_numpy(dtype=float)[keep]
     acc = values[keep, :3]
     gyr = values[keep, 3:] if has_gyr else None
-    out = segment_poses(recording, t, acc, gyr, settings)
+    return _to_table_rows(segment_poses(recording, t, acc, gyr, settings), keep)
+
+
+def _to_table_rows(out: pd.DataFrame, keep: np.ndarray) -> pd.DataFrame:
+    """Segment row indices into the kept rows -> indices into the whole table (end exclusive)."""
     if len(out):
         out["start_index"] = keep[out["start_index"].to_numpy()]
         out["end_index"] = keep[out["end_index"].to_numpy() - 1] + 1
