@@ -7,7 +7,7 @@ import pytest
 from scipy import stats as sps
 
 from imucal.gap import effects as gap_effects
-from imucal.gap.null import build_null, holm, run_replicas
+from imucal.gap.null import NullModel, build_null, holm, run_replicas, total_gap
 from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.gap.statistics import compute_statistics
 from imucal.gap.twin import build_twin, render_replica
@@ -95,3 +95,41 @@ def test_lever_arm_signature_is_centripetal_only(twin):
     flagged = {k[4] for k, h in zip(null.keys, hit, strict=True) if h}
     assert "omega2" in flagged
     assert not flagged & {"g_slope", "vertical", "loss_fraction", "ref_offset_s"}
+
+
+def test_total_gap_is_the_excess_over_the_nulls_mean():
+    """Scores of a true null (t with df dof) add up to L df / (df - 2) on average, so the gap,
+    their excess over it floored at 0, is 0 for about half of the draws; one location 10
+    sigma out among quiet ones leaves its 100 less the null's mean."""
+    rng = np.random.default_rng(3)
+    df, n_loc = 11, 60
+    draws = sps.t.rvs(df, size=(4000, n_loc), random_state=rng)
+    sums = np.sum(draws**2, axis=1)
+    assert sums.mean() == pytest.approx(n_loc * df / (df - 2), rel=0.02)
+    gaps = np.array([total_gap(t, df) for t in draws])
+    assert np.mean(gaps == 0) == pytest.approx(np.mean(sums <= n_loc * df / (df - 2)), abs=1e-12)
+    assert 0.3 < np.mean(gaps == 0) < 0.7
+    lone = np.zeros(n_loc)
+    lone[0] = 10.0
+    assert total_gap(lone, df) == pytest.approx(100 - n_loc * df / (df - 2))
+    lone[1] = np.nan  # a location without a score does not count
+    assert total_gap(lone, df) == pytest.approx(100 - (n_loc - 1) * df / (df - 2))
+    with pytest.raises(ValueError, match="degrees of freedom"):
+        total_gap(draws[0], 2)
+
+
+def test_deviance_charges_an_effect_for_the_spread_it_adds():
+    """A location 20 sigma out: a shift of its mean closes the gap and the deviance; a shift
+    that only widens the null by the same 20 sigma closes the gap as well but keeps a
+    deviance of log(1 + 400), so the mean shift ranks first."""
+    keys = [("s", "x", "-", "-", "temp_slope"), ("s", "y", "-", "-", "temp_slope")]
+    rng = np.random.default_rng(4)
+    null = NullModel.from_values(keys, rng.standard_normal((30, 2)))
+    session = {keys[0]: float(null.mean[0] + 20 * null.scale[0]), keys[1]: float(null.mean[1])}
+    assert null.gap(session) > 300
+    mean_shift = {keys[0]: (20 * null.scale[0], 0.0)}
+    widening = {keys[0]: (0.0, (20 * null.scale[0]) ** 2)}
+    assert null.gap(session, mean_shift) == 0.0
+    assert null.gap(session, widening) == 0.0
+    assert null.deviance(session, mean_shift) < 1.0
+    assert null.deviance(session, widening) == pytest.approx(1 + np.log(401), rel=0.01)

@@ -6,8 +6,10 @@ its estimate and rendered with the seeds of the first replicas (common random nu
 simulator draws each effect from its own stream, so the difference to those replicas is the
 effect alone); the mean difference of the statistics shifts the null. The held-out check uses
 parameters estimated on half A of the segments and measures the gap on half B. Effects are
-accepted forward, largest held-out shrink first, while the gap is significant, the effect is
-detected and its held-out shrink reaches ``min_heldout_shrink``. An effect whose estimate fails
+accepted forward while the gap is significant: of the detected effects whose held-out shrink
+reaches ``min_heldout_shrink``, the one with the lowest held-out deviance
+(:meth:`~imucal.gap.null.NullModel.deviance`: it charges an effect for the spread it adds to
+the null, so that a stochastic effect cannot outrank a systematic one by widening it). An effect whose estimate fails
 its physics gate (e.g. a rate the Earth cannot have) or that the exact model absorbs
 (``opens_gap`` False) is never evaluated.
 """
@@ -20,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from imucal.gap.effects import EffectModel
-from imucal.gap.null import NullModel, holm, run_replica, total_gap, transform
+from imucal.gap.null import NullModel, holm, run_replica, transform
 from imucal.gap.twin import Twin
 
 
@@ -39,6 +41,7 @@ class Candidate:
     gap_after: float | None = None
     heldout_before: float | None = None
     heldout_after: float | None = None
+    heldout_deviance: float | None = None
     accepted: bool = False
     evaluated: bool = False
     note: str = ""
@@ -137,15 +140,13 @@ def attribute(
     shift_b: dict = {}
     explained: list[str] = []
     rounds: list[dict] = []
-    t_full = lambda d: null_full.t(stats[None], d)  # noqa: E731
-    t_b = lambda d: null_b.t(stats["B"], d)  # noqa: E731
     while True:
-        t_now = t_full(shift)
+        t_now = null_full.t(stats[None], shift)
         significant = bool(holm(null_full.p_values(t_now), alpha).any())
         open_ = [c for c in cands if not c.accepted and c.params is not None]
         if not significant or not open_:
             break
-        gap_now, gap_b_now = total_gap(t_now), total_gap(t_b(shift_b))
+        gap_now, gap_b_now = null_full.gap(stats[None], shift), null_b.gap(stats["B"], shift_b)
         best = None
         for c in open_:
             c.gap_before, c.heldout_before = gap_now, gap_b_now
@@ -165,12 +166,14 @@ def attribute(
                 c.shift_b = _shift(twin, effect_a, replicas, "B", n_seeds)
             c.evaluated = True
             c.note = ""
-            c.gap_after = total_gap(t_full(add_shifts(shift, c.shift)))
-            c.heldout_after = total_gap(t_b(add_shifts(shift_b, c.shift_b)))
-            if best is None or (c.heldout_shrink or -np.inf) > (best.heldout_shrink or -np.inf):
+            c.gap_after = null_full.gap(stats[None], add_shifts(shift, c.shift))
+            c.heldout_after = null_b.gap(stats["B"], add_shifts(shift_b, c.shift_b))
+            c.heldout_deviance = null_b.deviance(stats["B"], add_shifts(shift_b, c.shift_b))
+            qualifies = (c.heldout_shrink or 0.0) >= min_heldout_shrink
+            if qualifies and (best is None or c.heldout_deviance < best.heldout_deviance):
                 best = c
         rounds.append({c.name: c.heldout_shrink for c in open_ if c.evaluated})
-        if best is None or (best.heldout_shrink or 0.0) < min_heldout_shrink:
+        if best is None:
             break
         best.accepted = True
         explained.append(best.name)

@@ -17,7 +17,7 @@ import pandas as pd
 
 from imucal.gap.attribution import attribute, confusable
 from imucal.gap.effects import library, misalignment_report
-from imucal.gap.null import build_null, holm, run_replicas, total_gap
+from imucal.gap.null import build_null, holm, run_replicas
 from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.gap.statistics import CATALOGUE, HALVES, compute_statistics
 from imucal.gap.twin import build_twin
@@ -94,7 +94,7 @@ def diagnose(
     t_real = null_full.t(stats[None])
     p = null_full.p_values(t_real)
     reject = holm(p, alpha)
-    gap_before = total_gap(t_real)
+    gap_before = null_full.gap(stats[None])
     loo = null_full.leave_one_out_gaps()
     p95 = float(np.percentile(loo, 95))
     significant = bool(reject.any())
@@ -119,6 +119,7 @@ def diagnose(
             "gap_after": c.gap_after,
             "shrink": c.shrink,
             "heldout_shrink": c.heldout_shrink,
+            "heldout_deviance": c.heldout_deviance,
             "accepted": c.accepted,
             "detect": None if not np.isfinite(c.detect) else float(c.detect),
             "detect_z": None if not np.isfinite(c.detect_z) else float(c.detect_z),
@@ -138,7 +139,7 @@ def diagnose(
         "effects": effects,
         "explained": explained,
         "remaining": {
-            "total": total_gap(t_after),
+            "total": null_full.gap(stats[None], shift),
             "significant": bool(reject_after.any()),
             "locations": _locations(null_full.keys, t_after, reject_after, True),
         },

@@ -6,9 +6,11 @@ deviation ``s`` (plus the statistic's resolution ``f`` in quadrature), a new dra
 satisfies ``(x - m) / (sqrt(s^2 + f^2) sqrt(1 + 1/R)) ~ t(R - 1)`` when the statistic is close
 to Gaussian, which is what the log transforms of :data:`~imucal.gap.statistics.CATALOGUE` are
 for. Locations are declared in the gap by Holm's step-down procedure at family-wise level
-``alpha`` over all locations. The total gap is the sum of squared scores; its null 95th
-percentile comes from scoring each replica against the other ``R - 1`` (leave-one-out), which
-includes the small-sample inflation of the scores.
+``alpha`` over all locations. The total gap is the sum of squared scores beyond what noise alone
+gives: ``max(sum t^2 - L df / (df - 2), 0)`` over the ``L`` scored locations (``df / (df - 2)``
+is the mean of ``t^2`` for ``t ~ t(df)``), so that the share of it an effect closes does not
+shrink as statistics are added. Its null 95th percentile comes from scoring each replica against
+the other ``R - 1`` (leave-one-out), which includes the small-sample inflation of the scores.
 """
 
 from __future__ import annotations
@@ -97,8 +99,29 @@ class NullModel:
         v = np.array([shift.get(k, (0.0, 0.0))[1] for k in self.keys])
         return (x - self.mean - d) / np.sqrt(self.scale**2 + v)
 
+    @property
+    def df(self) -> int:
+        """Degrees of freedom of the scores."""
+        return self.n_replicas - 1
+
     def p_values(self, t: np.ndarray) -> np.ndarray:
-        return 2 * sps.t.sf(np.abs(t), df=self.n_replicas - 1)
+        return 2 * sps.t.sf(np.abs(t), df=self.df)
+
+    def gap(self, stats: Mapping[Key, float], shift: Mapping | None = None) -> float:
+        """The total gap (:func:`total_gap`) of a session's statistics against this null,
+        moved by ``shift``."""
+        return total_gap(self.t(stats, shift), self.df)
+
+    def deviance(self, stats: Mapping[Key, float], shift: Mapping | None = None) -> float:
+        """Gaussian deviance of a session's statistics against this null moved by ``shift``:
+        the sum over locations of ``t^2 + log(1 + v / scale^2)``, ``v`` the shift's own
+        scatter across seeds. Unlike the gap it charges an effect for the spread it adds, so
+        an effect cannot win by making the null wide enough to hold anything; it ranks the
+        effects (lower is better)."""
+        t = self.t(stats, shift)
+        v = np.array([(shift or {}).get(k, (0.0, 0.0))[1] for k in self.keys])
+        ok = np.isfinite(t)
+        return float(np.sum(t[ok] ** 2 + np.log1p(v[ok] / self.scale[ok] ** 2)))
 
     def leave_one_out_gaps(self) -> np.ndarray:
         """Total gap of each replica scored against the others, shape (R,)."""
@@ -107,7 +130,7 @@ class NullModel:
             rest = np.delete(self.values, i, axis=0)
             m = NullModel.from_values(self.keys, rest)
             t = (self.values[i] - m.mean) / m.scale
-            out.append(total_gap(t))
+            out.append(total_gap(t, m.df))
         return np.array(out)
 
     def leave_one_out_flags(self, alpha: float) -> np.ndarray:
@@ -131,10 +154,27 @@ def build_null(replicas: Sequence[Replica], half: str | None, keys: Sequence[Key
     return NullModel.from_values(keys, values)
 
 
-def total_gap(t: np.ndarray) -> float:
-    """Sum of squared scores over the locations that have one."""
+def total_gap(t: np.ndarray, df: int) -> float:
+    """Sum of squared scores beyond its null mean, over the locations that have a score.
+
+    Parameters
+    ----------
+    t : ndarray, shape (L,)
+        Scores (NaN where a location has none).
+    df : int
+        Degrees of freedom of the scores (> 2).
+
+    Returns
+    -------
+    float
+        ``max(sum t^2 - n df / (df - 2), 0)`` with ``n`` the finite scores: 0 when they add up
+        to no more than noise alone gives on average.
+    """
+    if df <= 2:
+        raise ValueError(f"the gap needs scores with more than 2 degrees of freedom, got {df}")
     t = np.asarray(t, dtype=float)
-    return float(np.nansum(t**2))
+    ok = np.isfinite(t)
+    return float(max(np.sum(t[ok] ** 2) - ok.sum() * df / (df - 2), 0.0))
 
 
 def holm(p: np.ndarray, alpha: float) -> np.ndarray:

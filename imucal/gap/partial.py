@@ -49,7 +49,7 @@ from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import AXES, SENSOR_COLUMNS, SENSORS, TIME
 from imucal.gap.attribution import add_shifts, confusable
 from imucal.gap.diagnosis import FORMAT_VERSION, LOCATION_FIELDS
-from imucal.gap.null import NullModel, holm, total_gap, transform
+from imucal.gap.null import NullModel, holm, transform
 from imucal.gap.statistics import CATALOGUE, HALVES, StatisticInfo, allan_deviation, temperature_column
 from imucal.sim.effects import RecordingContext, make_effect, stream_rng
 from imucal.sim.motion import evaluate_motion
@@ -723,7 +723,7 @@ def diagnose_static(
         est, est_a = model.estimate(streams), model.estimate({k: s.half("A") for k, s in streams.items()})
         c = {"name": name, "params": None, "params_a": None, "detect": None, "detect_z": None,
              "gap_before": None, "gap_after": None, "heldout_before": None, "heldout_after": None,
-             "accepted": False, "evaluated": False, "note": "", "shift": None, "shift_b": None}  # fmt: skip
+             "heldout_deviance": None, "accepted": False, "evaluated": False, "note": "", "shift": None, "shift_b": None}  # fmt: skip
         if est is None:
             c["note"] = "the session cannot show this effect (no such stream or channel)"
         else:
@@ -743,7 +743,7 @@ def diagnose_static(
         open_ = [c for c in cands if not c["accepted"] and c["params"] is not None]
         if not holm(null_full.p_values(t_now), alpha).any() or not open_:
             break
-        gap_now, gap_b_now = total_gap(t_now), total_gap(null_b.t(stats["B"], shift_b))
+        gap_now, gap_b_now = null_full.gap(stats[None], shift), null_b.gap(stats["B"], shift_b)
         best = None
         for c in open_:
             c["gap_before"], c["heldout_before"] = gap_now, gap_b_now
@@ -755,12 +755,16 @@ def diagnose_static(
                 c["shift"] = _shift(twin, make_effect(c["name"], **c["params"]), reps, None, crn_seeds)
                 c["shift_b"] = _shift(twin, make_effect(c["name"], **c["params_a"]), reps, "B", crn_seeds)
             c["evaluated"], c["note"] = True, ""
-            c["gap_after"] = total_gap(null_full.t(stats[None], add_shifts(shift, c["shift"])))
-            c["heldout_after"] = total_gap(null_b.t(stats["B"], add_shifts(shift_b, c["shift_b"])))
-            if best is None or _heldout(c) > _heldout(best):
+            c["gap_after"] = null_full.gap(stats[None], add_shifts(shift, c["shift"]))
+            c["heldout_after"] = null_b.gap(stats["B"], add_shifts(shift_b, c["shift_b"]))
+            c["heldout_deviance"] = null_b.deviance(stats["B"], add_shifts(shift_b, c["shift_b"]))
+            # as in imucal.gap.attribution: qualify on the shrink, rank by the deviance
+            if _heldout(c) >= min_heldout_shrink and (
+                best is None or c["heldout_deviance"] < best["heldout_deviance"]
+            ):
                 best = c
         rounds.append({c["name"]: _heldout_or_none(c) for c in open_ if c["evaluated"]})
-        if best is None or _heldout(best) < min_heldout_shrink:
+        if best is None:
             break
         best["accepted"] = True
         explained.append(best["name"])
@@ -774,7 +778,8 @@ def diagnose_static(
         effects.append({
             "name": c["name"], "params": c["params"], "gap_before": gb, "gap_after": ga,
             "shrink": None if ga is None or not gb else 1 - ga / gb,
-            "heldout_shrink": _heldout_or_none(c), "accepted": c["accepted"],
+            "heldout_shrink": _heldout_or_none(c), "heldout_deviance": c["heldout_deviance"],
+            "accepted": c["accepted"],
             "detect": c["detect"], "detect_z": c["detect_z"], "evaluated": c["evaluated"],
             "signature_hits": [
                 dict(zip(LOCATION_FIELDS, k, strict=True))
@@ -785,13 +790,13 @@ def diagnose_static(
     return {
         "format_version": FORMAT_VERSION,
         "dataset": dataset,
-        "gap": {"total": total_gap(t_real), "null_p95": float(np.percentile(loo, 95)),
+        "gap": {"total": null_full.gap(stats[None]), "null_p95": float(np.percentile(loo, 95)),
                 "significant": bool(reject.any())},  # fmt: skip
         "locations": _locations(keys, t_real, reject, True),
         "effects": effects,
         "explained": explained,
         "remaining": {
-            "total": total_gap(t_after),
+            "total": null_full.gap(stats[None], shift),
             "significant": bool(reject_after.any()),
             "locations": _locations(keys, t_after, reject_after, True),
         },
