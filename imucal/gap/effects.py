@@ -139,34 +139,16 @@ def estimate_g_sensitivity(fit: SessionFit, half) -> Estimate:
     return Estimate({"kx": float(k[0]), "ky": float(k[1]), "kz": float(k[2])}, float(np.linalg.norm(k)))
 
 
-def estimate_earth_rotation(fit: SessionFit, half) -> Estimate:
-    w, f = st.resting_gyro(fit, half)
-    up = f / np.linalg.norm(f, axis=1, keepdims=True)
-    a_mat = np.vstack(
-        [np.column_stack([np.eye(3)[j][None].repeat(len(w), 0), up[:, j]]) for j in range(3)]
-    )
-    coef, *_ = np.linalg.lstsq(a_mat, w.T.ravel(), rcond=None)
-    vertical = float(coef[3])
-    resid = w - coef[:3] - vertical * up
-    perp = resid - np.sum(resid * up, axis=1, keepdims=True) * up
-    noise_var = _position_mean_variance(fit, half)
-    h2 = max(float(np.mean(np.sum(perp**2, axis=1))) - 2 * noise_var, 0.0)
-    horizontal = np.sqrt(h2)
-    rate = float(np.hypot(vertical, horizontal))
-    lat = float(np.degrees(np.arctan2(vertical, horizontal))) if rate > 0 else 0.0
-    return Estimate({"latitude_deg": lat, "rate_rad_s": max(rate, 1e-12)}, vertical)
-
-
-def _position_mean_variance(fit: SessionFit, half) -> float:
-    """Mean variance (rad/s)^2 of one axis of a calibrated gyro position mean (white noise)."""
-    rows = st._alternate(st._rows(fit, "cube", "position"), half)
-    gyr = calibrated(fit, "cube", "gyr")
-    v = []
-    for r in rows.itertuples(index=False):
-        x = gyr[int(r.start_index) : int(r.end_index)]
-        d = np.diff(x, axis=0)
-        v.append(np.mean(np.var(d, axis=0) / 2) / len(x))
-    return float(np.mean(v))
+def estimate_earth_rotation(fit: SessionFit, half) -> Estimate | None:
+    """Latitude and rate of the world-fixed rate that the resting segments share
+    (:func:`imucal.gap.statistics.world_fixed_rate`: north from the magnetometer, up from the
+    accelerometer); detection: its magnitude."""
+    omega = st.world_fixed_rate(fit, half)
+    if omega is None:
+        return None
+    rate = float(np.linalg.norm(omega))
+    lat = float(np.degrees(np.arctan2(omega[2], np.hypot(omega[0], omega[1])))) if rate > 0 else 0.0
+    return Estimate({"latitude_deg": lat, "rate_rad_s": max(rate, 1e-12)}, rate)
 
 
 def _null_std(null: list, get) -> float:
@@ -175,17 +157,13 @@ def _null_std(null: list, get) -> float:
 
 
 def earth_gate(est: Estimate, null: list, z: float) -> str:
-    """The Earth's rate is known: a vertical component or a rate beyond ``EARTH_RATE_RAD_S``
-    by more than ``z`` null standard deviations of the estimator is not the Earth."""
-    s_v = _null_std(null, lambda e: e.detect)
+    """The Earth's rate is known: a world-fixed rate beyond ``EARTH_RATE_RAD_S`` by more than
+    ``z`` null standard deviations of the estimator is not the Earth."""
     s_r = _null_std(null, lambda e: e.params["rate_rad_s"])
-    if abs(est.detect) > EARTH_RATE_RAD_S + z * s_v:
-        return (f"vertical rate {est.detect:.3g} rad/s exceeds the Earth's "
-                f"{EARTH_RATE_RAD_S:.4g} rad/s by > {z:g} null std ({s_v:.2g})")  # fmt: skip
     rate = est.params["rate_rad_s"]
     if rate > EARTH_RATE_RAD_S + z * s_r:
-        return (f"rate {rate:.3g} rad/s exceeds the Earth's {EARTH_RATE_RAD_S:.4g} rad/s "
-                f"by > {z:g} null std ({s_r:.2g})")  # fmt: skip
+        return (f"world-fixed rate {rate:.3g} rad/s exceeds the Earth's {EARTH_RATE_RAD_S:.4g} "
+                f"rad/s by > {z:g} null std ({s_r:.2g})")  # fmt: skip
     return ""
 
 
@@ -218,21 +196,17 @@ def _session_clock(fit: SessionFit) -> dict:
     return starts
 
 
-def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
+def _warm_up(fit: SessionFit, col: str) -> tuple[float, float, float]:
+    """Start, rise (deg C) and time constant (s) of the session's temperature channel, fitted
+    with the simulator's warm-up curve on the twin's session clock."""
     from scipy.optimize import curve_fit
 
-    col = next((st.temperature_column(t) for t in fit.imu.values() if st.temperature_column(t)), None)
-    if col is None or "static" not in fit.imu:
-        return None
-    starts = _session_clock(fit)
     ts, temps = [], []
-    for name, start in starts.items():
+    for name, start in _session_clock(fit).items():
         t = fit.imu[name][TIME].to_numpy(dtype=float)
         ts.append(start + t - t[0])
         temps.append(fit.imu[name][col].to_numpy(dtype=float))
     ts, temps = np.concatenate(ts), np.concatenate(temps)
-    if np.ptp(temps) <= 0:
-        return None
 
     def warm(t, start, rise, tau):
         return start + rise * (1 - np.exp(-t / tau))
@@ -241,103 +215,183 @@ def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
         (start, rise, tau), _ = curve_fit(
             warm, ts, temps, p0=(temps[0], np.ptp(temps), ts[-1] / 2), maxfev=2000
         )
-        if not (tau > 0 and np.isfinite(rise)):
-            raise RuntimeError
+        if tau > 0 and np.isfinite(rise):
+            return float(start), float(rise), float(tau)
     except RuntimeError:
-        start, rise, tau = temps[0], np.ptp(temps) * 1e3, ts[-1] * 1e3
-    static = fit.imu["static"].iloc[st._time_half(len(fit.imu["static"]), half)]
-    temp = static[col].to_numpy(dtype=float)
-    coef = {}
-    for s in ("acc", "gyr"):
-        x = static[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)
-        tc = temp - temp.mean()
-        if tc @ tc <= 0:
-            return None
-        slopes = tc @ (x - x.mean(axis=0)) / (tc @ tc)
-        coef[s] = float(np.median(slopes))
+        pass
+    return float(temps[0]), float(np.ptp(temps) * 1e3), float(ts[-1] * 1e3)  # a slow ramp
+
+
+def _through_origin(x: np.ndarray, y: np.ndarray) -> float:
+    return float(x @ y / (x @ x)) if x @ x > 0 else 0.0
+
+
+def _gyro_scale_per_k(fit: SessionFit, half, gyr_per_k: float) -> float:
+    """Relative gyro scale change per kelvin from the rate-table run means: their residual
+    along the turning axis against ``dT * rate`` once the bias drift ``gyr_per_k dT`` is taken
+    out (dT from the runs' mean temperature; 0 without a table or a channel)."""
+    if fit.artifacts.get("table") is None:
+        return 0.0
+    rows, res, true = st.table_residuals(fit, half)
+    temp = st.mean_temperature(fit, "ratetable", rows)
+    if temp is None or len(rows) < 4:
+        return 0.0
+    along = np.array([AXES.index(a) for a in rows["axis"]])
+    r = res[np.arange(len(rows)), along] - gyr_per_k * (temp - temp.mean())
+    rate = true[np.arange(len(rows)), along]
+    # the fit's scale of each axis comes from that axis's own mounting: only the temperature
+    # change within a mounting is left in its residuals
+    columns = []
+    for j in np.unique(along):
+        mine = along == j
+        d_t = np.where(mine, temp - temp[mine].mean(), 0.0)
+        columns += [mine.astype(float), rate * mine, d_t * rate]
+    design = np.column_stack(columns)
+    coef, *_ = np.linalg.lstsq(design, r, rcond=None)
+    return float(np.mean(coef[2::3]))
+
+
+def _acc_drift(design: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(scale per K, bias per K) of the accelerometer from ``|a| - g`` at rest; when the
+    resting orientations cannot tell the bias from the scale (the bias's standard error
+    exceeds its value, e.g. every pose with gravity along +axes), all of it goes to the scale."""
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    dof = len(y) - 2
+    if dof > 0:
+        sigma2 = np.sum((y - design @ coef) ** 2) / dof
+        cov = sigma2 * np.linalg.pinv(design.T @ design)
+        if np.sqrt(cov[1, 1]) > abs(coef[1]):
+            return np.array([_through_origin(design[:, 0], y), 0.0])
+    return coef
+
+
+def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
+    """Drift per kelvin from the resting segments of the whole session (rotation3d rests, cube
+    positions, static blocks) against their temperature: gyro bias from the resting gyro
+    means; accelerometer bias and scale from ``|a| - g``, which moves by ``g s dT`` (scale)
+    plus ``k dT (u . 1)`` (a bias on all axes, ``u`` the direction of gravity in the sensor);
+    gyro scale from the eq. 36 phase scales against the rate table's. One value per sensor
+    (the simulator's effect has one for all axes); detection: the gyro bias drift."""
+    col = next((st.temperature_column(t) for t in fit.imu.values() if st.temperature_column(t)), None)
+    if col is None:
+        return None
+    samples = st.resting_samples(fit, half)
+    if len(samples) < 4:
+        return None
+    temp = np.array([x[2] for x in samples])
+    if np.ptp(temp) <= 0:
+        return None
+    d_t = temp - temp.mean()
+    gyr = np.array([x[0] for x in samples])
+    # a drift k dT of the raw reading shows through the calibration matrix: K (k dT)
+    slopes = np.array([_through_origin(d_t, w - w.mean()) for w in gyr.T])
+    gyr_per_k = float(np.mean(np.linalg.solve(fit.calibration.sensor("gyr").matrix, slopes)))
+    acc = np.array([x[1] for x in samples])
+    g = fit.extra["options"].gravity_m_s2
+    norm = np.linalg.norm(acc, axis=1)
+    along_ones = (acc / norm[:, None]).sum(axis=1)
+    # the accelerometer is calibrated on the cube: exact at the cube's mean temperature
+    t_cal = temp.mean()
+    if "cube" in fit.imu:
+        t_cal = float(np.nanmean(st.mean_temperature(fit, "cube", st._rows(fit, "cube", "position"))))
+    d_cal = temp - t_cal
+    coef = _acc_drift(np.column_stack([g * d_cal, d_cal * along_ones]), norm - g)
+    start, rise, tau = _warm_up(fit, col)
     params = {
-        "start_c": float(start), "rise_c": float(rise), "tau_s": float(tau),
-        "acc_per_k": coef["acc"], "gyr_per_k": coef["gyr"], "mag_per_k": 0.0,
-        "acc_scale_per_k": 0.0, "gyr_scale_per_k": 0.0, "mag_scale_per_k": 0.0,
+        "start_c": start, "rise_c": rise, "tau_s": tau,
+        "acc_per_k": float(coef[1]), "gyr_per_k": gyr_per_k, "mag_per_k": 0.0,
+        "acc_scale_per_k": float(coef[0]),
+        "gyr_scale_per_k": _gyro_scale_per_k(fit, half, gyr_per_k),
+        "mag_scale_per_k": 0.0,
     }  # fmt: skip
-    return Estimate(params, abs(coef["gyr"]))
+    return Estimate(params, abs(gyr_per_k))
 
 
-#: Block length (s) of the static recording's bias-variation statistic.
-BIAS_BLOCK_S = 10.0
 #: Correlation time (s) assumed for the Gauss-Markov part when converting the variance seen
 #: over a short recording to its stationary std (typical MEMS, effects.md #3; the recording
 #: is too short to estimate it).
 BIAS_TAU_S = 100.0
 
 
-def _visible_fraction(span_s: float, tau_s: float) -> float:
-    """Expected sample variance over a window ``span_s`` of a Gauss-Markov process of
-    correlation time ``tau_s``, as a fraction of its stationary variance."""
-    r = tau_s / span_s
-    return float(1 - 2 * r + 2 * r**2 * (1 - np.exp(-1 / r)))
-
-
-def bias_block_excess(fit: SessionFit, half) -> dict | None:
-    """Variance of block means of the static recording beyond white noise, per sensor.
-
-    The static recording is cut into blocks of ``BIAS_BLOCK_S``; per axis the variance of the
-    block means over the white-noise prediction (``sigma^2 / L`` with ``sigma`` from first
-    differences) is 1 for white noise. A temperature channel with a range is regressed out
-    first, so a drift that follows the temperature does not count as bias instability.
+def _resting_series(fit: SessionFit, half) -> dict | None:
+    """The resting segments of the session on its clock, for the bias-wander variogram.
 
     Returns
     -------
     dict or None
-        Sensor ('acc', 'gyr') -> (ratio - 1 per axis, shape (3,); excess variance of the block
-        means per axis (SI^2), shape (3,)); with key 'span_s'. None without a static recording
-        of at least 4 blocks.
+        ``t`` (s, shape (r,)), ``gyr`` calibrated means (rad/s, (r, 3)), ``gyr_var`` their
+        white-noise variances ((rad/s)^2, (r, 3)), ``acc`` ``|a| - g`` of the calibrated means
+        (m/s^2, (r,)), ``acc_var`` its white-noise variance ((r,)). The means are taken
+        relative to a straight line in the temperature (with a channel) and the gyro means
+        also in the specific force, so that a drift following the temperature or a
+        g-sensitivity is not counted as wander. None with fewer than 4 segments.
     """
-    if "static" not in fit.imu:
+    clock = _session_clock(fit)
+    g = fit.extra["options"].gravity_m_s2
+    t, gyr, gyr_var, acc, acc_var, temp, force = [], [], [], [], [], [], []
+    for rec, rows in st.resting_rows(fit, half):
+        table = fit.imu[rec]
+        t0 = float(table[TIME].iloc[0])
+        w, a = calibrated(fit, rec, "gyr"), calibrated(fit, rec, "acc")
+        col = st.temperature_column(table)
+        for r in rows.itertuples(index=False):
+            sl = slice(int(r.start_index), int(r.end_index))
+            ws, as_ = w[sl][np.all(np.isfinite(w[sl]), axis=1)], a[sl][np.all(np.isfinite(a[sl]), axis=1)]
+            if len(ws) < 3 or len(as_) < 3:
+                continue
+            t.append(clock[rec] + 0.5 * (r.start_s + r.end_s) - t0)
+            gyr.append(ws.mean(axis=0))
+            gyr_var.append(np.var(np.diff(ws, axis=0), axis=0) / 2 / len(ws))
+            force.append(as_.mean(axis=0))
+            acc.append(np.linalg.norm(force[-1]) - g)
+            acc_var.append(np.mean(np.var(np.diff(as_, axis=0), axis=0)) / 2 / len(as_))
+            temp.append(float(table[col].iloc[sl].mean()) if col else np.nan)
+    if len(t) < 4:
         return None
-    table = fit.imu["static"].iloc[st._time_half(len(fit.imu["static"]), half)]
-    t = table[TIME].to_numpy(dtype=float)
-    if len(t) < 2:
-        return None
-    length = max(int(round(BIAS_BLOCK_S / np.median(np.diff(t)))), 2)
-    n_blocks = len(t) // length
-    if n_blocks < 4:
-        return None
-    col = st.temperature_column(table)
-    temp = table[col].to_numpy(dtype=float) if col else None
-    out = {"span_s": float(t[-1] - t[0])}
-    for s in ("acc", "gyr"):
-        x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)
-        white2 = np.var(np.diff(x, axis=0), axis=0) / 2
-        blocks = x[: n_blocks * length].reshape(n_blocks, length, 3).mean(axis=1)
-        if temp is not None and np.ptp(temp) > 0:
-            tb = temp[: n_blocks * length].reshape(n_blocks, length).mean(axis=1)
-            design = np.column_stack([np.ones(n_blocks), tb - tb.mean()])
-            coef, *_ = np.linalg.lstsq(design, blocks, rcond=None)
-            blocks = blocks - design @ coef
-            dof = n_blocks - 2
-        else:
-            blocks = blocks - blocks.mean(axis=0)
-            dof = n_blocks - 1
-        var = np.sum(blocks**2, axis=0) / dof
-        out[s] = (var / (white2 / length) - 1, np.maximum(var - white2 / length, 0.0))
-    return out
+    gyr, acc, temp = np.array(gyr), np.array(acc), np.array(temp)
+    design = np.ones((len(t), 1))
+    if np.all(np.isfinite(temp)) and np.ptp(temp) > 0:
+        design = np.column_stack([design, temp - temp.mean()])
+    acc = acc - design @ np.linalg.lstsq(design, acc, rcond=None)[0]
+    if len(t) > design.shape[1] + 3 + 3:
+        design = np.column_stack([design, force])  # gyro following specific force
+    gyr = gyr - design @ np.linalg.lstsq(design, gyr, rcond=None)[0]
+    return {"t": np.array(t), "gyr": gyr, "gyr_var": np.array(gyr_var), "acc": acc,
+            "acc_var": np.array(acc_var)}  # fmt: skip
+
+
+def _wander_variance(t: np.ndarray, y: np.ndarray, var: np.ndarray, tau_s: float) -> float:
+    """Gauss-Markov variance of a bias from its resting means by the variogram: over all pairs
+    of segments ``(y_i - y_j)^2 - var_i - var_j = 2 gm^2 (1 - exp(-|t_i - t_j| / tau))``,
+    solved for ``gm^2`` by least squares (may be negative under noise alone)."""
+    i, j = np.triu_indices(len(t), k=1)
+    d = (y[i] - y[j]) ** 2 - var[i] - var[j]
+    h = 2 * (1 - np.exp(-np.abs(t[i] - t[j]) / tau_s))
+    return float(d @ h / (h @ h))
 
 
 def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
-    """Gauss-Markov bias std per sensor from the static block-mean excess; detection pooled
-    over the 6 acc and gyro axes (mean of the variance ratios minus 1)."""
-    ex = bias_block_excess(fit, half)
-    if ex is None:
+    """Gauss-Markov bias std of the gyroscope (per axis, averaged) and the accelerometer (along
+    gravity, from ``|a| - g``) from the variogram of the resting means over the whole session
+    (:func:`_resting_series`); the correlation time is taken as ``BIAS_TAU_S`` (a session of
+    minutes cannot resolve it) and the random walk as 0. Detection: the gyroscope's variance over
+    the median white-noise variance of a resting mean (the accelerometer's, seen through
+    ``|a| - g`` after the cube fit, is much the noisier)."""
+    series = _resting_series(fit, half)
+    if series is None:
         return None
-    frac = max(_visible_fraction(ex["span_s"], BIAS_TAU_S), 1e-3)
-    params = {}
-    for s in ("acc", "gyr"):
-        gm = float(np.sqrt(np.mean(ex[s][1]) / frac))
-        params.update({f"{s}_gm": gm, f"{s}_rw": 0.0, f"{s}_tau_s": BIAS_TAU_S})
-    params.update(mag_gm=0.0, mag_rw=0.0, mag_tau_s=BIAS_TAU_S)
-    detect = float(np.mean(np.concatenate([ex["acc"][0], ex["gyr"][0]])))
-    return Estimate(params, detect)
+    t = series["t"]
+    gm2_gyr = float(np.mean([
+        _wander_variance(t, series["gyr"][:, k], series["gyr_var"][:, k], BIAS_TAU_S)
+        for k in range(3)
+    ]))  # fmt: skip
+    gm2_acc = _wander_variance(t, series["acc"], series["acc_var"], BIAS_TAU_S)
+    params = {
+        "acc_gm": float(np.sqrt(max(gm2_acc, 0.0))), "acc_rw": 0.0, "acc_tau_s": BIAS_TAU_S,
+        "gyr_gm": float(np.sqrt(max(gm2_gyr, 0.0))), "gyr_rw": 0.0, "gyr_tau_s": BIAS_TAU_S,
+        "mag_gm": 0.0, "mag_rw": 0.0, "mag_tau_s": BIAS_TAU_S,
+    }  # fmt: skip
+    return Estimate(params, gm2_gyr / float(np.median(series["gyr_var"])))
 
 
 def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
@@ -510,8 +564,9 @@ _LIBRARY = (
                  ("gyr_static", "gyr", "vertical"), ("gyr_table", "gyr", "resid_rms")),
                 "gyro output proportional to specific force at rest"),
     EffectModel("earth_rotation", estimate_earth_rotation,
-                (("gyr_static", "gyr", "vertical"), ("gyr_static", "gyr", "spread")),
-                "Earth's rate in the resting gyro means, along the vertical and across it",
+                (("gyr_static", "gyr", "world_rate"), ("gyr_static", "gyr", "vertical"),
+                 ("gyr_static", "gyr", "spread")),
+                "Earth's rate in the resting gyro means: a rate fixed in the world (north, up)",
                 gate=earth_gate),
     EffectModel("saturation", estimate_saturation,
                 (("ingest", "*", "clip_fraction"), ("gyr_table", "gyr", "left_out")),

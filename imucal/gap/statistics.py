@@ -15,7 +15,8 @@ Statistics (units in the names of :data:`CATALOGUE`):
   log-ratio to the white-noise prediction, and its linear trend;
 * accelerometer cube: RMS and time slope of the ``|a| - g`` position residuals;
 * gyroscope at rest: spread of the calibrated position means, their slope on specific force,
-  their component along the vertical;
+  their component along the vertical; the world-fixed rate (north, east, up) that all resting
+  segments share (the Earth's);
 * rate table: RMS of the run-mean residuals, their rate^2 and rate^3 coefficients, runs left
   out; accelerometer run means against rate^2 (centripetal);
 * gyroscope scale without tools: eq. 36 scale over the final scale, per phase;
@@ -79,6 +80,7 @@ CATALOGUE = {
     "spread": StatisticInfo("rad/s", log=True, floor=0.02),
     "g_slope": StatisticInfo("rad/s per m/s^2"),
     "vertical": StatisticInfo("rad/s"),
+    "world_rate": StatisticInfo("rad/s"),
     "rate2": StatisticInfo("1/(rad/s)"),
     "rate3": StatisticInfo("1/(rad/s)^2"),
     "left_out": StatisticInfo("runs", floor=0.5),
@@ -225,6 +227,7 @@ def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, fl
         out.update(_noise(fit, half))
     out.update(_cube(fit, half))
     out.update(_gyr_rest(fit, half))
+    out.update(_world_rate(fit, half))
     if fit.artifacts.get("table") is not None:
         out.update(_table(fit, half))
     out.update(_scale(fit, half))
@@ -418,6 +421,55 @@ def _gyr_rest(fit: SessionFit, half) -> dict:
     del design
     out[("gyr_static", "gyr", "up", "position", "vertical")] = float(coef[3])
     return out
+
+
+#: Components of a world-fixed rate: magnetic north, east, up.
+WORLD_AXES = ("north", "east", "up")
+
+
+def world_fixed_rate(fit: SessionFit, half) -> np.ndarray | None:
+    """A rate fixed in the world (the Earth's) seen at the resting segments, in world axes.
+
+    At each resting segment (:func:`resting_rows`) the accelerometer gives up, the
+    magnetometer north; the calibrated gyro mean is ``c + [n e u] Omega`` with ``c`` a
+    constant (the bias left by the calibration) and ``Omega`` (magnetic north, east, up) the
+    world-fixed rate, solved by least squares weighted by the white noise of each mean.
+
+    Returns
+    -------
+    ndarray, shape (3,) or None
+        ``Omega`` (rad/s); None with fewer than 4 segments that have all three sensors.
+    """
+    rows_a, rows_b = [], []
+    for rec, rows in resting_rows(fit, half):
+        w, a, m = (calibrated(fit, rec, s) for s in ("gyr", "acc", "mag"))
+        for r in rows.itertuples(index=False):
+            sl = slice(int(r.start_index), int(r.end_index))
+            ws = w[sl][np.all(np.isfinite(w[sl]), axis=1)]
+            a_mean, m_mean = np.nanmean(a[sl], axis=0), np.nanmean(m[sl], axis=0)
+            if len(ws) < 3 or not (np.all(np.isfinite(a_mean)) and np.all(np.isfinite(m_mean))):
+                continue
+            up = a_mean / np.linalg.norm(a_mean)
+            east = np.cross(up, m_mean)
+            if np.linalg.norm(east) == 0:
+                continue
+            east /= np.linalg.norm(east)
+            north = np.cross(east, up)
+            weight = 1 / np.sqrt(np.var(np.diff(ws, axis=0), axis=0) / 2 / len(ws))
+            rows_a.append(np.column_stack([np.eye(3), north, east, up]) * weight[:, None])
+            rows_b.append(ws.mean(axis=0) * weight)
+    if len(rows_a) < 4:
+        return None
+    coef, *_ = np.linalg.lstsq(np.vstack(rows_a), np.concatenate(rows_b), rcond=None)
+    return coef[3:]
+
+
+def _world_rate(fit: SessionFit, half) -> dict:
+    omega = world_fixed_rate(fit, half)
+    if omega is None:
+        return {}
+    return {("gyr_static", "gyr", a, "rest", "world_rate"): float(v)
+            for a, v in zip(WORLD_AXES, omega, strict=True)}  # fmt: skip
 
 
 def table_residuals(fit: SessionFit, half) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
@@ -700,29 +752,50 @@ def _reference(fit: SessionFit, half) -> dict:
     }
 
 
-def resting_samples(fit: SessionFit, half) -> list[tuple[np.ndarray, np.ndarray, float]]:
-    """Per resting segment: calibrated gyro mean (3,), ``|a| - g``, temperature (deg C)."""
-    opt = fit.extra["options"]
+def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
+    """The session's resting segments per recording: rotation3d rests, cube positions, the rate
+    table's runs at 0 deg/s and the static recording cut in 8 blocks (every other one for a
+    half), in time order."""
     out = []
-    for rec, kind in (("rotation3d", "static"), ("cube", "position"), ("static", "static")):
+    for rec, kind in (("rotation3d", "static"), ("cube", "position"), ("ratetable", "run"),
+                      ("static", "static")):  # fmt: skip
         if rec not in fit.imu:
             continue
+        rows = _rows(fit, rec, kind)
+        if rec == "ratetable":
+            rows = rows[rows["rate_dps"] == 0]
+        rows = _alternate(rows, half)
+        if rec == "static":
+            t = fit.imu[rec][TIME].to_numpy(dtype=float)
+            edges = np.linspace(0, len(t), 9).astype(int)
+            rows = pd.DataFrame({"start_index": edges[:-1], "end_index": edges[1:],
+                                 "start_s": t[edges[:-1]], "end_s": t[edges[1:] - 1]})  # fmt: skip
+            rows = rows.iloc[0 if half in (None, "A") else 1 :: 1 if half is None else 2]
+        out.append((rec, rows))
+    return out
+
+
+def resting_samples(fit: SessionFit, half) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """Per resting segment: calibrated gyro mean (rad/s, shape (3,)), calibrated accelerometer
+    mean (m/s^2, shape (3,)) and temperature (deg C), for recordings with a temperature column."""
+    out = []
+    for rec, rows in resting_rows(fit, half):
         col = temperature_column(fit.imu[rec])
         if col is None:
             continue
-        rows = _alternate(_rows(fit, rec, kind), half)
-        if rec == "static":
-            n = len(fit.imu[rec])
-            edges = np.linspace(0, n, 9).astype(int)
-            rows = pd.DataFrame({"start_index": edges[:-1], "end_index": edges[1:],
-                                 "start_s": 0.0, "end_s": 0.0})  # fmt: skip
-            rows = rows.iloc[0 if half in (None, "A") else 1 :: 1 if half is None else 2]
         gyr = _means(calibrated(fit, rec, "gyr"), rows)
         acc = _means(calibrated(fit, rec, "acc"), rows)
         temp = _means(fit.imu[rec][[col]].to_numpy(dtype=float), rows)[:, 0]
-        for k in range(len(rows)):
-            out.append((gyr[k], float(np.linalg.norm(acc[k]) - opt.gravity_m_s2), float(temp[k])))
+        out.extend((gyr[k], acc[k], float(temp[k])) for k in range(len(rows)))
     return out
+
+
+def mean_temperature(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.ndarray | None:
+    """Mean temperature (deg C) over each segment row, shape (r,); None without a channel."""
+    col = temperature_column(fit.imu[recording])
+    if col is None:
+        return None
+    return _means(fit.imu[recording][[col]].to_numpy(dtype=float), rows)[:, 0]
 
 
 def _temperature(fit: SessionFit, half) -> dict:
@@ -733,7 +806,7 @@ def _temperature(fit: SessionFit, half) -> dict:
     if np.ptp(temp) <= 0:
         return {}
     gyr = np.array([s[0] for s in samples])
-    acc = np.array([s[1] for s in samples])
+    acc = np.linalg.norm([s[1] for s in samples], axis=1) - fit.extra["options"].gravity_m_s2
     x = temp - temp.mean()
     out = {("temperature", "acc", "norm", "rest", "temp_slope"): float(x @ (acc - acc.mean()) / (x @ x))}
     for j, a in enumerate(AXES):
