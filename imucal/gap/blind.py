@@ -113,16 +113,17 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
     Returns
     -------
     dict
-        ``confusion`` (true effect -> first explained effect, else first noted effect, or
-        'none' -> count), ``top1``
-        (fraction of effect sessions whose first explained effect is the hidden one),
+        ``confusion`` (true effect -> first explained effect, else first noted effect marked
+        '(noted)', or 'none' -> count), ``top1`` (fraction of effect sessions whose first
+        explained effect is the hidden one, or, with nothing explained, whose first noted
+        one is), ``top1_explained_only`` (the first explained effect only),
         ``null_explained_empty`` (k of n no-effect sessions), ``magnitude_rel_error`` (per
         effect, median |est - true| / true), ``heldout_shrink_true`` (median over effect
         sessions of the true effect's held-out shrink, 0 when not evaluated), ``unknown``
         (per unknown-effect session: flagged, locations, named), ``sessions`` (the detail).
     """
     confusion: dict = {}
-    sessions, hits, n_eff, shrinks, rel = [], 0, 0, [], {}
+    sessions, hits, hits_explained, n_eff, shrinks, rel = [], 0, 0, 0, [], {}
     null_ok = n_null = 0
     unknown = []
     for name in sorted(keys):
@@ -132,7 +133,9 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
         # an effect that opens no gap (large misalignment under the exact rotation) is
         # identified when it is reported in ``noted`` and nothing is explained
         noted = diag.get("noted", [])
-        first = diag["explained"][0] if diag["explained"] else (noted[0] if noted else "none")
+        named = diag["explained"][0] if diag["explained"] else None
+        first = named or (f"{noted[0]} (noted)" if noted else "none")
+        hit = named == truth_effect or (named is None and bool(noted) and noted[0] == truth_effect)
         row = {"name": name, "effect": truth_effect, "explained": diag["explained"],
                "gap_significant": diag["gap"]["significant"],
                "remaining_significant": diag["remaining"]["significant"],
@@ -157,7 +160,8 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
             null_ok += not diag["explained"]
         else:
             n_eff += 1
-            hits += first == truth_effect
+            hits += hit
+            hits_explained += named == truth_effect
             entry = next((e for e in diag["effects"] if e["name"] == truth_effect), None)
             hs = entry["heldout_shrink"] if entry and entry["heldout_shrink"] is not None else 0.0
             shrinks.append(hs)
@@ -169,6 +173,7 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
         sessions.append(row)
     return {
         "top1": hits / n_eff if n_eff else None,
+        "top1_explained_only": hits_explained / n_eff if n_eff else None,
         "n_effect_sessions": n_eff,
         "null_explained_empty": [null_ok, n_null],
         "median_heldout_shrink_true": float(np.median(shrinks)) if shrinks else None,

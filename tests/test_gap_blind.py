@@ -1,0 +1,71 @@
+"""The blind check's scorer (imucal.gap.blind.score_blind) on hand-made diagnoses and keys."""
+
+from __future__ import annotations
+
+import pytest
+
+from imucal.gap.blind import blind_plan, failed_diagnosis, public_plan, score_blind
+
+
+def _diag(explained=(), noted=(), significant=False, remaining=False, effects=()):
+    return {
+        "explained": list(explained), "noted": list(noted), "effects": list(effects),
+        "gap": {"significant": significant}, "remaining": {"significant": remaining,
+        "locations": [{"stage": "acc_table", "sensor": "acc", "axis": "x",
+                       "statistic": "omega2"}] if remaining else []},
+    }  # fmt: skip
+
+
+def _key(effect, exclude=(), magnitude=None):
+    return {"spec": {"effect": effect, "exclude": list(exclude)},
+            "magnitude": None if magnitude is None else {"value": magnitude}}  # fmt: skip
+
+
+def test_scores_hits_noted_nulls_and_unknowns():
+    lever = {"name": "lever_arm", "params": {"x_m": 0.05, "y_m": 0.0, "z_m": 0.0},
+             "heldout_shrink": 0.9}  # fmt: skip
+    diagnoses = {
+        "b0": _diag(["lever_arm"], significant=True, effects=[lever]),
+        "b1": _diag(["packet_loss"], significant=True),  # a miss: wrong effect named
+        "b2": _diag([], noted=["large_misalignment"]),  # noted, nothing explained: a hit
+        "b3": _diag([], noted=["large_misalignment"]),  # no effect: explained empty
+        "b4": _diag(["time_offset"], significant=True),  # no effect: a false positive
+        "b5": _diag([], significant=True, remaining=True),  # unknown effect, flagged
+        "b6": failed_diagnosis("b6", "the pipeline refused it"),  # a miss
+    }
+    keys = {
+        "b0": _key("lever_arm", magnitude=0.04), "b1": _key("g_sensitivity"),
+        "b2": _key("large_misalignment"), "b3": _key(None), "b4": _key(None),
+        "b5": _key("lever_arm", exclude=["lever_arm"]), "b6": _key("saturation"),
+    }  # fmt: skip
+    score = score_blind(diagnoses, keys)
+    assert score["n_effect_sessions"] == 4
+    assert score["top1"] == pytest.approx(2 / 4)
+    assert score["top1_explained_only"] == pytest.approx(1 / 4)
+    assert score["null_explained_empty"] == [1, 2]
+    assert score["confusion"]["large_misalignment"] == {"large_misalignment (noted)": 1}
+    assert score["confusion"]["g_sensitivity"] == {"packet_loss": 1}
+    assert score["confusion"]["saturation"] == {"none": 1}
+    assert score["magnitude_rel_error"]["lever_arm"] == pytest.approx(0.25)
+    # held-out shrink of the true effect: 0.9 where evaluated, 0 elsewhere
+    assert score["median_heldout_shrink_true"] == pytest.approx(0.0)
+    (unknown,) = score["unknown"]
+    assert unknown["flagged"] and unknown["remaining_locations"] == ["acc_table/acc/x/omega2"]
+
+
+def test_an_unknown_effect_named_as_another_is_not_flagged():
+    score = score_blind(
+        {"u": _diag(["bias_instability"], significant=True, remaining=True)},
+        {"u": _key("g_sensitivity", exclude=["g_sensitivity"])},
+    )
+    assert score["unknown"][0]["flagged"] is False
+
+
+def test_plan_hides_the_effects_behind_names():
+    plan = blind_plan(6, 2, 5, {"lever_arm": 1}, effects=["lever_arm", "time_offset"])
+    assert [s["name"] for s in plan] == [f"b{i:02d}" for i in range(10)]
+    assert sorted(str(s["effect"]) for s in plan).count("None") == 5
+    public = public_plan(plan)
+    assert set(public) == {s["name"] for s in plan}
+    assert sum(bool(v) for v in public.values()) == 1
+    assert all("effect" not in str(v) for v in public.values())
