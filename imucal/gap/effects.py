@@ -292,8 +292,9 @@ def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
     along_ones = (acc / norm[:, None]).sum(axis=1)
     # the accelerometer is calibrated on the cube: exact at the cube's mean temperature
     t_cal = temp.mean()
-    if "cube" in fit.imu:
-        t_cal = float(np.nanmean(st.mean_temperature(fit, "cube", st._rows(fit, "cube", "position"))))
+    t_cube = st.mean_temperature(fit, "cube", st._rows(fit, "cube", "position")) if "cube" in fit.imu else None
+    if t_cube is not None and np.any(np.isfinite(t_cube)):
+        t_cal = float(np.nanmean(t_cube))
     d_cal = temp - t_cal
     coef = _acc_drift(np.column_stack([g * d_cal, d_cal * along_ones]), norm - g)
     start, rise, tau = _warm_up(fit, col)

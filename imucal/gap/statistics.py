@@ -241,9 +241,7 @@ def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, fl
 def _timing(fit: SessionFit, half) -> dict:
     lost = expected = 0
     scatter = []
-    clipped = {s: 0 for s in SENSORS}
-    total = 0
-    for name, table in fit.imu.items():
+    for table in fit.imu.values():
         sl = _time_half(len(table), half)
         seq = table[SEQ].to_numpy()[sl]
         t = table[TIME].to_numpy(dtype=float)[sl]
@@ -251,7 +249,6 @@ def _timing(fit: SessionFit, half) -> dict:
         lost, expected = lost + n_lost, expected + n_exp
         res = stamp_residual(t, seq)
         scatter.append(res - np.median(res))
-        total += len(t)
     out = {("ingest", "clock", "-", "all", "loss_fraction"): lost / max(expected, 1)}
     r = np.concatenate(scatter)
     out[("ingest", "clock", "-", "all", "stamp_scatter_s")] = float(
