@@ -73,7 +73,9 @@ def _shift(twin: Twin, effect, replicas, half, n_seeds: int) -> dict:
         with_effect = run_replica(twin, rep.seed, (effect,))
         for k, v in with_effect.stats[half].items():
             if k in rep.stats[half]:
-                diffs.setdefault(k, []).append(transform(k, v) - transform(k, rep.stats[half][k]))
+                d = transform(k, v) - transform(k, rep.stats[half][k])
+                if np.isfinite(d):  # a seed where the statistic is undefined says nothing
+                    diffs.setdefault(k, []).append(d)
     return {
         k: (float(np.mean(v)), float(np.var(v, ddof=1)) if len(v) > 1 else 0.0)
         for k, v in diffs.items()
@@ -165,11 +167,13 @@ def attribute(
                 effect_a = models[c.name].simulator_effect(c.params_a or c.params)
                 c.shift_b = _shift(twin, effect_a, replicas, "B", n_seeds)
             c.evaluated = True
-            c.note = ""
+            c.note = "" if gap_b_now > 0 else (
+                "half B shows no gap beyond noise: the held-out check cannot confirm an effect"
+            )
             c.gap_after = null_full.gap(stats[None], add_shifts(shift, c.shift))
             c.heldout_after = null_b.gap(stats["B"], add_shifts(shift_b, c.shift_b))
             c.heldout_deviance = null_b.deviance(stats["B"], add_shifts(shift_b, c.shift_b))
-            qualifies = (c.heldout_shrink or 0.0) >= min_heldout_shrink
+            qualifies = c.heldout_shrink is not None and c.heldout_shrink >= min_heldout_shrink
             if qualifies and (best is None or c.heldout_deviance < best.heldout_deviance):
                 best = c
         rounds.append({c.name: c.heldout_shrink for c in open_ if c.evaluated})

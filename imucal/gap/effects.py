@@ -196,17 +196,23 @@ def _session_clock(fit: SessionFit) -> dict:
     return starts
 
 
-def _warm_up(fit: SessionFit, col: str) -> tuple[float, float, float]:
+def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
     """Start, rise (deg C) and time constant (s) of the session's temperature channel, fitted
-    with the simulator's warm-up curve on the twin's session clock."""
+    with the simulator's warm-up curve on the twin's session clock (recordings without a
+    channel, and samples without a reading, are left out)."""
     from scipy.optimize import curve_fit
 
     ts, temps = [], []
     for name, start in _session_clock(fit).items():
+        col = st.temperature_column(fit.imu[name])
+        if col is None:
+            continue
         t = fit.imu[name][TIME].to_numpy(dtype=float)
         ts.append(start + t - t[0])
         temps.append(fit.imu[name][col].to_numpy(dtype=float))
     ts, temps = np.concatenate(ts), np.concatenate(temps)
+    ok = np.isfinite(temps)
+    ts, temps = ts[ok], temps[ok]
 
     def warm(t, start, rise, tau):
         return start + rise * (1 - np.exp(-t / tau))
@@ -237,7 +243,9 @@ def _gyro_scale_per_k(fit: SessionFit, half, gyr_per_k: float) -> float:
     if temp is None or len(rows) < 4:
         return 0.0
     along = np.array([AXES.index(a) for a in rows["axis"]])
-    r = res[np.arange(len(rows)), along] - gyr_per_k * (temp - temp.mean())
+    # the bias drift of the raw reading, k dT on every axis, shows through K
+    drift = fit.calibration.sensor("gyr").matrix @ np.ones(3) * gyr_per_k
+    r = res[np.arange(len(rows)), along] - drift[along] * (temp - temp.mean())
     rate = true[np.arange(len(rows)), along]
     # the fit's scale of each axis comes from that axis's own mounting: only the temperature
     # change within a mounting is left in its residuals
@@ -266,30 +274,28 @@ def _acc_drift(design: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
-    """Drift per kelvin from the resting segments of the whole session (rotation3d rests, cube
-    positions, static blocks) against their temperature: gyro bias from the resting gyro
-    means; accelerometer bias and scale from ``|a| - g``, which moves by ``g s dT`` (scale)
-    plus ``k dT (u . 1)`` (a bias on all axes, ``u`` the direction of gravity in the sensor);
-    gyro scale from the eq. 36 phase scales against the rate table's. One value per sensor
-    (the simulator's effect has one for all axes); detection: the gyro bias drift."""
-    col = next((st.temperature_column(t) for t in fit.imu.values() if st.temperature_column(t)), None)
-    if col is None:
+    """Drift per kelvin from the resting segments of the whole session
+    (:func:`imucal.gap.statistics.resting_means`) against their temperature: gyro bias from the
+    resting gyro means; accelerometer bias and scale from ``|a| - g``, which moves by
+    ``g s dT`` (scale) plus ``k dT (u . K 1)`` (a bias on all raw axes seen through the
+    calibration matrix ``K``, ``u`` the direction of gravity); gyro scale from the rate-table
+    run residuals (:func:`_gyro_scale_per_k`). One value per sensor (the simulator's effect has
+    one for all axes); detection: the gyro bias drift. Segments without a temperature reading
+    are left out."""
+    if not any(st.temperature_column(t) for t in fit.imu.values()):
         return None
-    samples = st.resting_samples(fit, half)
-    if len(samples) < 4:
+    rest = st.resting_means(fit, half)
+    ok = np.isfinite(rest.temp)
+    if ok.sum() < 4 or np.ptp(rest.temp[ok]) <= 0:
         return None
-    temp = np.array([x[2] for x in samples])
-    if np.ptp(temp) <= 0:
-        return None
+    temp, gyr, acc = rest.temp[ok], rest.gyr[ok], rest.acc[ok]
     d_t = temp - temp.mean()
-    gyr = np.array([x[0] for x in samples])
     # a drift k dT of the raw reading shows through the calibration matrix: K (k dT)
     slopes = np.array([_through_origin(d_t, w - w.mean()) for w in gyr.T])
     gyr_per_k = float(np.mean(np.linalg.solve(fit.calibration.sensor("gyr").matrix, slopes)))
-    acc = np.array([x[1] for x in samples])
     g = fit.extra["options"].gravity_m_s2
     norm = np.linalg.norm(acc, axis=1)
-    along_ones = (acc / norm[:, None]).sum(axis=1)
+    along_ones = (acc / norm[:, None]) @ (fit.calibration.sensor("acc").matrix @ np.ones(3))
     # the accelerometer is calibrated on the cube: exact at the cube's mean temperature
     t_cal = temp.mean()
     t_cube = st.mean_temperature(fit, "cube", st._rows(fit, "cube", "position")) if "cube" in fit.imu else None
@@ -297,7 +303,7 @@ def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
         t_cal = float(np.nanmean(t_cube))
     d_cal = temp - t_cal
     coef = _acc_drift(np.column_stack([g * d_cal, d_cal * along_ones]), norm - g)
-    start, rise, tau = _warm_up(fit, col)
+    start, rise, tau = _warm_up(fit)
     params = {
         "start_c": start, "rise_c": rise, "tau_s": tau,
         "acc_per_k": float(coef[1]), "gyr_per_k": gyr_per_k, "mag_per_k": 0.0,
@@ -314,85 +320,85 @@ def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
 BIAS_TAU_S = 100.0
 
 
-def _resting_series(fit: SessionFit, half) -> dict | None:
-    """The resting segments of the session on its clock, for the bias-wander variogram.
+def _wander_variance(
+    t: np.ndarray, y: np.ndarray, var: np.ndarray, design: np.ndarray, tau_s: float
+) -> float:
+    """Gauss-Markov variance of a bias from its resting means, by the variogram of the
+    residuals after the regressors are taken out.
+
+    With ``M = I - X X^+`` (``X`` the design), the residuals ``r = M y`` of means with white
+    noise ``D = diag(var)`` and a wander of covariance ``gm^2 C``, ``C_ij = exp(-|t_i - t_j| /
+    tau)``, have ``E[(r_i - r_j)^2] = d^T M (D + gm^2 C) M d`` with ``d = e_i - e_j``: linear in
+    ``gm^2``, solved by least squares over all pairs (may be negative under noise alone).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Segment times (s).
+    y : ndarray, shape (n,)
+        Segment means (SI).
+    var : ndarray, shape (n,)
+        White-noise variance of each mean (SI^2).
+    design : ndarray, shape (n, p)
+        Regressors taken out first (a constant, temperature, specific force, ...).
+    tau_s : float
+        Correlation time (s).
 
     Returns
     -------
-    dict or None
-        ``t`` (s, shape (r,)), ``gyr`` calibrated means (rad/s, (r, 3)), ``gyr_var`` their
-        white-noise variances ((rad/s)^2, (r, 3)), ``acc`` ``|a| - g`` of the calibrated means
-        (m/s^2, (r,)), ``acc_var`` its white-noise variance ((r,)). The means are taken
-        relative to a straight line in the temperature (with a channel) and the gyro means
-        also in the specific force, so that a drift following the temperature or a
-        g-sensitivity is not counted as wander. None with fewer than 4 segments.
+    float
+        ``gm^2`` (SI^2).
     """
-    clock = _session_clock(fit)
-    g = fit.extra["options"].gravity_m_s2
-    t, gyr, gyr_var, acc, acc_var, temp, force = [], [], [], [], [], [], []
-    for rec, rows in st.resting_rows(fit, half):
-        table = fit.imu[rec]
-        t0 = float(table[TIME].iloc[0])
-        w, a = calibrated(fit, rec, "gyr"), calibrated(fit, rec, "acc")
-        col = st.temperature_column(table)
-        for r in rows.itertuples(index=False):
-            sl = slice(int(r.start_index), int(r.end_index))
-            ws, as_ = w[sl][np.all(np.isfinite(w[sl]), axis=1)], a[sl][np.all(np.isfinite(a[sl]), axis=1)]
-            if len(ws) < 3 or len(as_) < 3:
-                continue
-            t.append(clock[rec] + 0.5 * (r.start_s + r.end_s) - t0)
-            gyr.append(ws.mean(axis=0))
-            gyr_var.append(np.var(np.diff(ws, axis=0), axis=0) / 2 / len(ws))
-            force.append(as_.mean(axis=0))
-            acc.append(np.linalg.norm(force[-1]) - g)
-            acc_var.append(np.mean(np.var(np.diff(as_, axis=0), axis=0)) / 2 / len(as_))
-            temp.append(float(table[col].iloc[sl].mean()) if col else np.nan)
-    if len(t) < 4:
-        return None
-    gyr, acc, temp = np.array(gyr), np.array(acc), np.array(temp)
-    design = np.ones((len(t), 1))
-    if np.all(np.isfinite(temp)) and np.ptp(temp) > 0:
-        design = np.column_stack([design, temp - temp.mean()])
-    acc = acc - design @ np.linalg.lstsq(design, acc, rcond=None)[0]
-    if len(t) > design.shape[1] + 3 + 3:
-        design = np.column_stack([design, force])  # gyro following specific force
-    gyr = gyr - design @ np.linalg.lstsq(design, gyr, rcond=None)[0]
-    return {"t": np.array(t), "gyr": gyr, "gyr_var": np.array(gyr_var), "acc": acc,
-            "acc_var": np.array(acc_var)}  # fmt: skip
-
-
-def _wander_variance(t: np.ndarray, y: np.ndarray, var: np.ndarray, tau_s: float) -> float:
-    """Gauss-Markov variance of a bias from its resting means by the variogram: over all pairs
-    of segments ``(y_i - y_j)^2 - var_i - var_j = 2 gm^2 (1 - exp(-|t_i - t_j| / tau))``,
-    solved for ``gm^2`` by least squares (may be negative under noise alone)."""
+    m = np.eye(len(t)) - design @ np.linalg.pinv(design)
+    r = m @ y
+    noise = m @ np.diag(var) @ m
+    wander = m @ np.exp(-np.abs(t[:, None] - t[None, :]) / tau_s) @ m
     i, j = np.triu_indices(len(t), k=1)
-    d = (y[i] - y[j]) ** 2 - var[i] - var[j]
-    h = 2 * (1 - np.exp(-np.abs(t[i] - t[j]) / tau_s))
-    return float(d @ h / (h @ h))
+    a = noise[i, i] + noise[j, j] - 2 * noise[i, j]
+    b = wander[i, i] + wander[j, j] - 2 * wander[i, j]
+    return float(((r[i] - r[j]) ** 2 - a) @ b / (b @ b))
 
 
 def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
     """Gauss-Markov bias std of the gyroscope (per axis, averaged) and the accelerometer (along
-    gravity, from ``|a| - g``) from the variogram of the resting means over the whole session
-    (:func:`_resting_series`); the correlation time is taken as ``BIAS_TAU_S`` (a session of
-    minutes cannot resolve it) and the random walk as 0. Detection: the gyroscope's variance over
-    the median white-noise variance of a resting mean (the accelerometer's, seen through
-    ``|a| - g`` after the cube fit, is much the noisier)."""
-    series = _resting_series(fit, half)
-    if series is None:
+    gravity, from ``|a| - g``) from the variogram (:func:`_wander_variance`) of the resting
+    means (:func:`imucal.gap.statistics.resting_means`) on the twin's session clock.
+
+    Taken out first, so that they are not counted as wander: a line in the temperature (where
+    a segment has no reading, none) for both; for the gyro also its specific force (a
+    g-sensitivity, and the Earth's vertical rate with it) when there are enough segments. The
+    Earth's horizontal rate (4.9e-5 rad/s at 48 deg) is left in: taking out a world-fixed
+    rate per axis costs more power than that rate adds on MEMS-class resting means. The
+    correlation time is taken as
+    ``BIAS_TAU_S`` (a session of minutes cannot resolve it) and the random walk as 0.
+    Detection: the gyroscope's variance over the median white-noise variance of a resting
+    mean (the accelerometer's, seen through ``|a| - g`` after the cube fit, is much the
+    noisier). None with fewer than 4 resting segments.
+    """
+    rest = st.resting_means(fit, half)
+    n = len(rest)
+    if n < 4:
         return None
-    t = series["t"]
-    gm2_gyr = float(np.mean([
-        _wander_variance(t, series["gyr"][:, k], series["gyr_var"][:, k], BIAS_TAU_S)
-        for k in range(3)
-    ]))  # fmt: skip
-    gm2_acc = _wander_variance(t, series["acc"], series["acc_var"], BIAS_TAU_S)
+    clock = _session_clock(fit)
+    t = np.array([clock[rec] for rec in rest.recording]) + rest.mid_s
+    d_t = np.nan_to_num(rest.temp - np.nanmean(rest.temp)) if np.any(np.isfinite(rest.temp)) else np.zeros(n)
+    base = np.column_stack([np.ones(n), d_t]) if np.ptp(d_t) > 0 else np.ones((n, 1))
+    g = fit.extra["options"].gravity_m_s2
+    gm2_acc = _wander_variance(t, np.linalg.norm(rest.acc, axis=1) - g, rest.acc_var, base, BIAS_TAU_S)
+    gm2_gyr = []
+    for k in range(3):
+        design = base
+        extra = rest.acc
+        if n > base.shape[1] + extra.shape[1] + 3:
+            design = np.column_stack([base, extra])
+        gm2_gyr.append(_wander_variance(t, rest.gyr[:, k], rest.gyr_var[:, k], design, BIAS_TAU_S))
+    gm2 = float(np.mean(gm2_gyr))
     params = {
         "acc_gm": float(np.sqrt(max(gm2_acc, 0.0))), "acc_rw": 0.0, "acc_tau_s": BIAS_TAU_S,
-        "gyr_gm": float(np.sqrt(max(gm2_gyr, 0.0))), "gyr_rw": 0.0, "gyr_tau_s": BIAS_TAU_S,
+        "gyr_gm": float(np.sqrt(max(gm2, 0.0))), "gyr_rw": 0.0, "gyr_tau_s": BIAS_TAU_S,
         "mag_gm": 0.0, "mag_rw": 0.0, "mag_tau_s": BIAS_TAU_S,
     }  # fmt: skip
-    return Estimate(params, gm2_gyr / float(np.median(series["gyr_var"])))
+    return Estimate(params, gm2 / float(np.median(rest.gyr_var)))
 
 
 def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:

@@ -620,7 +620,9 @@ def _shift(twin, effect, replicas, half, n_seeds) -> dict:
         stats = static_statistics(render_static(twin, rep.seed, (effect,)), half)
         for k, v in stats.items():
             if k in rep.stats[half]:
-                diffs.setdefault(k, []).append(transform(k, v) - transform(k, rep.stats[half][k]))
+                d = transform(k, v) - transform(k, rep.stats[half][k])
+                if np.isfinite(d):  # a seed where the statistic is undefined says nothing
+                    diffs.setdefault(k, []).append(d)
     return {k: (float(np.mean(v)), float(np.var(v, ddof=1)) if len(v) > 1 else 0.0) for k, v in diffs.items()}
 
 

@@ -427,37 +427,28 @@ WORLD_AXES = ("north", "east", "up")
 def world_fixed_rate(fit: SessionFit, half) -> np.ndarray | None:
     """A rate fixed in the world (the Earth's) seen at the resting segments, in world axes.
 
-    At each resting segment (:func:`resting_rows`) the accelerometer gives up, the
-    magnetometer north; the calibrated gyro mean is ``c + [n e u] Omega`` with ``c`` a
-    constant (the bias left by the calibration) and ``Omega`` (magnetic north, east, up) the
-    world-fixed rate, solved by least squares weighted by the white noise of each mean.
+    At each resting segment (:func:`resting_means`) the calibrated gyro mean is
+    ``c + [n e u] Omega``: ``n, e, u`` the world's magnetic north, east and up in the body
+    frame (from the magnetometer and the accelerometer), ``c`` a constant (the bias the
+    calibration left), ``Omega`` the world-fixed rate; least squares weighted by the white
+    noise of each mean.
 
     Returns
     -------
     ndarray, shape (3,) or None
-        ``Omega`` (rad/s); None with fewer than 4 segments that have all three sensors.
+        ``Omega`` (rad/s: north, east, up); None with fewer than 4 segments that have all three
+        sensors.
     """
-    rows_a, rows_b = [], []
-    for rec, rows in resting_rows(fit, half):
-        w, a, m = (calibrated(fit, rec, s) for s in ("gyr", "acc", "mag"))
-        for r in rows.itertuples(index=False):
-            sl = slice(int(r.start_index), int(r.end_index))
-            ws = w[sl][np.all(np.isfinite(w[sl]), axis=1)]
-            a_mean, m_mean = np.nanmean(a[sl], axis=0), np.nanmean(m[sl], axis=0)
-            if len(ws) < 3 or not (np.all(np.isfinite(a_mean)) and np.all(np.isfinite(m_mean))):
-                continue
-            up = a_mean / np.linalg.norm(a_mean)
-            east = np.cross(up, m_mean)
-            if np.linalg.norm(east) == 0:
-                continue
-            east /= np.linalg.norm(east)
-            north = np.cross(east, up)
-            weight = 1 / np.sqrt(np.var(np.diff(ws, axis=0), axis=0) / 2 / len(ws))
-            rows_a.append(np.column_stack([np.eye(3), north, east, up]) * weight[:, None])
-            rows_b.append(ws.mean(axis=0) * weight)
-    if len(rows_a) < 4:
+    rest = resting_means(fit, half)
+    ok = np.all(np.isfinite(rest.north), axis=1)
+    if ok.sum() < 4:
         return None
-    coef, *_ = np.linalg.lstsq(np.vstack(rows_a), np.concatenate(rows_b), rcond=None)
+    weight = 1 / np.sqrt(rest.gyr_var[ok])  # (r, 3)
+    blocks = [
+        np.column_stack([np.eye(3), n, e, u]) * w[:, None]
+        for n, e, u, w in zip(rest.north[ok], rest.east[ok], rest.up[ok], weight, strict=True)
+    ]
+    coef, *_ = np.linalg.lstsq(np.vstack(blocks), (rest.gyr[ok] * weight).ravel(), rcond=None)
     return coef[3:]
 
 
@@ -752,7 +743,7 @@ def _reference(fit: SessionFit, half) -> dict:
 def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
     """The session's resting segments per recording: rotation3d rests, cube positions, the rate
     table's runs at 0 deg/s and the static recording cut in 8 blocks (every other one for a
-    half), in time order."""
+    half); recordings in the protocol's order, segments in time order within each."""
     out = []
     for rec, kind in (("rotation3d", "static"), ("cube", "position"), ("ratetable", "run"),
                       ("static", "static")):  # fmt: skip
@@ -772,19 +763,91 @@ def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
     return out
 
 
-def resting_samples(fit: SessionFit, half) -> list[tuple[np.ndarray, np.ndarray, float]]:
-    """Per resting segment: calibrated gyro mean (rad/s, shape (3,)), calibrated accelerometer
-    mean (m/s^2, shape (3,)) and temperature (deg C), for recordings with a temperature column."""
-    out = []
+@dataclass(frozen=True)
+class RestingMeans:
+    """Means of the session's resting segments (:func:`resting_rows`), one row per segment.
+
+    Attributes
+    ----------
+    recording : list of str
+        Recording of each segment, length r.
+    mid_s : ndarray, shape (r,)
+        Middle of the segment (s) from its recording's first sample.
+    gyr, acc : ndarray, shape (r, 3)
+        Calibrated means (rad/s, m/s^2, frame B).
+    gyr_var : ndarray, shape (r, 3)
+        White-noise variance of the gyro means ((rad/s)^2), from first differences, floored at
+        the quantisation's.
+    acc_var : ndarray, shape (r,)
+        White-noise variance of one accelerometer axis's mean ((m/s^2)^2), averaged over axes.
+    north, east, up : ndarray, shape (r, 3)
+        The world's magnetic north, east and up in frame B (unit vectors; NaN without
+        magnetometer samples in the segment).
+    temp : ndarray, shape (r,)
+        Mean temperature (deg C); NaN where the recording has no channel.
+    """
+
+    recording: list
+    mid_s: np.ndarray
+    gyr: np.ndarray
+    gyr_var: np.ndarray
+    acc: np.ndarray
+    acc_var: np.ndarray
+    north: np.ndarray
+    east: np.ndarray
+    up: np.ndarray
+    temp: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.recording)
+
+
+def _white_variance(x: np.ndarray, floor: float) -> np.ndarray:
+    """White-noise variance of the mean of ``x`` (n, k) per column, at least ``floor / n``."""
+    return np.maximum(np.var(np.diff(x, axis=0), axis=0) / 2, floor) / len(x)
+
+
+def resting_means(fit: SessionFit, half) -> RestingMeans:
+    """The calibrated means of every resting segment of the session (segments with fewer than 3
+    complete gyro and accelerometer samples are skipped)."""
+    sens = fit.extra["options"].sensitivity
+    rows_out = {k: [] for k in RestingMeans.__dataclass_fields__}
     for rec, rows in resting_rows(fit, half):
-        col = temperature_column(fit.imu[rec])
-        if col is None:
-            continue
-        gyr = _means(calibrated(fit, rec, "gyr"), rows)
-        acc = _means(calibrated(fit, rec, "acc"), rows)
-        temp = _means(fit.imu[rec][[col]].to_numpy(dtype=float), rows)[:, 0]
-        out.extend((gyr[k], acc[k], float(temp[k])) for k in range(len(rows)))
-    return out
+        table = fit.imu[rec]
+        t0 = float(table[TIME].iloc[0])
+        w, a, m = (calibrated(fit, rec, s) for s in ("gyr", "acc", "mag"))
+        col = temperature_column(table)
+        temp = table[col].to_numpy(dtype=float) if col else None
+        for r in rows.itertuples(index=False):
+            sl = slice(int(r.start_index), int(r.end_index))
+            ws = w[sl][np.all(np.isfinite(w[sl]), axis=1)]
+            as_ = a[sl][np.all(np.isfinite(a[sl]), axis=1)]
+            if len(ws) < 3 or len(as_) < 3:
+                continue
+            north = east = up = np.full(3, np.nan)
+            ms = m[sl][np.all(np.isfinite(m[sl]), axis=1)]
+            up_ = as_.mean(axis=0) / np.linalg.norm(as_.mean(axis=0))
+            if len(ms):
+                e = np.cross(ms.mean(axis=0), up_)  # north x up = east
+                if np.linalg.norm(e) > 0:
+                    east = e / np.linalg.norm(e)
+                    up = up_
+                    north = np.cross(up, east)
+            rows_out["recording"].append(rec)
+            rows_out["mid_s"].append(0.5 * (r.start_s + r.end_s) - t0)
+            rows_out["gyr"].append(ws.mean(axis=0))
+            rows_out["gyr_var"].append(_white_variance(ws, float(sens["gyr"]) ** 2 / 12))
+            rows_out["acc"].append(as_.mean(axis=0))
+            rows_out["acc_var"].append(float(np.mean(_white_variance(as_, float(sens["acc"]) ** 2 / 12))))
+            rows_out["north"].append(north)
+            rows_out["east"].append(east)
+            rows_out["up"].append(up)
+            seg_temp = temp[sl] if temp is not None else np.array([np.nan])
+            rows_out["temp"].append(float(np.nanmean(seg_temp)) if np.any(np.isfinite(seg_temp)) else np.nan)
+    arrays = {k: np.array(v, dtype=float).reshape(len(v), -1).squeeze(-1) if k in ("mid_s", "acc_var", "temp")
+              else np.array(v, dtype=float).reshape(len(v), 3)
+              for k, v in rows_out.items() if k != "recording"}  # fmt: skip
+    return RestingMeans(recording=rows_out["recording"], **arrays)
 
 
 def mean_temperature(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.ndarray | None:
@@ -796,14 +859,12 @@ def mean_temperature(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.
 
 
 def _temperature(fit: SessionFit, half) -> dict:
-    samples = resting_samples(fit, half)
-    if len(samples) < 4:
+    rest = resting_means(fit, half)
+    ok = np.isfinite(rest.temp)
+    if ok.sum() < 4 or np.ptp(rest.temp[ok]) <= 0:
         return {}
-    temp = np.array([s[2] for s in samples])
-    if np.ptp(temp) <= 0:
-        return {}
-    gyr = np.array([s[0] for s in samples])
-    acc = np.linalg.norm([s[1] for s in samples], axis=1) - fit.extra["options"].gravity_m_s2
+    temp, gyr = rest.temp[ok], rest.gyr[ok]
+    acc = np.linalg.norm(rest.acc[ok], axis=1) - fit.extra["options"].gravity_m_s2
     x = temp - temp.mean()
     out = {("temperature", "acc", "norm", "rest", "temp_slope"): float(x @ (acc - acc.mean()) / (x @ x))}
     for j, a in enumerate(AXES):
