@@ -72,7 +72,7 @@ def plot_effects(diagnosis: Mapping) -> Figure:
     ax.set_xscale("symlog", linthresh=1.0)  # a gap closed entirely is 0
     ax.set_yticks(y, [e["name"] for e in ev])
     ax.set_xlabel("total gap (squared scores beyond what noise gives)")
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(0, 1.0), ncol=3, frameon=False)
     fig.tight_layout()
     return fig
 
