@@ -16,7 +16,7 @@ its physics gate (e.g. a rate the Earth cannot have) or that the exact model abs
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,26 +60,49 @@ class Candidate:
         return 1 - self.heldout_after / self.heldout_before
 
 
-def _shift(twin: Twin, effect, replicas, half, n_seeds: int) -> dict:
-    """Change of the transformed statistics of ``half`` when ``effect`` is added.
+def detection_z(value: float, null_values) -> float:
+    """Score of an effect estimator's detection statistic against its values on the replicas
+    (prediction interval; a null that is constant, e.g. no lost packet in any replica, gets a
+    relative resolution), clipped to +-1e6."""
+    vals = np.array([v for v in null_values if v is not None], dtype=float)
+    spread = np.std(vals, ddof=1) * np.sqrt(1 + 1 / len(vals)) if len(vals) > 2 else np.inf
+    spread = max(spread, 1e-9 * max(abs(np.mean(vals)), abs(value)), 1e-300)
+    return float(np.clip((value - np.mean(vals)) / spread, -1e6, 1e6))
+
+
+def statistic_shift(pairs) -> dict:
+    """Change of the transformed statistics when an effect is added, over seeds.
+
+    Parameters
+    ----------
+    pairs : iterable of (dict, dict)
+        Per seed, the statistics with the effect and without it (same seed, same half).
 
     Returns
     -------
     dict
-        Key -> (mean change, variance of the change across seeds).
+        Key -> (mean change, variance of the change across seeds); a seed where a statistic
+        is undefined says nothing about it.
     """
     diffs: dict = {}
-    for rep in replicas[:n_seeds]:
-        with_effect = run_replica(twin, rep.seed, (effect,))
-        for k, v in with_effect.stats[half].items():
-            if k in rep.stats[half]:
-                d = transform(k, v) - transform(k, rep.stats[half][k])
-                if np.isfinite(d):  # a seed where the statistic is undefined says nothing
+    for with_effect, clean in pairs:
+        for k, v in with_effect.items():
+            if k in clean:
+                d = transform(k, v) - transform(k, clean[k])
+                if np.isfinite(d):
                     diffs.setdefault(k, []).append(d)
     return {
         k: (float(np.mean(v)), float(np.var(v, ddof=1)) if len(v) > 1 else 0.0)
         for k, v in diffs.items()
     }
+
+
+def _shift(twin: Twin, effect, replicas, half, n_seeds: int) -> dict:
+    """:func:`statistic_shift` of ``effect`` on ``half`` over the first ``n_seeds`` replicas."""
+    return statistic_shift(
+        (run_replica(twin, rep.seed, (effect,), (half,)).stats[half], rep.stats[half])
+        for rep in replicas[:n_seeds]
+    )
 
 
 def add_shifts(a: Mapping, b: Mapping) -> dict:
@@ -126,18 +149,62 @@ def attribute(
                                    note="the session cannot show this effect"))  # fmt: skip
             continue
         null_detect = [model.estimate(r.fit, None) for r in replicas]
-        vals = np.array([e.detect for e in null_detect if e is not None], dtype=float)
-        spread = np.std(vals, ddof=1) * np.sqrt(1 + 1 / len(vals)) if len(vals) > 2 else np.inf
-        # a null that is constant (no lost packet in any replica) gets a relative resolution
-        spread = max(spread, 1e-9 * max(abs(np.mean(vals)), abs(est.detect)), 1e-300)
-        z = float(np.clip((est.detect - np.mean(vals)) / spread, -1e6, 1e6))
-        cand = Candidate(name, est.params, est_a.params if est_a else None, est.detect, float(z))
+        z = detection_z(est.detect, [e.detect for e in null_detect if e is not None])
+        cand = Candidate(name, est.params, est_a.params if est_a else None, est.detect, z)
         if not model.opens_gap:
             cand.blocked = "reported, not attributed: the pipeline's exact model absorbs it"
         elif model.gate is not None and abs(z) >= detect_z:
             cand.blocked = model.gate(est, null_detect, detect_z)
         cand.note = cand.blocked
         cands.append(cand)
+    def shifts_of(c: Candidate) -> tuple[dict, dict]:
+        model = models[c.name]
+        return (_shift(twin, model.simulator_effect(c.params), replicas, None, n_seeds),
+                _shift(twin, model.simulator_effect(c.params_a or c.params), replicas, "B",
+                       n_seeds))  # fmt: skip
+
+    explained, shift, shift_b, rounds = select_forward(
+        cands, stats, null_full, null_b, shifts_of,
+        alpha=alpha, min_heldout_shrink=min_heldout_shrink, detect_z=detect_z,
+    )  # fmt: skip
+    return cands, explained, shift, shift_b, rounds
+
+
+def select_forward(
+    cands: Sequence[Candidate],
+    stats: Mapping,
+    null_full: NullModel,
+    null_b: NullModel,
+    shifts_of: Callable[[Candidate], tuple[dict, dict]],
+    *,
+    alpha: float,
+    min_heldout_shrink: float,
+    detect_z: float,
+) -> tuple[list[str], dict, dict, list[dict]]:
+    """The forward selection of the module docstring, on candidates already scored.
+
+    Parameters
+    ----------
+    cands : list of Candidate
+        Updated in place (gaps, notes, ``accepted``).
+    stats : dict
+        The session's statistics per half (None, 'A', 'B').
+    null_full, null_b : NullModel
+        Nulls of all statistics and of half B.
+    shifts_of : callable
+        ``candidate -> (shift, shift_b)``: the null shift of the effect at its estimate (all
+        statistics) and at its half-A estimate (half B); called once per evaluated candidate.
+    alpha, min_heldout_shrink, detect_z : float
+
+    Returns
+    -------
+    explained : list of str
+        Accepted effects, in order.
+    shift, shift_b : dict
+        Total null shift of the accepted effects (full statistics, half B).
+    rounds : list of dict
+        Per selection round, effect -> held-out shrink (evaluated effects).
+    """
     shift: dict = {}
     shift_b: dict = {}
     explained: list[str] = []
@@ -162,10 +229,7 @@ def attribute(
                 c.evaluated = False
                 continue
             if not c.shift:
-                effect = models[c.name].simulator_effect(c.params)
-                c.shift = _shift(twin, effect, replicas, None, n_seeds)
-                effect_a = models[c.name].simulator_effect(c.params_a or c.params)
-                c.shift_b = _shift(twin, effect_a, replicas, "B", n_seeds)
+                c.shift, c.shift_b = shifts_of(c)
             c.evaluated = True
             c.note = "" if gap_b_now > 0 else (
                 "half B shows no gap beyond noise: the held-out check cannot confirm an effect"
@@ -182,7 +246,7 @@ def attribute(
         best.accepted = True
         explained.append(best.name)
         shift, shift_b = add_shifts(shift, best.shift), add_shifts(shift_b, best.shift_b)
-    return cands, explained, shift, shift_b, rounds
+    return explained, shift, shift_b, rounds
 
 
 def confusable(rounds: Sequence[Mapping], explained: Sequence[str], threshold: float) -> list:

@@ -43,11 +43,12 @@ class Replica:
     stats: dict
 
 
-def run_replica(twin: Twin, seed: int, effects: tuple = ()) -> Replica:
-    """Render, refit and measure one replica of the twin (with optional simulator effects)."""
+def run_replica(twin: Twin, seed: int, effects: tuple = (), halves: tuple = HALVES) -> Replica:
+    """Render, refit and measure one replica of the twin (with optional simulator effects),
+    its statistics on the given ``halves``."""
     imu, reference = render_replica(twin, seed, effects)
     fit = calibrate_session(imu, reference, replica_options(twin, effects))
-    return Replica(seed, fit, {h: compute_statistics(fit, h) for h in HALVES})
+    return Replica(seed, fit, {h: compute_statistics(fit, h) for h in halves})
 
 
 def run_replicas(twin: Twin, n: int, seed: int) -> list[Replica]:

@@ -47,7 +47,7 @@ from scipy.optimize import brentq, curve_fit
 
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import AXES, SENSOR_COLUMNS, SENSORS, TIME
-from imucal.gap.attribution import add_shifts, confusable
+from imucal.gap.attribution import Candidate, confusable, detection_z, select_forward, statistic_shift
 from imucal.gap.diagnosis import FORMAT_VERSION, LOCATION_FIELDS
 from imucal.gap.null import NullModel, holm, transform
 from imucal.gap.statistics import CATALOGUE, HALVES, StatisticInfo, allan_deviation, temperature_column
@@ -615,15 +615,12 @@ def _null(replicas, half, keys) -> NullModel:
 
 
 def _shift(twin, effect, replicas, half, n_seeds) -> dict:
-    diffs: dict = {}
-    for rep in replicas[:n_seeds]:
-        stats = static_statistics(render_static(twin, rep.seed, (effect,)), half)
-        for k, v in stats.items():
-            if k in rep.stats[half]:
-                d = transform(k, v) - transform(k, rep.stats[half][k])
-                if np.isfinite(d):  # a seed where the statistic is undefined says nothing
-                    diffs.setdefault(k, []).append(d)
-    return {k: (float(np.mean(v)), float(np.var(v, ddof=1)) if len(v) > 1 else 0.0) for k, v in diffs.items()}
+    """:func:`~imucal.gap.attribution.statistic_shift` of ``effect`` on ``half`` over the first
+    ``n_seeds`` static replicas."""
+    return statistic_shift(
+        (static_statistics(render_static(twin, rep.seed, (effect,)), half), rep.stats[half])
+        for rep in replicas[:n_seeds]
+    )
 
 
 def _locations(keys, t, reject, only_significant: bool) -> list[dict]:
@@ -723,71 +720,38 @@ def diagnose_static(
     cands = []
     for name, model in STATIC_LIBRARY.items():
         est, est_a = model.estimate(streams), model.estimate({k: s.half("A") for k, s in streams.items()})
-        c = {"name": name, "params": None, "params_a": None, "detect": None, "detect_z": None,
-             "gap_before": None, "gap_after": None, "heldout_before": None, "heldout_after": None,
-             "heldout_deviance": None, "accepted": False, "evaluated": False, "note": "", "shift": None, "shift_b": None}  # fmt: skip
         if est is None:
-            c["note"] = "the session cannot show this effect (no such stream or channel)"
-        else:
-            vals = np.array([e[1] for e in (model.estimate(r.streams) for r in reps) if e is not None])
-            spread = np.std(vals, ddof=1) * np.sqrt(1 + 1 / len(vals)) if len(vals) > 2 else np.inf
-            spread = max(spread, 1e-9 * max(abs(np.mean(vals)), abs(est[1])), 1e-300)
-            c.update(params=est[0], params_a=(est_a or est)[0], detect=float(est[1]),
-                     detect_z=float(np.clip((est[1] - np.mean(vals)) / spread, -1e6, 1e6)))  # fmt: skip
-        cands.append(c)
+            cands.append(Candidate(name, None, None, float("nan"), float("nan"),
+                                   note="the session cannot show this effect (no such stream or channel)"))  # fmt: skip
+            continue
+        z = detection_z(est[1], [e[1] for e in (model.estimate(r.streams) for r in reps) if e is not None])
+        cands.append(Candidate(name, est[0], (est_a or est)[0], float(est[1]), z))
 
-    shift: dict = {}
-    shift_b: dict = {}
-    explained: list[str] = []
-    rounds: list[dict] = []
-    while True:
-        t_now = null_full.t(stats[None], shift)
-        open_ = [c for c in cands if not c["accepted"] and c["params"] is not None]
-        if not holm(null_full.p_values(t_now), alpha).any() or not open_:
-            break
-        gap_now, gap_b_now = null_full.gap(stats[None], shift), null_b.gap(stats["B"], shift_b)
-        best = None
-        for c in open_:
-            c["gap_before"], c["heldout_before"] = gap_now, gap_b_now
-            if abs(c["detect_z"]) < detect_z:
-                c.update(note=f"estimate within the null (|z| = {abs(c['detect_z']):.1f} < {detect_z:g})",
-                         gap_after=None, heldout_after=None, evaluated=False)  # fmt: skip
-                continue
-            if c["shift"] is None:
-                c["shift"] = _shift(twin, make_effect(c["name"], **c["params"]), reps, None, crn_seeds)
-                c["shift_b"] = _shift(twin, make_effect(c["name"], **c["params_a"]), reps, "B", crn_seeds)
-            c["evaluated"], c["note"] = True, ""
-            c["gap_after"] = null_full.gap(stats[None], add_shifts(shift, c["shift"]))
-            c["heldout_after"] = null_b.gap(stats["B"], add_shifts(shift_b, c["shift_b"]))
-            c["heldout_deviance"] = null_b.deviance(stats["B"], add_shifts(shift_b, c["shift_b"]))
-            # as in imucal.gap.attribution: qualify on the shrink, rank by the deviance
-            if _heldout(c) >= min_heldout_shrink and (
-                best is None or c["heldout_deviance"] < best["heldout_deviance"]
-            ):
-                best = c
-        rounds.append({c["name"]: _heldout_or_none(c) for c in open_ if c["evaluated"]})
-        if best is None:
-            break
-        best["accepted"] = True
-        explained.append(best["name"])
-        shift, shift_b = add_shifts(shift, best["shift"]), add_shifts(shift_b, best["shift_b"])
+    def shifts_of(c: Candidate) -> tuple[dict, dict]:
+        return (_shift(twin, make_effect(c.name, **c.params), reps, None, crn_seeds),
+                _shift(twin, make_effect(c.name, **c.params_a), reps, "B", crn_seeds))  # fmt: skip
+
+    explained, shift, _, rounds = select_forward(
+        cands, stats, null_full, null_b, shifts_of,
+        alpha=alpha, min_heldout_shrink=min_heldout_shrink, detect_z=detect_z,
+    )  # fmt: skip
 
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
     effects = []
-    for c in sorted(cands, key=lambda c: (not c["accepted"], -_heldout(c))):
-        gb, ga = c["gap_before"], c["gap_after"]
+    order = lambda c: (not c.accepted, -(c.heldout_shrink if c.heldout_shrink is not None else -np.inf))  # noqa: E731
+    for c in sorted(cands, key=order):
         effects.append({
-            "name": c["name"], "params": c["params"], "gap_before": gb, "gap_after": ga,
-            "shrink": None if ga is None or not gb else 1 - ga / gb,
-            "heldout_shrink": _heldout_or_none(c), "heldout_deviance": c["heldout_deviance"],
-            "accepted": c["accepted"],
-            "detect": c["detect"], "detect_z": c["detect_z"], "evaluated": c["evaluated"],
+            "name": c.name, "params": c.params, "gap_before": c.gap_before,
+            "gap_after": c.gap_after, "shrink": c.shrink, "heldout_shrink": c.heldout_shrink,
+            "heldout_deviance": c.heldout_deviance, "accepted": c.accepted,
+            "detect": None if c.params is None else c.detect,
+            "detect_z": None if c.params is None else c.detect_z, "evaluated": c.evaluated,
             "signature_hits": [
                 dict(zip(LOCATION_FIELDS, k, strict=True))
-                for k, r in zip(keys, reject, strict=True) if r and STATIC_LIBRARY[c["name"]].matches(k)
+                for k, r in zip(keys, reject, strict=True) if r and STATIC_LIBRARY[c.name].matches(k)
             ],
-            "note": c["note"],
+            "note": c.note,
         })  # fmt: skip
     return {
         "format_version": FORMAT_VERSION,
@@ -816,17 +780,6 @@ def diagnose_static(
                      "crn_seeds": crn_seeds, "detect_z": detect_z},  # fmt: skip
         "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
     }
-
-
-def _heldout_or_none(c: Mapping) -> float | None:
-    if c["heldout_after"] is None or not c["heldout_before"]:
-        return None
-    return 1 - c["heldout_after"] / c["heldout_before"]
-
-
-def _heldout(c: Mapping) -> float:
-    h = _heldout_or_none(c)
-    return -np.inf if h is None else h
 
 
 def diagnose_partial_session(
