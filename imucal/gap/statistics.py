@@ -844,10 +844,10 @@ def resting_means(fit: SessionFit, half) -> RestingMeans:
             rows_out["up"].append(up)
             seg_temp = temp[sl] if temp is not None else np.array([np.nan])
             rows_out["temp"].append(float(np.nanmean(seg_temp)) if np.any(np.isfinite(seg_temp)) else np.nan)
-    arrays = {k: np.array(v, dtype=float).reshape(len(v), -1).squeeze(-1) if k in ("mid_s", "acc_var", "temp")
-              else np.array(v, dtype=float).reshape(len(v), 3)
-              for k, v in rows_out.items() if k != "recording"}  # fmt: skip
-    return RestingMeans(recording=rows_out["recording"], **arrays)
+    vectors = {k: np.array(rows_out[k], dtype=float).reshape(-1, 3)
+               for k in ("gyr", "gyr_var", "acc", "north", "east", "up")}  # fmt: skip
+    scalars = {k: np.array(rows_out[k], dtype=float) for k in ("mid_s", "acc_var", "temp")}
+    return RestingMeans(recording=rows_out["recording"], **vectors, **scalars)
 
 
 def mean_temperature(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.ndarray | None:
