@@ -6,8 +6,9 @@ The paper (Zhang et al. 2014) segments by hand; the rules here are the implement
 **Quiet windows.** The moving variance of each axis over windows of ``window_s`` is compared
 with a threshold taken from the data: for white noise of variance ``s^2`` the variance ``v`` of
 a window of ``n`` samples follows ``s^2 chi2(n - 1) / (n - 1)``. The noise variance of each axis
-is estimated from the 10 % quantile of all window variances (the quietest windows are static or
-constant-rate in every protocol recording) divided by the same quantile of ``chi2(n-1)/(n-1)``,
+is estimated from the 10 % quantile of the window variances (the quietest windows are static or
+constant-rate in every protocol recording; windows constant on the axis, clipped at the range,
+are left out) divided by the same quantile of ``chi2(n-1)/(n-1)``,
 then refined once as the median variance of the windows found quiet. A window is quiet when
 every axis stays below the ``1 - p_false`` quantile of that distribution (``p_false = 1e-6``:
 ~2.3 s^2 for 0.5 s at 100 Hz). The estimate is floored at the quantisation variance
@@ -15,15 +16,28 @@ every axis stays below the ``1 - p_false`` quantile of that distribution (``p_fa
 quiet window contains it, so a quiet interval ends where the motion becomes visible.
 
 **Static intervals** are quiet in both the gyroscope and the accelerometer, last at least
-``min_static_s``, and have a mean raw rate within ``rest_tol_dps`` of the rest level (the mean
-rate of the quiet interval with the smallest mean rate): a rotation at constant rate about the
-vertical is quiet in both sensors but is not static.
+``min_static_s``, and have a mean raw rate at the *rest level*, the gyro bias. The bias of a
+consumer part is large (an MPU-6050's zero-rate output is specified to +-20 deg/s) and moves
+during a session (warm-up 0.1-0.25 deg/s/K, random walk), so the rest level is neither zero,
+nor the smallest mean rate, nor one constant. It is found as the longest *chain* of quiet
+intervals in time order whose consecutive mean rates differ by at most ``rest_tol_dps`` plus
+``rest_drift_dps_per_s`` times the time between them: every quiet interval seeds a chain, the
+chain is grown forwards and backwards from it, and the chain with the largest total duration is
+the rest (the protocols rest most of the time; a slow handling motion or a constant-rate
+rotation about the vertical is quiet too, but short or far from the bias). The rest level at any
+time is interpolated linearly between the static intervals' mean rates (constant beyond the
+first and last), so integrals of the rate and rate-table rates are taken against the bias of
+their own time. Quiet intervals left out are listed with their mean rate in the notes.
 
-**Motions** are the stretches between static intervals. The raw rate minus the rest level is
-integrated with the real timestamps (trapezoid); the dominant raw axis is the axis of largest
+**Motions** are the stretches between static intervals. The raw rate minus the rest level (of
+its time) is integrated with the real timestamps (trapezoid); the dominant raw axis is the axis of largest
 absolute angle (misalignment is unknown before calibration). A motion is a full-turn *phase*
 when its raw turns ``r`` round to ``k >= 1`` with ``|r / k - 1| <= scale_tol`` (the gyro scale is
-unknown to ~15 %), else a *transition*.
+unknown to ~15 %), else a *transition*. A motion *clipped* at the gyroscope range (at least
+:data:`MIN_CLIPPED_SAMPLES` samples and 2 % of its samples on the recording's extreme reading
+of the dominant axis) reads fewer raw turns than it made: it is a phase when the protocol order
+expects one about its axis there and ``r`` is at least half a turn; its ``turns`` is then NaN
+(unknown), and the notes name it.
 
 **Cube positions** are static intervals; consecutive ones whose mean specific force points the
 same way (within half the 45-degree V-block step, 22.5 deg) are one position (a yaw about the
@@ -80,6 +94,9 @@ POSE_RECORDINGS = ("poses", "tumble", "ferraris")
 SAME_POSITION_DEG = 22.5
 #: Quantile of the window variances that seeds the noise estimate (see module docstring).
 NOISE_QUANTILE = 0.1
+#: Fewest samples on the extreme reading for a motion to count as clipped (an unclipped
+#: recording holds its extreme in one or two samples).
+MIN_CLIPPED_SAMPLES = 10
 
 
 @dataclass(frozen=True)
@@ -95,7 +112,11 @@ class DetectorSettings:
     min_static_s : float
         Shortest static interval (and shortest rate-table plateau), s.
     rest_tol_dps : float
-        Largest difference of a static interval's mean raw rate from the rest level, deg/s.
+        Largest difference between the mean raw rates of consecutive static intervals, deg/s.
+    rest_drift_dps_per_s : float
+        Largest drift of the rest level (the gyro bias) between static intervals, deg/s per s
+        of time between them (a 15 K warm-up at 0.25 deg/s/K with a 200 s time constant starts
+        at 0.019 deg/s/s).
     scale_tol : float
         Largest relative difference between a raw angle or rate and its nominal value
         (unknown gyro scale).
@@ -106,9 +127,16 @@ class DetectorSettings:
     min_static_s: float = 1.0
     rest_tol_dps: float = 2.0
     scale_tol: float = 0.2
+    rest_drift_dps_per_s: float = 0.02
 
     def __post_init__(self) -> None:
-        for name in ("window_s", "min_static_s", "rest_tol_dps", "scale_tol"):
+        for name in (
+            "window_s",
+            "min_static_s",
+            "rest_tol_dps",
+            "scale_tol",
+            "rest_drift_dps_per_s",
+        ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} = {value!r}: expected a positive number")
@@ -153,6 +181,26 @@ def _quantisation_variance(x: np.ndarray) -> np.ndarray:
     return np.array([_quantisation_step(x[:, k]) ** 2 / 12 for k in range(x.shape[1])])
 
 
+def at_extreme(x: np.ndarray, a: int, b: int, sign: float) -> np.ndarray:
+    """Rows ``a .. b - 1`` of one axis ``x`` (n,) that sit on the recording's extreme reading
+    of the given sign (within half a quantisation step): readings clipped at the range."""
+    extreme = x.max() if sign > 0 else x.min()
+    return np.abs(x[a:b] - extreme) <= _quantisation_step(x) / 2
+
+
+def _clipped_windows(x: np.ndarray, window: int) -> np.ndarray:
+    """Windows (n - window + 1, k) holding a reading clipped at the range on that axis: the
+    axis's extreme reading of either sign, when at least :data:`MIN_CLIPPED_SAMPLES` hold it."""
+    out = np.zeros((x.shape[0] - window + 1, x.shape[1]), dtype=bool)
+    for k in range(x.shape[1]):
+        for sign in (1.0, -1.0):
+            hit = at_extreme(x[:, k], 0, x.shape[0], sign)
+            if hit.sum() >= MIN_CLIPPED_SAMPLES:
+                c = np.concatenate([[0], np.cumsum(hit)])
+                out[:, k] |= (c[window:] - c[:-window]) > 0
+    return out
+
+
 def find_quiet_windows(x: np.ndarray, window: int, p_false: float) -> tuple[np.ndarray, np.ndarray]:
     """Windows whose variance is consistent with the sensor noise alone, on every axis.
 
@@ -180,9 +228,14 @@ def find_quiet_windows(x: np.ndarray, window: int, p_false: float) -> tuple[np.n
     var = moving_variance(x, window)
     dof = window - 1
     floor = _quantisation_variance(np.asarray(x, dtype=float))
-    # seed: the quietest NOISE_QUANTILE of the windows are noise only
-    noise = np.quantile(var, NOISE_QUANTILE, axis=0) / (stats.chi2.ppf(NOISE_QUANTILE, dof) / dof)
-    noise = np.maximum(noise, floor)
+    # seed: the quietest NOISE_QUANTILE of the windows are noise only; windows that touch a
+    # reading clipped at the sensor range hold less noise and are left out of that axis's seed
+    clean = ~_clipped_windows(np.asarray(x, dtype=float), window)
+    seed = [
+        np.quantile(v[ok], NOISE_QUANTILE) if ok.any() else np.quantile(v, NOISE_QUANTILE)
+        for v, ok in zip(var.T, clean.T)
+    ]
+    noise = np.maximum(np.array(seed) / (stats.chi2.ppf(NOISE_QUANTILE, dof) / dof), floor)
     limit = stats.chi2.ppf(1 - p_false, dof) / dof
     quiet = np.all(var <= limit * noise, axis=1)
     if quiet.any():  # refine on the windows found quiet
@@ -240,18 +293,84 @@ def _check_inputs(t_s: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> tuple[np
 
 @dataclass(frozen=True)
 class StaticIntervals:
-    """Static intervals of a recording and the raw gyro rest level.
+    """Static intervals of a recording and the raw gyro rest level over time.
 
     Attributes
     ----------
     intervals : list of (int, int)
         Row ranges, end exclusive, in time order.
-    rest_rad_s : ndarray, shape (3,)
-        Mean raw rate of the static samples (the gyro bias seen at rest), rad/s.
+    levels_rad_s : ndarray, shape (m, 3)
+        Mean raw rate of each static interval (the gyro bias of its time), rad/s.
+    centres_s : ndarray, shape (m,)
+        Mid time of each static interval, s.
+    rejected : list of (int, int, ndarray)
+        Quiet intervals not at the rest level: row range and mean raw rate (3,), rad/s.
     """
 
     intervals: list
-    rest_rad_s: np.ndarray
+    levels_rad_s: np.ndarray
+    centres_s: np.ndarray
+    rejected: list = ()
+
+    @property
+    def rest_rad_s(self) -> np.ndarray:
+        """Mean raw rate of all static samples, rad/s, shape (3,)."""
+        n = np.array([b - a for a, b in self.intervals], dtype=float)
+        return n @ self.levels_rad_s / n.sum()
+
+    def rest_at(self, t_s: np.ndarray) -> np.ndarray:
+        """Rest level at times ``t_s`` (n,): linear between the static intervals' means,
+        constant beyond the first and the last; shape (n, 3), rad/s."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        return np.column_stack(
+            [np.interp(t, self.centres_s, self.levels_rad_s[:, k]) for k in range(3)]
+        )
+
+    def drift_dps(self) -> float:
+        """Largest change of the rest level between static intervals, deg/s."""
+        spread = self.levels_rad_s.max(axis=0) - self.levels_rad_s.min(axis=0)
+        return float(np.degrees(np.linalg.norm(spread)))
+
+
+def rest_chain(
+    centres_s: np.ndarray, means: np.ndarray, durations_s: np.ndarray, tol: float, drift: float
+) -> np.ndarray:
+    """The longest chain of intervals whose mean rates could all be the drifting gyro bias.
+
+    Parameters
+    ----------
+    centres_s : ndarray, shape (m,)
+        Mid times of the quiet intervals, increasing, s.
+    means : ndarray, shape (m, 3)
+        Their mean raw rates (any rate unit).
+    durations_s : ndarray, shape (m,)
+        Their durations, s.
+    tol : float
+        Largest difference between consecutive members (rate unit).
+    drift : float
+        Allowed further difference per second between them (rate unit per s).
+
+    Returns
+    -------
+    ndarray of bool, shape (m,)
+        Members of the chain of largest total duration (the earliest seed on a tie).
+    """
+    m = len(centres_s)
+    best, best_len = np.zeros(m, bool), -1.0
+    for seed in range(m):
+        member = np.zeros(m, bool)
+        member[seed] = True
+        for order in (range(seed + 1, m), range(seed - 1, -1, -1)):
+            last = seed
+            for j in order:
+                gap = abs(centres_s[j] - centres_s[last])
+                if np.linalg.norm(means[j] - means[last]) <= tol + drift * gap:
+                    member[j] = True
+                    last = j
+        length = float(durations_s[member].sum())
+        if length > best_len:
+            best, best_len = member, length
+    return best
 
 
 def find_static_intervals(
@@ -260,7 +379,7 @@ def find_static_intervals(
     gyr: np.ndarray,
     settings: DetectorSettings = DetectorSettings(),
 ) -> StaticIntervals:
-    """Static intervals: quiet gyro and accelerometer, raw rate at the rest level.
+    """Static intervals: quiet gyro and accelerometer, raw rate at the (drifting) rest level.
 
     Parameters
     ----------
@@ -296,11 +415,43 @@ def find_static_intervals(
             f"of data (window {settings.window_s} s): expected the sensor to rest at some time"
         )
     means = np.array([gyr[a:b].mean(axis=0) for a, b in candidates])
-    rest = means[np.argmin(np.linalg.norm(means, axis=1))]
-    tol = np.radians(settings.rest_tol_dps)
-    intervals = [c for c, m in zip(candidates, means) if np.linalg.norm(m - rest) <= tol]
-    rows = np.concatenate([np.arange(a, b) for a, b in intervals])
-    return StaticIntervals(intervals, gyr[rows].mean(axis=0))
+    centres = np.array([(t[a] + t[b - 1]) / 2 for a, b in candidates])
+    durations = np.array([t[b - 1] - t[a] for a, b in candidates])
+    rest = rest_chain(
+        centres, means, durations,
+        np.radians(settings.rest_tol_dps), np.radians(settings.rest_drift_dps_per_s),
+    )  # fmt: skip
+    rejected = [(a, b, m) for (a, b), m, r in zip(candidates, means, rest) if not r]
+    return StaticIntervals(
+        [c for c, r in zip(candidates, rest) if r], means[rest], centres[rest], rejected
+    )
+
+
+def rest_note(
+    recording: str, t_s: np.ndarray, static: StaticIntervals, rejected: bool = False
+) -> str:
+    """What the rest-level search decided, in the data's terms ('' when nothing to say); with
+    ``rejected``, also the quiet intervals left out (where the protocol has no constant-rate
+    motion, so each is a slow motion worth naming)."""
+    parts = []
+    drift = static.drift_dps()
+    if drift > 0.5:
+        parts.append(
+            f"rest level (gyro bias) moves by {drift:.2f} deg/s over "
+            f"{static.centres_s[-1] - static.centres_s[0]:.0f} s; rates are taken against the "
+            "rest level interpolated in time"
+        )
+    if rejected and len(static.rejected):
+        listed = ", ".join(
+            f"{t_s[a]:.1f}-{t_s[b - 1]:.1f} s ({np.degrees(np.linalg.norm(m - static.rest_at(t_s[a])[0])):.1f} deg/s off)"
+            for a, b, m in static.rejected[:6]
+        )
+        more = f" and {len(static.rejected) - 6} more" if len(static.rejected) > 6 else ""
+        parts.append(
+            f"{len(static.rejected)} quiet interval(s) not at the rest level (slow motions): "
+            f"{listed}{more}"
+        )
+    return f"{recording}: " + "; ".join(parts) if parts else ""
 
 
 @dataclass(frozen=True)
@@ -344,7 +495,7 @@ def find_motions(t_s: np.ndarray, gyr: np.ndarray, static: StaticIntervals) -> l
     one after it, so that the integral covers the whole rotation.
     """
     t = np.asarray(t_s, dtype=float)
-    rate = np.asarray(gyr, dtype=float) - static.rest_rad_s
+    rate = np.asarray(gyr, dtype=float) - static.rest_at(t)
     bounds = [(0, 0), *static.intervals, (t.size, t.size)]
     motions = []
     for (_, prev_end), (next_start, _) in itertools.pairwise(bounds):
@@ -353,6 +504,12 @@ def find_motions(t_s: np.ndarray, gyr: np.ndarray, static: StaticIntervals) -> l
         a, b = max(prev_end - 1, 0), min(next_start + 1, t.size)
         motions.append(Motion(prev_end, next_start, integrate_rate(t, rate, a, b)))
     return motions
+
+
+def _clipped(gyr: np.ndarray, m: Motion) -> bool:
+    """The motion's dominant axis sits on the extreme reading long enough to be clipped."""
+    n = int(at_extreme(gyr[:, AXES.index(m.axis)], m.start, m.end, m.raw_turns).sum())
+    return n >= max(MIN_CLIPPED_SAMPLES, 0.02 * (m.end - m.start))
 
 
 def _describe(t: np.ndarray, m: Motion) -> str:
@@ -421,13 +578,14 @@ def segment_rotation3d(
     Raises
     ------
     ValueError
-        If the full-turn motions are not exactly one about x, then y, then z; the message lists
-        every motion found (raw axis, angle, time).
+        If the phases (full-turn or clipped motions) are not exactly one about x, then y,
+        then z; the message lists every motion found (raw axis, angle, time).
     """
     t, acc, gyr = _check_inputs(t_s, acc, gyr)
     static = find_static_intervals(t, acc, gyr, settings)
     motions = find_motions(t, gyr, static)
-    phases = [m for m in motions if _full_turns(m.raw_turns, settings.scale_tol)]
+    clipped = [m for m in motions if abs(m.raw_turns) >= 0.5 and _clipped(gyr, m)]
+    phases = [m for m in motions if _full_turns(m.raw_turns, settings.scale_tol) or m in clipped]
     if [m.axis for m in phases] != list(AXES):
         found = "; ".join(_describe(t, m) for m in motions) or "none"
         raise ValueError(
@@ -442,7 +600,7 @@ def segment_rotation3d(
     n_transition = 0
     for m in motions:
         if m in phases:
-            k = _full_turns(m.raw_turns, settings.scale_tol)
+            k = np.nan if m in clipped else _full_turns(m.raw_turns, settings.scale_tol)
             sense = int(np.sign(m.raw_turns))
             rows.append(
                 _row(
@@ -475,7 +633,19 @@ def segment_rotation3d(
                     m.raw_turns,
                 )
             )
-    return _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+    out = _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+    notes = [rest_note("rotation3d", t, static).removeprefix("rotation3d: ")]
+    if clipped:
+        notes.append(
+            "phase(s) "
+            + ", ".join(f"{m.axis} ({m.raw_turns:+.2f} raw turns)" for m in clipped)
+            + " clipped at the gyroscope range: a phase by the protocol order, its number of "
+            "turns unknown (the raw angle is a lower bound)"
+        )
+        logger.warning("rotation3d: %s", notes[-1])
+    notes = [n for n in notes if n]
+    out.attrs["notes"] = {"rotation3d": "rotation3d: " + "; ".join(notes)} if notes else {}
+    return out
 
 
 def segment_cube(
@@ -524,9 +694,10 @@ def segment_cube(
         last_dir = g
     if len(groups) < min_positions:
         where = ", ".join(f"{t[g[0][0]]:.1f}-{t[g[-1][1] - 1]:.1f} s" for g in groups) or "none"
+        rest = rest_note("cube", t, static, rejected=True).removeprefix("cube: ")
         raise ValueError(
             f"cube: found {len(groups)} static position(s) ({where}); the cube fit needs at least "
-            f"{min_positions} (the protocol has 12)"
+            f"{min_positions} (the protocol has 12)" + (f"; {rest}" if rest else "")
         )
     if len(groups) != 12:
         logger.warning("cube: found %d positions; the protocol has 12", len(groups))
@@ -540,7 +711,10 @@ def segment_cube(
             else:
                 n_static += 1
                 rows.append(_row("cube", f"s{n_static:02d}", "static", t, a, b))
-    return _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+    out = _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+    note = rest_note("cube", t, static, rejected=True)
+    out.attrs["notes"] = {"cube": note} if note else {}
+    return out
 
 
 @dataclass(frozen=True)
@@ -608,16 +782,12 @@ def find_constant_rate_runs(
     same_rate_dps = (1 - settings.scale_tol) * float(np.diff(levels).min()) / 2
     pieces: list[ConstantRateRun] = []
     for a, b in find_quiet_intervals(t, gyr, settings):
-        w = gyr[a:b].mean(axis=0) - static.rest_rad_s
+        w = gyr[a:b].mean(axis=0) - static.rest_at((t[a] + t[b - 1]) / 2)[0]
         if np.linalg.norm(w) < min_rate:
             continue
         k = int(np.argmax(np.abs(w)))
-        x = gyr[:, k]
-        extreme = x.max() if w[k] > 0 else x.min()
-        at_extreme = np.abs(x[a:b] - extreme) <= _quantisation_step(x) / 2
-        pieces.append(
-            ConstantRateRun(a, b, AXES[k], float(np.degrees(w[k])), bool(at_extreme.mean() >= 0.5))
-        )
+        clipped = at_extreme(gyr[:, k], a, b, w[k]).mean() >= 0.5
+        pieces.append(ConstantRateRun(a, b, AXES[k], float(np.degrees(w[k])), bool(clipped)))
     runs: list[ConstantRateRun] = []
     for p in pieces:
         prev = runs[-1] if runs else None
@@ -733,7 +903,7 @@ def segment_ratetable(
         a = a + (b - a - n) // 2
         return a, a + n
 
-    rate = gyr - static.rest_rad_s
+    rate = gyr - static.rest_at(t)
     rows = []
     for (ax, r), run in zip(expected, matched):
         if run is None:
@@ -759,10 +929,11 @@ def segment_ratetable(
         a, b = centred(a, b, steady_length(ax))  # as long as the steady plateaus of this axis
         rows.append(_row("ratetable", f"{ax}{int(r):+d}", "run", t, a, b, ax, r, 0, np.nan))
     out = _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
+    rest = rest_note("ratetable", t, static)
     labels = {id(m): f"{ax}{int(r):+d}" for (ax, r), m in zip(expected, matched) if m}
     clipped = [labels[id(m)] for m in found if m.clipped]
     split = [labels[id(m)] for m in found if m.pieces > 1]
-    messages = []
+    messages = [rest.removeprefix("ratetable: ")] if rest else []
     if clipped:
         messages.append(
             f"run(s) {', '.join(clipped)} clipped at the gyroscope range (raw reading flat at the "
@@ -834,9 +1005,7 @@ def segment_poses(
             merged[-1][1] = max(merged[-1][1], b)
         else:
             merged.append([a, b])
-    rows = [
-        _row(recording, f"s{k:02d}", "static", t, a, b) for k, (a, b) in enumerate(merged, 1)
-    ]
+    rows = [_row(recording, f"s{k:02d}", "static", t, a, b) for k, (a, b) in enumerate(merged, 1)]
     return _frame(rows)
 
 
@@ -993,6 +1162,7 @@ def segment_dataset(
     min_static_s: float = 1.0,
     rest_tol_dps: float = 2.0,
     scale_tol: float = 0.2,
+    rest_drift_dps_per_s: float = 0.02,
     fallback: bool = False,
 ) -> pd.DataFrame:
     """The segments table of a dataset: automatic, or manual for recordings named in ``manual``.
@@ -1005,7 +1175,7 @@ def segment_dataset(
         ``Dataset.ratetable``.
     manual : list of dict, optional
         ``Dataset.segments``: replaces the automatic segments of every recording it names.
-    window_s, p_false, min_static_s, rest_tol_dps, scale_tol
+    window_s, p_false, min_static_s, rest_tol_dps, scale_tol, rest_drift_dps_per_s
         See ``DetectorSettings``.
     fallback : bool
         For partial sessions: a recording whose protocol is not found (e.g. hand-held turns
@@ -1019,7 +1189,9 @@ def segment_dataset(
         ``attrs['notes']`` (recording -> message): the fallbacks, and the rate-table runs found
         clipped at the sensor range or split by a disturbance (:func:`segment_ratetable`).
     """
-    settings = DetectorSettings(window_s, p_false, min_static_s, rest_tol_dps, scale_tol)
+    settings = DetectorSettings(
+        window_s, p_false, min_static_s, rest_tol_dps, scale_tol, rest_drift_dps_per_s
+    )
     manual = list(manual or [])
     unknown = sorted({e["recording"] for e in manual} - set(tables))
     if unknown:

@@ -519,3 +519,80 @@ def test_clipped_run_reading_above_its_nominal_rate_is_refused(session):
         "run(s) x-400, x+400, y-400, y+400, z-400, z+400 clipped"
         in runs.attrs["notes"]["ratetable"]
     )
+
+
+# --- a consumer part's gyro bias: large, drifting, wandering ----------------------------------
+
+
+def resting_with_yaws(bias_dps, yaw_dps, drift_dps_per_s=(0.0, 0.0, 0.0), seed=0):
+    """z up; 12 rests of 6 s joined by 3-s yaws about z at a constant rate (quiet in both
+    sensors: gravity stays on z), the raw rate = bias (+ a linear drift) + rotation + noise.
+
+    Returns t (n,), acc (n, 3), gyr (n, 3) (rad/s) and the rest intervals (s)."""
+    rng = np.random.default_rng(seed)
+    rests, t_all, w_all, now = [], [], [], 0.0
+    for k in range(12):
+        for length, rate in ((6.0, 0.0), (3.0, yaw_dps))[: 2 if k < 11 else 1]:
+            t = now + np.arange(0, length, 1 / FS)
+            t_all.append(t)
+            w_all.append(np.outer(np.full(t.size, np.radians(rate)), [0, 0, 1]))
+            if rate == 0.0 and length == 6.0:
+                rests.append((t[0], t[-1]))
+            now = t[-1] + 1 / FS
+    t = np.concatenate(t_all)
+    drift = np.radians(np.outer(t, drift_dps_per_s))
+    gyr = np.concatenate(w_all) + np.radians(bias_dps) + drift + rng.normal(0, 0.0015, (t.size, 3))
+    acc = np.array([0, 0, G]) + rng.normal(0, 0.02, (t.size, 3))
+    return t, acc, gyr, rests
+
+
+def test_a_slow_rotation_that_cancels_a_large_bias_is_not_the_rest():
+    """An MPU-6050-class bias (-3.7, -7.0, -7.2) deg/s and yaws at +6 deg/s: each yaw is quiet and
+    its mean raw rate (-3.7, -7.0, -1.2) is smaller than the bias, so the smallest mean rate is
+    a yaw; the rest is the longest chain of equal rates, the 12 true rests."""
+    t, acc, gyr, rests = resting_with_yaws((-3.7, -7.0, -7.2), 6.0)
+    static = find_static_intervals(t, acc, gyr)
+    assert len(static.intervals) == 12
+    for (a, b), (t0, t1) in zip(static.intervals, rests):
+        assert t0 - 0.6 <= t[a] and t[b - 1] <= t1 + 0.6
+    np.testing.assert_allclose(np.degrees(static.rest_rad_s), (-3.7, -7.0, -7.2), atol=0.01)
+    assert len(static.rejected) == 11  # the yaws, each named in the notes
+    seg = segment_cube(t, acc, gyr, min_positions=1)
+    assert "11 quiet interval(s) not at the rest level" in seg.attrs["notes"]["cube"]
+
+
+def test_a_warm_up_drift_beyond_the_tolerance_keeps_every_rest():
+    """A warm-up drift of 0.025 deg/s per s moves the bias by 2.5 deg/s over the recording (more
+    than rest_tol_dps): every rest is kept, the rest level follows the drift in time, and the
+    note says by how much it moved."""
+    t, acc, gyr, _ = resting_with_yaws((5.0, -3.0, 2.0), 60.0, (0.0, 0.025, 0.0))
+    static = find_static_intervals(t, acc, gyr)
+    assert len(static.intervals) == 12
+    true_rest = np.radians(np.array([5.0, -3.0, 2.0]) + np.outer(t, [0, 0.025, 0]))
+    inside = (t > static.centres_s[0]) & (t < static.centres_s[-1])
+    err = np.degrees(static.rest_at(t) - true_rest)[inside]
+    # a linear drift is interpolated exactly; what is left is the noise of a 6-s mean
+    # (0.0015 rad/s / sqrt(600) = 0.0035 deg/s), bound at 5 sigma
+    assert np.abs(err).max() < 5 * np.degrees(0.0015 / np.sqrt(600))
+    assert static.drift_dps() > DetectorSettings().rest_tol_dps
+    note = segment_cube(t, acc, gyr, min_positions=1).attrs["notes"]["cube"]
+    assert f"rest level (gyro bias) moves by {static.drift_dps():.2f} deg/s" in note
+
+
+def test_a_phase_clipped_at_the_gyro_range_is_found_by_the_protocol_order(tmp_path):
+    """A gyro range of 45 deg/s clips the 50-60 deg/s phases: the raw turns read 1.4-1.9 instead
+    of 2, yet the phases are found (x, y, z), with unknown turns and a note; the noise estimate
+    ignores the clipped (constant) windows, so the rests are still found."""
+    from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
+    from imucal.sim.effects import make_effect, stream_rng
+
+    truth = make_truth("random", stream_rng(6, "truth"))
+    session = simulate_session(
+        truth, 7, ProtocolConfig(static_s=20.0), (make_effect("saturation", gyr=2950),)
+    )
+    _, tables = ingested(write_session(session, tmp_path / "clipped"))
+    seg = segment_dataset({"rotation3d": tables["rotation3d"]})
+    phases = seg[seg["kind"] == "phase"]
+    assert list(phases["label"]) == ["x", "y", "z"]
+    assert phases["turns"].isna().all()
+    assert "clipped at the gyroscope range" in seg.attrs["notes"]["rotation3d"]

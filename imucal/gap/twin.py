@@ -209,7 +209,11 @@ def protocol_config(fit: SessionFit) -> tuple[ProtocolConfig, list[str]]:
         n = b - a
         middle = np.linalg.norm(gyr[a + n // 5 : b - n // 5], axis=1)
         rate = float(np.degrees(np.median(middle)))
-        t = float(np.round(r.turns * 2) / 2) or default_turns
+        if np.isfinite(r.turns):
+            t = float(np.round(r.turns * 2) / 2) or default_turns
+        else:  # clipped at the gyroscope range: the raw angle is only a lower bound
+            t = float(r.sense) * abs(default_turns)
+            notes.append(f"phase {axis} clipped: its turns unknown, the twin uses {t:+g}")
         turns.append(t)
         rates.append(rate)
         ramps.append((r.end_s - r.start_s) - abs(t) * 360 / rate)

@@ -41,6 +41,7 @@ rule segment:
         min_static_s=config["segmentation"]["min_static_s"],
         rest_tol_dps=config["segmentation"]["rest_tol_dps"],
         scale_tol=config["segmentation"]["scale_tol"],
+        rest_drift_dps_per_s=config["segmentation"]["rest_drift_dps_per_s"],
         full_protocol=lambda wildcards: full_protocol(wildcards.dataset),
         imucal_version=IMUCAL_VERSION,
     script:

@@ -33,6 +33,7 @@ try:
         min_static_s=p.min_static_s,
         rest_tol_dps=p.rest_tol_dps,
         scale_tol=p.scale_tol,
+        rest_drift_dps_per_s=p.rest_drift_dps_per_s,
         fallback=not p.full_protocol,
     )
     write_recording(
