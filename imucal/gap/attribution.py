@@ -142,13 +142,16 @@ def attribute(
     """
     cands = []
     for name, model in models.items():
-        est = model.estimate(fit, None)
-        est_a = model.estimate(fit, "A")
+        try:
+            est = model.estimate(fit, None)
+            est_a = model.estimate(fit, "A")
+            null_detect = [model.estimate(r.fit, None) for r in replicas] if est else []
+            why = "the session cannot show this effect"
+        except ValueError as err:  # the estimator needs what these data do not have
+            est, why = None, f"the session cannot show this effect: {err}"
         if est is None:
-            cands.append(Candidate(name, None, None, float("nan"), float("nan"),
-                                   note="the session cannot show this effect"))  # fmt: skip
+            cands.append(Candidate(name, None, None, float("nan"), float("nan"), note=why))
             continue
-        null_detect = [model.estimate(r.fit, None) for r in replicas]
         z = detection_z(est.detect, [e.detect for e in null_detect if e is not None])
         cand = Candidate(name, est.params, est_a.params if est_a else None, est.detect, z)
         if not model.opens_gap:
@@ -229,7 +232,16 @@ def select_forward(
                 c.evaluated = False
                 continue
             if not c.shift:
-                c.shift, c.shift_b = shifts_of(c)
+                try:
+                    c.shift, c.shift_b = shifts_of(c)
+                except ValueError as err:  # its replicas cannot be calibrated: it does not fit
+                    c.blocked = c.note = (
+                        f"not a fit: a replica rendered with this estimate cannot be calibrated "
+                        f"({err})"
+                    )
+                    c.gap_after = c.heldout_after = None
+                    c.evaluated = False
+                    continue
             c.evaluated = True
             c.note = "" if gap_b_now > 0 else (
                 "half B shows no gap beyond noise: the held-out check cannot confirm an effect"

@@ -5,6 +5,11 @@ null replicas, scores every location, attributes the gap forward and assembles t
 issue 6 (``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``, ``explained``,
 ``remaining``) plus the detail the report needs, and ``noted``: effects present that open no gap
 with this pipeline (large misalignment under the exact rotation), with ``misalignment``.
+
+A session whose calibration chain stops on its data (too few positions, a fit the samples do not
+support), or whose twin cannot be replicated, still gets a diagnosis: the static diagnosis of
+its ``static`` recording (:func:`imucal.gap.partial.diagnose_partial_session`), with the reason
+in ``fallback``.
 """
 
 from __future__ import annotations
@@ -84,10 +89,25 @@ def diagnose(
         ``all_locations``, ``timing_s``, ``settings``.
     """
     t0 = time.perf_counter()
-    fit = calibrate_session(imu, reference, options, segments)
-    stats = {h: compute_statistics(fit, h) for h in HALVES}
-    twin = build_twin(fit, options)
-    reps = run_replicas(twin, replicas, seed)
+    fit = None
+    try:
+        fit = calibrate_session(imu, reference, options, segments)
+        stats = {h: compute_statistics(fit, h) for h in HALVES}
+        twin = build_twin(fit, options)
+        reps = run_replicas(twin, replicas, seed)
+    except ValueError as err:
+        from imucal.gap.partial import diagnose_partial_session
+
+        where = "the session's twin cannot be replicated" if fit else "the calibration chain stopped"
+        result = diagnose_partial_session(
+            imu.get("static"), dataset=dataset,
+            calibration=fit.calibration.to_dict() if fit else None,
+            sensitivity=options.sensitivity, gravity_m_s2=options.gravity_m_s2,
+            replicas=replicas, alpha=alpha, seed=seed, min_heldout_shrink=min_heldout_shrink,
+            crn_seeds=crn_seeds, detect_z=detect_z,
+        )  # fmt: skip
+        result["fallback"] = f"{where} ({err}); the static recording alone is diagnosed"
+        return result
     t_null = time.perf_counter()
     null_full = build_null(reps, None)
     null_b = build_null(reps, "B")
