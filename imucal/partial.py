@@ -31,6 +31,7 @@ import pandas as pd
 from imucal import accelerometer, errormodel, gyroscope, stages
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
+from imucal.outcome import not_run_reason
 
 #: Stage names in run order, with what each does (the report lists them in this order).
 STAGES = {
@@ -528,7 +529,13 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
     return dict(artifact["calibration"])
 
 
-def full_protocol_stages(recordings: Mapping | set, *, has_reference: bool) -> list[dict]:
+def full_protocol_stages(
+    recordings: Mapping | set,
+    *,
+    has_reference: bool,
+    artifacts: Mapping[str, Mapping] | None = None,
+    notes: Mapping[str, str] | None = None,
+) -> list[dict]:
     """The stage listing (``stages.json``) of a session run by the stage-per-rule workflow.
 
     Parameters
@@ -536,12 +543,19 @@ def full_protocol_stages(recordings: Mapping | set, *, has_reference: bool) -> l
     recordings : collection of str
         The dataset's recording names (it has rotation3d and cube with all sensors).
     has_reference : bool
+    artifacts : mapping, optional
+        Stage name (and 'validate') -> its artifact; a not-run record
+        (:mod:`imucal.outcome`) makes the stage 'skipped' with the reason the data gave.
+    notes : mapping, optional
+        Segmentation notes per recording; those of recordings whose protocol was not found
+        join the reasons of the stages that did not run.
 
     Returns
     -------
     list of dict
         {stage, what, status, reason} per stage of :data:`STAGES` plus the validation.
     """
+
     skipped = {
         "acc_known_orientation": "not applicable: the cube fit and T_R,acc of the full protocol "
         "are used (no ferraris recording)",
@@ -551,6 +565,13 @@ def full_protocol_stages(recordings: Mapping | set, *, has_reference: bool) -> l
     }
     if "ratetable" not in recordings:
         skipped["gyr_table"] = "not applicable: needs a ratetable recording"
+    failed = [n for n in (notes or {}).values() if "automatic segmentation failed" in n]
+    context = f" (segmentation: {'; '.join(failed)})" if failed else ""
+    for name, artifact in (artifacts or {}).items():
+        if not_run_reason(artifact):
+            skipped[name] = (
+                f"could not run on these data: {artifact['not_run']['reason']}{context}"
+            )
     rows = [
         {"stage": name, "what": what, "status": "skipped" if name in skipped else "run",
          "reason": skipped.get(name, what)}
@@ -558,10 +579,10 @@ def full_protocol_stages(recordings: Mapping | set, *, has_reference: bool) -> l
     ]
     rows.append({
         "stage": "validate", "what": "validation against the reference",
-        "status": "run",
-        "reason": "against the reference" if has_reference
-        else "reference-free checks only: the dataset has no reference recording",
-    })
+        "status": "skipped" if "validate" in skipped else "run",
+        "reason": skipped.get("validate") or ("against the reference" if has_reference
+        else "reference-free checks only: the dataset has no reference recording"),
+    })  # fmt: skip
     return rows
 
 

@@ -506,10 +506,16 @@ def find_motions(t_s: np.ndarray, gyr: np.ndarray, static: StaticIntervals) -> l
     return motions
 
 
-def _clipped(gyr: np.ndarray, m: Motion) -> bool:
-    """The motion's dominant axis sits on the extreme reading long enough to be clipped."""
-    n = int(at_extreme(gyr[:, AXES.index(m.axis)], m.start, m.end, m.raw_turns).sum())
-    return n >= max(MIN_CLIPPED_SAMPLES, 0.02 * (m.end - m.start))
+def is_clipped(x: np.ndarray, a: int, b: int) -> bool:
+    """Rows ``a .. b - 1`` of a recording's signal ``x`` (n, k) sit on an extreme reading of
+    the recording (either sign, any axis) long enough to be clipped at the range: at least
+    :data:`MIN_CLIPPED_SAMPLES` samples and 2 % of the rows."""
+    enough = max(MIN_CLIPPED_SAMPLES, 0.02 * (b - a))
+    return any(
+        at_extreme(x[:, k], a, b, sign).sum() >= enough
+        for k in range(x.shape[1])
+        for sign in (1.0, -1.0)
+    )
 
 
 def _describe(t: np.ndarray, m: Motion) -> str:
@@ -584,7 +590,7 @@ def segment_rotation3d(
     t, acc, gyr = _check_inputs(t_s, acc, gyr)
     static = find_static_intervals(t, acc, gyr, settings)
     motions = find_motions(t, gyr, static)
-    clipped = [m for m in motions if abs(m.raw_turns) >= 0.5 and _clipped(gyr, m)]
+    clipped = [m for m in motions if abs(m.raw_turns) >= 0.5 and is_clipped(gyr, m.start, m.end)]
     phases = [m for m in motions if _full_turns(m.raw_turns, settings.scale_tol) or m in clipped]
     if [m.axis for m in phases] != list(AXES):
         found = "; ".join(_describe(t, m) for m in motions) or "none"

@@ -18,9 +18,11 @@ from matplotlib.figure import Figure
 
 from imucal import accelerometer, errormodel, gyroscope
 from imucal.alignment import align_constant_component, align_rotation_axis, phase_samples
-from imucal.calibration import ImuCalibration, SensorCalibration
+from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
 from imucal.columns import ACC, AXES, GYR, MAG, TIME
+from imucal.outcome import not_run_reason
 from imucal.plots import inertial as inertial_plots
+from imucal.segmentation import is_clipped
 
 #: The paper's Tables I and II (gyroscope bias in rad/s, scale), reference rows of tables.csv.
 PAPER_TABLE_I = {"paper w. tools": (0.0027, 0.1605, 0.0660), "paper LS": (-0.0022, 0.1608, 0.0679)}
@@ -326,6 +328,15 @@ def estimate_gyr_scale(
         raise ValueError("eq. 36 needs a calibrated magnetometer or accelerometer; got neither")
     noise = np.asarray(bias["noise_std_rad_s"], dtype=float)
     phases = segments_of(segments, "rotation3d", "phase")
+    gyr = rotation3d[list(GYR)].to_numpy(dtype=float)
+    clipped = [
+        r.label for r in phases.itertuples() if is_clipped(gyr, int(r.start_index), int(r.end_index))
+    ]
+    if clipped:
+        raise ValueError(
+            f"eq. 36 needs the whole rotation of each phase in the gyroscope; phase(s) {clipped} "
+            "are clipped at its range (the integrated angle is only a lower bound)"
+        )
     per_phase = {}
     for phase in phases.itertuples(index=False):
         before, after = _adjacent_static(segments, phase)
@@ -390,6 +401,8 @@ def fit_gyr_table(
         'gyr_table': magnitude errors per run before/after (paper Fig. 15).
     """
     rows = segments_of(segments, "ratetable", "run")
+    if rows.empty:
+        raise ValueError("no rate-table run was segmented (the segmentation notes say why)")
     runs = _cut(ratetable, rows, GYR)
     keep, warnings = [], []
     for label, run in zip(rows["label"], runs, strict=True):
@@ -423,7 +436,7 @@ def _truth_rows(truth: Mapping | None) -> tuple[dict, dict]:
 def combine_gyr(
     bias: Mapping,
     alignment: Mapping,
-    scale: Mapping,
+    scale: Mapping | None,
     table: Mapping | None,
     table_alignment: Mapping | None,
     *,
@@ -435,7 +448,9 @@ def combine_gyr(
 
     Without tools the matrix is ``T_R,gyr diag(scale)`` (``T_N,gyr`` is not observable); with a
     rate table it is ``T_R,gyr S'_gyr``. The final calibration uses the rate table when there is
-    one (it observes the non-orthogonality), otherwise the tool-free result.
+    one (it observes the non-orthogonality), otherwise the tool-free result. ``scale`` is None
+    when eq. 36 could not run (e.g. phases clipped at the range): then only the rate table
+    calibrates, and ``tool_free`` is None.
 
     Returns
     -------
@@ -447,19 +462,27 @@ def combine_gyr(
     """
     o, o_std = gyr_bias_value(bias, bias_estimator)
     alpha = np.asarray(alignment[alignment["used"]]["alpha_rad"], dtype=float)
-    tool_free = SensorCalibration(
-        "gyr",
-        o,
-        errormodel.compose(scale["scale"], np.zeros(3), alpha, exact=exact),
-        "rad/s",
-        {"bias": o_std, "scale": np.asarray(scale["std_scale"], dtype=float)},
-        f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31); "
-        "scale: eq. 36 from acc/mag angles",
-    )
+    has_table = table is not None and table_alignment is not None
+    if scale is None and not has_table:
+        raise ValueError(
+            "the gyroscope scale is known neither from a rate table nor from eq. 36 (tool-free)"
+        )
+    tool_free = None
+    if scale is not None:
+        tool_free = SensorCalibration(
+            "gyr",
+            o,
+            errormodel.compose(scale["scale"], np.zeros(3), alpha, exact=exact),
+            "rad/s",
+            {"bias": o_std, "scale": np.asarray(scale["std_scale"], dtype=float)},
+            f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31); "
+            "scale: eq. 36 from acc/mag angles",
+        )
     with_table = None
     table_i = {"LS (this run)": tuple(bias["bias_ls_rad_s"]), **PAPER_TABLE_I}
-    table_ii = {"w/o tools (this run)": tuple(scale["scale"]), **PAPER_TABLE_II}
-    if table is not None and table_alignment is not None:
+    table_ii = {"w/o tools (this run)": tuple(scale["scale"])} if scale is not None else {}
+    table_ii.update(PAPER_TABLE_II)
+    if has_table:
         rotation = np.asarray(table_alignment[table_alignment["used"]]["matrix"], dtype=float)
         upper = np.asarray(table["upper"], dtype=float)
         with_table = SensorCalibration(
@@ -485,7 +508,7 @@ def combine_gyr(
     artifact = {
         "calibration": final.to_dict(),
         "used": "ratetable" if with_table else "tool_free",
-        "tool_free": tool_free.to_dict(),
+        "tool_free": tool_free.to_dict() if tool_free else None,
         "ratetable": with_table.to_dict() if with_table else None,
         "warnings": list(table.get("warnings", [])) if table else [],
     }
@@ -537,6 +560,35 @@ def combine_calibration(acc: Mapping, gyr: Mapping, mag: Mapping) -> ImuCalibrat
         SensorCalibration.from_dict("gyr", gyr["calibration"]),
         SensorCalibration.from_dict("mag", mag["calibration"]),
     )
+
+
+def calibration_of_what_ran(artifacts: Mapping[str, Mapping]) -> dict:
+    """calibration.json from the sensors' final artifacts, some of which may not have run.
+
+    Parameters
+    ----------
+    artifacts : mapping
+        ``acc``, ``gyr``, ``mag`` -> the sensor's final artifact (``acc.json``, ...) or its
+        not-run record (:mod:`imucal.outcome`).
+
+    Returns
+    -------
+    dict
+        :meth:`ImuCalibration.to_dict` when every sensor ran; otherwise the sensors that ran
+        and ``missing`` (sensor -> the reason), the form of a partial session.
+    """
+    missing = {s: not_run_reason(a) for s, a in artifacts.items() if not_run_reason(a)}
+    if not missing:
+        return combine_calibration(artifacts["acc"], artifacts["gyr"], artifacts["mag"]).to_dict()
+    ran = {
+        s: SensorCalibration.from_dict(s, a["calibration"]).to_dict()
+        for s, a in artifacts.items()
+        if s not in missing
+    }
+    return {
+        "format_version": FORMAT_VERSION, "frame": FRAME, "convention": CONVENTION,
+        **ran, "missing": missing,
+    }  # fmt: skip
 
 
 def apply_calibration(

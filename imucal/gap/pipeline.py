@@ -150,8 +150,7 @@ def calibrate_session(
             imu["ratetable"], segments, saturation_limit_rad_s=options.limit("gyr")
         )
         table_align = stages.align_gyr(low, segments, table["bias"], table["upper"], exact=exact)
-    scale_used = scale or {"scale": [1.0, 1.0, 1.0], "std_scale": [float("nan")] * 3}
-    gyr, _ = stages.combine_gyr(bias, align, scale_used, table, table_align, exact=exact)
+    gyr, _ = stages.combine_gyr(bias, align, scale, table, table_align, exact=exact)
     calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None
     if reference is not None:
@@ -194,8 +193,7 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     table_align = None
     if a["table"] is not None:
         table_align = stages.align_gyr(low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact)
-    scale = a["scale"] or {"scale": [1.0, 1.0, 1.0], "std_scale": [float("nan")] * 3}
-    gyr, _ = stages.combine_gyr(a["bias"], align, scale, a["table"], table_align, exact=exact)
+    gyr, _ = stages.combine_gyr(a["bias"], align, a["scale"], a["table"], table_align, exact=exact)
     return stages.combine_calibration(acc, gyr, mag)
 
 

@@ -125,6 +125,30 @@ def stages_listing(wildcards):
     return f"results/{d}/{path}/stages.json"
 
 
+#: Artifact of each stage of the stage-per-rule path (stages.json reads what ran from them).
+FULL_STAGE_ARTIFACTS = {
+    "mag_step1": "mag_step1.json",
+    "mag_step2": "mag.json",
+    "acc_cube": "acc_step1.json",
+    "acc_align": "acc.json",
+    "gyr_bias": "gyr_bias.json",
+    "gyr_table": "gyr_table.json",
+    "gyr_align": "gyr_align.json",
+    "gyr_scale": "gyr_scale.json",
+    "validate": "validation.json",
+}
+
+
+def full_stage_artifacts(wildcards):
+    """The stage artifacts of a full-protocol session (no rate-table fit without a table)."""
+    d = wildcards.dataset
+    return {
+        stage: f"results/{d}/{name}"
+        for stage, name in FULL_STAGE_ARTIFACTS.items()
+        if stage != "gyr_table" or has_recording(wildcards, "ratetable")
+    }
+
+
 def has_recording(wildcards, recording):
     return recording in dataset_info(wildcards).recordings
 

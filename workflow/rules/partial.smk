@@ -33,8 +33,9 @@ rule stages_full:
     conda:
         "../envs/imucal.yaml"
     input:
+        unpack(full_stage_artifacts),
         dataset_yaml=dataset_yaml,
-        calibration="results/{dataset}/calibration.json",
+        segments="results/{dataset}/segments.parquet",
     output:
         stages="results/{dataset}/full/stages.json",
     log:

@@ -42,7 +42,6 @@ rule segment:
         rest_tol_dps=config["segmentation"]["rest_tol_dps"],
         scale_tol=config["segmentation"]["scale_tol"],
         rest_drift_dps_per_s=config["segmentation"]["rest_drift_dps_per_s"],
-        full_protocol=lambda wildcards: full_protocol(wildcards.dataset),
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/segment.py"

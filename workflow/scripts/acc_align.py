@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_json, read_recording, write_json, read_segments
+from imucal.io import read_recording, read_segments, write_json
+from imucal.outcome import read_artifact, stage_guard
 from imucal.stages import align_acc
 
 if TYPE_CHECKING:
@@ -11,12 +12,13 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-rotation3d, _ = read_recording(snakemake.input.rotation3d)
-acc = align_acc(
-    rotation3d,
-    read_segments(snakemake.input.segments),
-    read_json(snakemake.input.fit),
-    method=snakemake.params.method,
-    exact=snakemake.params.exact,
-)
-write_json(acc, snakemake.output.acc)
+with stage_guard("acc_align", snakemake.output):
+    rotation3d, _ = read_recording(snakemake.input.rotation3d)
+    acc = align_acc(
+        rotation3d,
+        read_segments(snakemake.input.segments),
+        read_artifact(snakemake.input.fit),
+        method=snakemake.params.method,
+        exact=snakemake.params.exact,
+    )
+    write_json(acc, snakemake.output.acc)

@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_recording, write_json, read_segments
+from imucal.io import read_recording, read_segments, write_json
+from imucal.outcome import stage_guard
 from imucal.stages import fit_acc_cube
 
 if TYPE_CHECKING:
@@ -11,13 +12,14 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-cube, _ = read_recording(snakemake.input.cube)
-fit, figures = fit_acc_cube(
-    cube,
-    read_segments(snakemake.input.segments),
-    gravity_m_s2=snakemake.params.gravity_m_s2,
-    saturation_limit_m_s2=snakemake.params.saturation_limit_m_s2,
-    method=snakemake.params.method,
-)
-write_json(fit, snakemake.output.fit)
-figures["acc_cube"].savefig(snakemake.output.figure, dpi=110)
+with stage_guard("acc_cube", snakemake.output):
+    cube, _ = read_recording(snakemake.input.cube)
+    fit, figures = fit_acc_cube(
+        cube,
+        read_segments(snakemake.input.segments),
+        gravity_m_s2=snakemake.params.gravity_m_s2,
+        saturation_limit_m_s2=snakemake.params.saturation_limit_m_s2,
+        method=snakemake.params.method,
+    )
+    write_json(fit, snakemake.output.fit)
+    figures["acc_cube"].savefig(snakemake.output.figure, dpi=110)

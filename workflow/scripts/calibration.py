@@ -1,17 +1,16 @@
-"""Rule calibration: calibration.json of all three sensors in frame B."""
+"""Rule calibration: calibration.json of the three sensors in frame B (with the reason for a
+sensor whose stages did not run)."""
 
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_json, write_calibration
-from imucal.stages import combine_calibration
+from imucal.io import read_json, write_json
+from imucal.stages import calibration_of_what_ran
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-calibration = combine_calibration(
-    read_json(snakemake.input.acc), read_json(snakemake.input.gyr), read_json(snakemake.input.mag)
-)
-write_calibration(calibration, snakemake.output.calibration)
+artifacts = {sensor: read_json(snakemake.input[sensor]) for sensor in ("acc", "gyr", "mag")}
+write_json(calibration_of_what_ran(artifacts), snakemake.output.calibration)

@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_recording, write_json, read_segments
+from imucal.io import read_recording, read_segments, write_json
+from imucal.outcome import stage_guard
 from imucal.stages import estimate_gyr_bias
 
 if TYPE_CHECKING:
@@ -11,11 +12,12 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-tables = {
-    name: read_recording(path)[0]
-    for name, path in snakemake.input.items()
-    if name in ("static", "rotation3d", "cube")
-}
-bias, figures = estimate_gyr_bias(tables, read_segments(snakemake.input.segments))
-write_json(bias, snakemake.output.bias)
-figures["gyr_bias"].savefig(snakemake.output.figure, dpi=110)
+with stage_guard("gyr_bias", snakemake.output):
+    tables = {
+        name: read_recording(path)[0]
+        for name, path in snakemake.input.items()
+        if name in ("static", "rotation3d", "cube")
+    }
+    bias, figures = estimate_gyr_bias(tables, read_segments(snakemake.input.segments))
+    write_json(bias, snakemake.output.bias)
+    figures["gyr_bias"].savefig(snakemake.output.figure, dpi=110)

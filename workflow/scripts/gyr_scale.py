@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_json, read_recording, write_json, read_segments
+from imucal.io import read_recording, read_segments, write_json
+from imucal.outcome import read_artifact, stage_guard
 from imucal.stages import estimate_gyr_scale
 
 if TYPE_CHECKING:
@@ -11,14 +12,15 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-rotation3d, _ = read_recording(snakemake.input.rotation3d)
-scale = estimate_gyr_scale(
-    rotation3d,
-    read_segments(snakemake.input.segments),
-    read_json(snakemake.input.bias),
-    read_json(snakemake.input.alignment),
-    read_json(snakemake.input.acc),
-    read_json(snakemake.input.mag),
-    bias_estimator=snakemake.params.bias_estimator,
-)
-write_json(scale, snakemake.output.scale)
+with stage_guard("gyr_scale", snakemake.output):
+    rotation3d, _ = read_recording(snakemake.input.rotation3d)
+    scale = estimate_gyr_scale(
+        rotation3d,
+        read_segments(snakemake.input.segments),
+        read_artifact(snakemake.input.bias),
+        read_artifact(snakemake.input.alignment),
+        read_artifact(snakemake.input.acc),
+        read_artifact(snakemake.input.mag),
+        bias_estimator=snakemake.params.bias_estimator,
+    )
+    write_json(scale, snakemake.output.scale)

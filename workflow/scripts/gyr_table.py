@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_recording, write_json, read_segments
+from imucal.io import read_recording, read_segments, write_json
+from imucal.outcome import stage_guard
 from imucal.stages import fit_gyr_table
 
 if TYPE_CHECKING:
@@ -11,11 +12,12 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-ratetable, _ = read_recording(snakemake.input.ratetable)
-fit, figures = fit_gyr_table(
-    ratetable,
-    read_segments(snakemake.input.segments),
-    saturation_limit_rad_s=snakemake.params.saturation_limit_rad_s,
-)
-write_json(fit, snakemake.output.fit)
-figures["gyr_table"].savefig(snakemake.output.figure, dpi=110)
+with stage_guard("gyr_table", snakemake.output):
+    ratetable, _ = read_recording(snakemake.input.ratetable)
+    fit, figures = fit_gyr_table(
+        ratetable,
+        read_segments(snakemake.input.segments),
+        saturation_limit_rad_s=snakemake.params.saturation_limit_rad_s,
+    )
+    write_json(fit, snakemake.output.fit)
+    figures["gyr_table"].savefig(snakemake.output.figure, dpi=110)

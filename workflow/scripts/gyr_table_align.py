@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_json, read_recording, write_json, read_segments
+from imucal.io import read_recording, read_segments, write_json
+from imucal.outcome import read_artifact, stage_guard
 from imucal.stages import align_gyr
 
 if TYPE_CHECKING:
@@ -11,14 +12,15 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-rotation3d, _ = read_recording(snakemake.input.rotation3d)
-fit = read_json(snakemake.input.fit)
-alignment = align_gyr(
-    rotation3d,
-    read_segments(snakemake.input.segments),
-    fit["bias"],
-    fit["upper"],
-    method=snakemake.params.method,
-    exact=snakemake.params.exact,
-)
-write_json(alignment, snakemake.output.alignment)
+with stage_guard("gyr_table_align", snakemake.output):
+    rotation3d, _ = read_recording(snakemake.input.rotation3d)
+    fit = read_artifact(snakemake.input.fit)
+    alignment = align_gyr(
+        rotation3d,
+        read_segments(snakemake.input.segments),
+        fit["bias"],
+        fit["upper"],
+        method=snakemake.params.method,
+        exact=snakemake.params.exact,
+    )
+    write_json(alignment, snakemake.output.alignment)

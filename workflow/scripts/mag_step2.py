@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_json, read_recording, read_segments, write_json
+from imucal.io import read_recording, read_segments, write_json
+from imucal.outcome import read_artifact, stage_guard
 from imucal.plots.magnetometer import plot_magnetometer_steps
 from imucal.stages import align_mag
 
@@ -12,15 +13,16 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-rotation3d, _ = read_recording(snakemake.input.rotation3d)
-segments = read_segments(snakemake.input.segments)
-mag = align_mag(
-    rotation3d,
-    segments,
-    read_json(snakemake.input.step1),
-    method=snakemake.params.method,
-    exact=snakemake.params.exact,
-)
-write_json(mag, snakemake.output.mag)
-for name, figure in plot_magnetometer_steps(rotation3d, segments, mag).items():
-    figure.savefig(snakemake.output[name], dpi=110)
+with stage_guard("mag_step2", snakemake.output):
+    rotation3d, _ = read_recording(snakemake.input.rotation3d)
+    segments = read_segments(snakemake.input.segments)
+    mag = align_mag(
+        rotation3d,
+        segments,
+        read_artifact(snakemake.input.step1),
+        method=snakemake.params.method,
+        exact=snakemake.params.exact,
+    )
+    write_json(mag, snakemake.output.mag)
+    for name, figure in plot_magnetometer_steps(rotation3d, segments, mag).items():
+        figure.savefig(snakemake.output[name], dpi=110)

@@ -3,7 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_json, read_recording, read_segments
+from imucal.io import read_recording, read_segments
+from imucal.outcome import read_artifact, stage_guard
 from imucal.stages import plot_phases
 
 if TYPE_CHECKING:
@@ -11,8 +12,9 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
-rotation3d, _ = read_recording(snakemake.input.rotation3d)
-segments = read_segments(snakemake.input.segments)
-for sensor in ("acc", "gyr"):
-    figure = plot_phases(rotation3d, segments, sensor, read_json(snakemake.input[sensor])["calibration"])
-    figure.savefig(snakemake.output[sensor], dpi=110)
+with stage_guard("phase_figures", snakemake.output):
+    rotation3d, _ = read_recording(snakemake.input.rotation3d)
+    segments = read_segments(snakemake.input.segments)
+    for sensor in ("acc", "gyr"):
+        figure = plot_phases(rotation3d, segments, sensor, read_artifact(snakemake.input[sensor])["calibration"])
+        figure.savefig(snakemake.output[sensor], dpi=110)

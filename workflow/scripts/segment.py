@@ -34,7 +34,7 @@ try:
         rest_tol_dps=p.rest_tol_dps,
         scale_tol=p.scale_tol,
         rest_drift_dps_per_s=p.rest_drift_dps_per_s,
-        fallback=not p.full_protocol,
+        fallback=True,
     )
     write_recording(
         segments,

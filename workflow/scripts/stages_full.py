@@ -1,17 +1,28 @@
-"""Rule stages_full: the stage listing of a session run by the stage-per-rule workflow."""
+"""Rule stages_full: the stage listing of a session run by the stage-per-rule workflow, from the
+artifacts of the stages (run, or the reason they did not)."""
 
 import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.dataset import read_dataset
-from imucal.io import write_json
-from imucal.partial import full_protocol_stages
+from imucal.io import read_json, read_recording, write_json
+from imucal.partial import STAGES, full_protocol_stages
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
-stages = full_protocol_stages(set(dataset.recordings), has_reference=dataset.has("reference"))
+artifacts = {
+    stage: read_json(path)
+    for stage, path in snakemake.input.items()
+    if stage in STAGES or stage == "validate"
+}
+stages = full_protocol_stages(
+    set(dataset.recordings),
+    has_reference=dataset.has("reference"),
+    artifacts=artifacts,
+    notes=read_recording(snakemake.input.segments)[1].get("notes", {}),
+)
 write_json({"dataset": dataset.name, "stages": stages}, snakemake.output.stages)

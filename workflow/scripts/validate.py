@@ -4,20 +4,23 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_calibration, read_recording, read_segments, write_json
+from imucal.outcome import stage_guard
 from imucal.stages import validate_session
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
-rotation3d, metadata = read_recording(snakemake.input.rotation3d)
-has_reference = "reference" in snakemake.input.keys()
-reference = read_recording(snakemake.input.reference)[0] if has_reference else None
-result = validate_session(
-    rotation3d,
-    metadata,
-    reference,
-    read_segments(snakemake.input.segments),
-    read_calibration(snakemake.input.calibration),
-)
-write_json(result, snakemake.output.validation)
+
+with stage_guard("validate", snakemake.output):
+    rotation3d, metadata = read_recording(snakemake.input.rotation3d)
+    has_reference = "reference" in snakemake.input.keys()
+    reference = read_recording(snakemake.input.reference)[0] if has_reference else None
+    result = validate_session(
+        rotation3d,
+        metadata,
+        reference,
+        read_segments(snakemake.input.segments),
+        read_calibration(snakemake.input.calibration),
+    )
+    write_json(result, snakemake.output.validation)

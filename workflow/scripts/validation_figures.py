@@ -3,20 +3,23 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io import read_calibration, read_json, read_recording
+from imucal.io import read_calibration, read_recording
+from imucal.outcome import read_artifact, stage_guard
 from imucal.stages import plot_validation
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
-rotation3d, metadata = read_recording(snakemake.input.rotation3d)
-figures = plot_validation(
-    rotation3d,
-    metadata,
-    read_recording(snakemake.input.reference)[0],
-    read_calibration(snakemake.input.calibration),
-    read_json(snakemake.input.validation),
-)
-figures["validation_magnitudes"].savefig(snakemake.output.magnitudes, dpi=110)
-figures["validation_xcorr"].savefig(snakemake.output.xcorr, dpi=110)
+
+with stage_guard("validation_figures", snakemake.output):
+    rotation3d, metadata = read_recording(snakemake.input.rotation3d)
+    figures = plot_validation(
+        rotation3d,
+        metadata,
+        read_recording(snakemake.input.reference)[0],
+        read_calibration(snakemake.input.calibration),
+        read_artifact(snakemake.input.validation),
+    )
+    figures["validation_magnitudes"].savefig(snakemake.output.magnitudes, dpi=110)
+    figures["validation_xcorr"].savefig(snakemake.output.xcorr, dpi=110)
