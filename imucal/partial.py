@@ -250,12 +250,19 @@ def _pose_recording(s: _Session) -> str:
 def _acc_cube(s: _Session) -> dict:
     recording = _pose_recording(s)
     rows = s.poses(recording)
+    positions = [v for _, v in _cut(s.tables[recording], rows, ACC)]
     fit = accelerometer.fit_cube(
-        [v for _, v in _cut(s.tables[recording], rows, ACC)], s.gravity_m_s2,
+        positions, s.gravity_m_s2,
         labels=[str(x) for x in rows["label"]], saturation_limit_m_s2=s.saturation_m_s2,
     )
     artifact = stages.plain(fit)
     artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
+    if len(positions) > MIN_CUBE_POSITIONS:
+        before, after = accelerometer.heldout_errors(positions, s.gravity_m_s2)
+        artifact.update(heldout_error_before_m_s2=before.tolist(),
+                        heldout_error_after_m_s2=after.tolist())
+    if recording in s.notes:  # how the poses were found (e.g. the tremor-adaptive detector)
+        artifact["segmentation"] = s.notes[recording]
     artifact["calibration"] = accelerometer.make_calibration(
         fit, np.eye(3), "cube fit (eq. 32), sensor frame (no T_R)"
     ).to_dict()
