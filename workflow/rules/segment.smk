@@ -36,11 +36,11 @@ rule segment:
     benchmark:
         "results/{dataset}/benchmarks/segment.tsv"
     params:
-        window_s=config["segmentation"]["window_s"],
-        p_false=config["segmentation"]["p_false"],
-        min_static_s=config["segmentation"]["min_static_s"],
-        rest_tol_dps=config["segmentation"]["rest_tol_dps"],
-        scale_tol=config["segmentation"]["scale_tol"],
+        window_s=segmentation_param("window_s"),
+        p_false=segmentation_param("p_false"),
+        min_static_s=segmentation_param("min_static_s"),
+        rest_tol_dps=segmentation_param("rest_tol_dps"),
+        scale_tol=segmentation_param("scale_tol"),
         full_protocol=lambda wildcards: full_protocol(wildcards.dataset),
         imucal_version=IMUCAL_VERSION,
     script:
