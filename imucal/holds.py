@@ -167,14 +167,16 @@ def hold_variance(acc: np.ndarray, window: int) -> np.ndarray:
 
 
 def merge_overlapping(intervals: list[tuple[int, int]]) -> list[tuple[int, int]]:
-    """Row intervals (end exclusive) that overlap or touch merged into one, in time order.
+    """Row intervals (end exclusive) that share a row merged into one, in time order.
 
     Two runs of still windows of one rest, split by a few louder windows (a twitch, a tremor
-    burst) shorter than a window, cover overlapping rows: they are one hold.
+    burst) shorter than a window, cover overlapping rows: they are one hold. Runs that only
+    touch (no shared row) are two holds: a one-sample step between two orientations leaves
+    exactly that (a logger that jumps from one block of a pose to the next).
     """
     merged: list[list[int]] = []
     for a, b in sorted(intervals):
-        if merged and a <= merged[-1][1]:
+        if merged and a < merged[-1][1]:
             merged[-1][1] = max(merged[-1][1], b)
         else:
             merged.append([a, b])
