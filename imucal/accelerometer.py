@@ -457,6 +457,55 @@ def fit_cube(
     )
 
 
+def heldout_errors(
+    positions: Sequence[np.ndarray], gravity_m_s2: float, *, method: str = "means"
+) -> tuple[np.ndarray, np.ndarray]:
+    """Leave-one-position-out ``|a| - g``: each position against the fit on the others.
+
+    Parameters
+    ----------
+    positions : sequence of ndarray, each shape (n_i, 3)
+        Accelerometer readings of each static position, m/s^2 (finite, unsaturated).
+    gravity_m_s2 : float
+        Local gravity ``g``, m/s^2.
+    method : {'means', 'samples'}
+        Passed to :func:`fit_cube`.
+
+    Returns
+    -------
+    before : ndarray, shape (n_pos,)
+        ``|mean_i| - g`` of the raw readings, m/s^2.
+    after : ndarray, shape (n_pos,)
+        ``|S'_(-i) (mean_i - o_(-i))| - g`` with ``S'_(-i), o_(-i)`` fitted (eq. 32) on all
+        positions but ``i``, m/s^2; NaN where that fit fails (the others do not constrain it).
+
+    Raises
+    ------
+    ValueError
+        If there are fewer than ``MIN_POSITIONS + 1`` positions (each fit needs 9).
+
+    Notes
+    -----
+    The in-sample errors of :func:`fit_cube` shrink with the 9 fitted parameters (to zero for 9
+    positions); a held-out position shows how the calibration does on a pose it did not see.
+    """
+    arrays = [np.asarray(p, dtype=float) for p in positions]
+    if len(arrays) < MIN_POSITIONS + 1:
+        raise ValueError(
+            f"{len(arrays)} positions: leaving one out needs at least {MIN_POSITIONS + 1} "
+            f"(the fit has {MIN_POSITIONS} unknowns)"
+        )
+    means = np.array([p.mean(axis=0) for p in arrays])
+    after = np.full(len(arrays), np.nan)
+    for i in range(len(arrays)):
+        try:
+            fit = fit_cube(arrays[:i] + arrays[i + 1 :], gravity_m_s2, method=method)
+        except ValueError:  # the others alone do not constrain S' and o
+            continue
+        after[i] = np.linalg.norm(fit.upper @ (means[i] - fit.bias)) - gravity_m_s2
+    return np.linalg.norm(means, axis=1) - gravity_m_s2, after
+
+
 def cube_crlb(
     upper: np.ndarray,
     directions: np.ndarray,

@@ -79,8 +79,12 @@ class Outcome:
     artifact: dict | None = None
 
     def summary(self) -> dict:
-        return {"stage": self.name, "what": STAGES[self.name], "status": self.status,
-                "reason": self.reason}
+        return {
+            "stage": self.name,
+            "what": STAGES[self.name],
+            "status": self.status,
+            "reason": self.reason,
+        }
 
 
 def declared_sensors(dataset, recording: str) -> tuple[str, ...]:
@@ -112,9 +116,10 @@ def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
     """Sensors with at least one finite sample in an ingested table."""
     present = []
     for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
-        if all(c in table.columns for c in columns) and np.isfinite(
-            table[list(columns)].to_numpy(dtype=float)
-        ).all(axis=1).any():
+        if (
+            all(c in table.columns for c in columns)
+            and np.isfinite(table[list(columns)].to_numpy(dtype=float)).all(axis=1).any()
+        ):
             present.append(sensor)
     return tuple(present)
 
@@ -138,10 +143,18 @@ def _need(condition: bool, reason: str) -> None:
 class _Session:
     """The ingested tables, segments and the results so far of one partial session."""
 
-    def __init__(self, tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame,
-                 gravity_m_s2: float, field_norm: float, ratetable: Mapping | None,
-                 saturation_m_s2: float | None, saturation_rad_s: float | None,
-                 notes: Mapping[str, str], lowpass: Mapping[str, float]):
+    def __init__(
+        self,
+        tables: Mapping[str, pd.DataFrame],
+        segments: pd.DataFrame,
+        gravity_m_s2: float,
+        field_norm: float,
+        ratetable: Mapping | None,
+        saturation_m_s2: float | None,
+        saturation_rad_s: float | None,
+        notes: Mapping[str, str],
+        lowpass: Mapping[str, float],
+    ):
         self.tables = {k: v for k, v in tables.items() if k != "reference"}
         self.segments = segments
         self.gravity_m_s2 = gravity_m_s2
@@ -165,7 +178,10 @@ class _Session:
         return recording in self.tables and sensor in self.sensors[recording]
 
     def has_phases(self, recording: str = "rotation3d") -> bool:
-        return recording in self.tables and not stages.segments_of(self.segments, recording, "phase").empty
+        return (
+            recording in self.tables
+            and not stages.segments_of(self.segments, recording, "phase").empty
+        )
 
     def need_phases(self, sensor: str) -> None:
         """Raise NotApplicable unless rotation3d has phases and ``sensor`` samples."""
@@ -193,7 +209,8 @@ def _mag_step1(s: _Session) -> dict:
     primary, extra = sources[0], sources[1:]
     _, samples = magnetometer.field_samples(s.tables[primary])
     fit = magnetometer.fit_ellipsoid(
-        samples, field_norm=s.field_norm,
+        samples,
+        field_norm=s.field_norm,
         extra_samples={r: magnetometer.field_samples(s.tables[r])[1] for r in extra} or None,
     )
     return {**fit.to_dict(), "source": primary, "offered": extra}
@@ -251,12 +268,22 @@ def _pose_recording(s: _Session) -> str:
 def _acc_cube(s: _Session) -> dict:
     recording = _pose_recording(s)
     rows = s.poses(recording)
+    positions = [v for _, v in _cut(s.tables[recording], rows, ACC)]
     fit = accelerometer.fit_cube(
-        [v for _, v in _cut(s.tables[recording], rows, ACC)], s.gravity_m_s2,
-        labels=[str(x) for x in rows["label"]], saturation_limit_m_s2=s.saturation_m_s2,
+        positions,
+        s.gravity_m_s2,
+        labels=[str(x) for x in rows["label"]],
+        saturation_limit_m_s2=s.saturation_m_s2,
     )
     artifact = stages.plain(fit)
     artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
+    if len(positions) > MIN_CUBE_POSITIONS:
+        before, after = accelerometer.heldout_errors(positions, s.gravity_m_s2)
+        artifact.update(
+            heldout_error_before_m_s2=before.tolist(), heldout_error_after_m_s2=after.tolist()
+        )
+    if recording in s.notes:  # how the poses were found (e.g. the tremor-adaptive detector)
+        artifact["segmentation"] = s.notes[recording]
     artifact["calibration"] = accelerometer.make_calibration(
         fit, np.eye(3), "cube fit (eq. 32), sensor frame (no T_R)"
     ).to_dict()
@@ -273,9 +300,11 @@ def _acc_align(s: _Session) -> dict:
 
 
 def _static_gyr(s: _Session) -> list[np.ndarray]:
-    names = ["static"] if s.with_sensor("static", "gyr") else [
-        r for r in s.tables if s.with_sensor(r, "gyr")
-    ]
+    names = (
+        ["static"]
+        if s.with_sensor("static", "gyr")
+        else [r for r in s.tables if s.with_sensor(r, "gyr")]
+    )
     pieces = []
     for name in names:
         rows = stages.segments_of(s.segments, name, "static", "position")
@@ -294,10 +323,12 @@ def _bias(s: _Session) -> np.ndarray:
 
 
 def _gyr_table(s: _Session) -> dict:
-    _need(s.with_sensor("ratetable", "gyr") and s.ratetable is not None,
-          "needs a ratetable recording")
+    _need(
+        s.with_sensor("ratetable", "gyr") and s.ratetable is not None, "needs a ratetable recording"
+    )
     artifact, _ = stages.fit_gyr_table(
-        s.tables["ratetable"], s.segments,
+        s.tables["ratetable"],
+        s.segments,
         saturation_limit_rad_s=np.inf if s.saturation_rad_s is None else s.saturation_rad_s,
     )
     return artifact
@@ -322,14 +353,19 @@ def _gyr_known_rotation(s: _Session) -> dict:
             if "angle_deg" in rows.columns and len(rows):
                 recording = name
                 break
-    _need(recording is not None, "needs rotation sections of known angle (a ferraris recording, "
-          "or rotation3d phases with angle_deg) with gyroscope data")
+    _need(
+        recording is not None,
+        "needs rotation sections of known angle (a ferraris recording, "
+        "or rotation3d phases with angle_deg) with gyroscope data",
+    )
     _need(len(rows) >= 3, f"{len(rows)} rotation sections with a known angle, expected >= 3")
-    known = np.array([
-        np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()
-    ])
+    known = np.array(
+        [np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()]
+    )
     fit = ferraris.fit_known_rotations(
-        _cut(s.tables[recording], rows, GYR), known, _bias(s),
+        _cut(s.tables[recording], rows, GYR),
+        known,
+        _bias(s),
         labels=[str(x) for x in rows["label"]],
     )
     artifact = stages.plain(fit)
@@ -377,10 +413,19 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
     _need("gyr_bias" in s.done, "needs the gyroscope bias")
     acc = _acc_final(s)
     _need(acc is not None, "needs an accelerometer calibration for the gravity directions")
-    recording = next((r for r in ("poses", "cube") if s.with_sensor(r, "gyr")
-                      and s.with_sensor(r, "acc") and len(s.poses(r)) >= 6), None)
-    _need(recording is not None, "needs >= 6 static poses in a poses or cube recording with "
-          "accelerometer and gyroscope data")
+    recording = next(
+        (
+            r
+            for r in ("poses", "cube")
+            if s.with_sensor(r, "gyr") and s.with_sensor(r, "acc") and len(s.poses(r)) >= 6
+        ),
+        None,
+    )
+    _need(
+        recording is not None,
+        "needs >= 6 static poses in a poses or cube recording with "
+        "accelerometer and gyroscope data",
+    )
     directions, intervals = pose_intervals(s.tables[recording], s.poses(recording), acc)
     fit = posetopose.fit_pose_to_pose(directions[:-1], directions[1:], intervals, _bias(s))
     artifact = stages.plain(fit)
@@ -390,12 +435,18 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
 
 def _gyr_scale(s: _Session) -> dict:
     _need("gyr_align" in s.done, "needs the gyroscope alignment (gyr_align)")
-    _need("mag_step2" in s.done or "acc_align" in s.done,
-          "needs a calibrated magnetometer (mag_step2) or accelerometer (acc_align) to measure "
-          "the phase angles")
+    _need(
+        "mag_step2" in s.done or "acc_align" in s.done,
+        "needs a calibrated magnetometer (mag_step2) or accelerometer (acc_align) to measure "
+        "the phase angles",
+    )
     return stages.estimate_gyr_scale(
-        s.tables["rotation3d"], s.segments, s.done["gyr_bias"], s.done["gyr_align"],
-        s.done.get("acc_align"), s.done.get("mag_step2"),
+        s.tables["rotation3d"],
+        s.segments,
+        s.done["gyr_bias"],
+        s.done["gyr_align"],
+        s.done.get("acc_align"),
+        s.done.get("mag_step2"),
     )
 
 
@@ -453,9 +504,17 @@ def run_stages(
     list of Outcome
         One per stage of :data:`STAGES`.
     """
-    session = _Session(tables, segments, gravity_m_s2, field_norm, ratetable,
-                       saturation_m_s2, saturation_rad_s, notes or {},
-                       {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz})
+    session = _Session(
+        tables,
+        segments,
+        gravity_m_s2,
+        field_norm,
+        ratetable,
+        saturation_m_s2,
+        saturation_rad_s,
+        notes or {},
+        {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz},
+    )
     outcomes = []
     for name, runner in RUNNERS.items():
         try:
@@ -507,25 +566,39 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
         from imucal import magnetometer
 
         fit = magnetometer.EllipsoidFit.from_dict(dict(artifact))
-        return SensorCalibration("mag", fit.bias, fit.upper, "normalised", {},
-                                 "ellipsoid fit only (step 1, no T_R)").to_dict()
+        return SensorCalibration(
+            "mag", fit.bias, fit.upper, "normalised", {}, "ellipsoid fit only (step 1, no T_R)"
+        ).to_dict()
     if stage == "gyr_table":
-        return SensorCalibration("gyr", artifact["bias"], artifact["upper"], "rad/s",
-                                 {"bias": np.asarray(artifact["std_bias"])},
-                                 "rate table (eq. 33), no T_R").to_dict()
+        return SensorCalibration(
+            "gyr",
+            artifact["bias"],
+            artifact["upper"],
+            "rad/s",
+            {"bias": np.asarray(artifact["std_bias"])},
+            "rate table (eq. 33), no T_R",
+        ).to_dict()
     if stage == "gyr_scale":
         align = done["gyr_align"]
         alpha = np.asarray(align[align["used"]]["alpha_rad"], dtype=float)
         bias = done["gyr_bias"]
         return SensorCalibration(
-            "gyr", bias["bias_ls_rad_s"],
-            errormodel.compose(artifact["scale"], np.zeros(3), alpha), "rad/s",
+            "gyr",
+            bias["bias_ls_rad_s"],
+            errormodel.compose(artifact["scale"], np.zeros(3), alpha),
+            "rad/s",
             {"bias": np.asarray(bias["std_ls_rad_s"]), "scale": np.asarray(artifact["std_scale"])},
-            "tool-free: T_R,gyr (eqs. 28-31) and eq. 36 scale").to_dict()
+            "tool-free: T_R,gyr (eqs. 28-31) and eq. 36 scale",
+        ).to_dict()
     if stage == "gyr_bias":
-        return SensorCalibration("gyr", artifact["bias_ls_rad_s"], np.eye(3), "rad/s",
-                                 {"bias": np.asarray(artifact["std_ls_rad_s"])},
-                                 "bias only (nominal scale, sensor frame)").to_dict()
+        return SensorCalibration(
+            "gyr",
+            artifact["bias_ls_rad_s"],
+            np.eye(3),
+            "rad/s",
+            {"bias": np.asarray(artifact["std_ls_rad_s"])},
+            "bias only (nominal scale, sensor frame)",
+        ).to_dict()
     return dict(artifact["calibration"])
 
 
@@ -573,8 +646,12 @@ def full_protocol_stages(
                 f"could not run on these data: {artifact['not_run']['reason']}{context}"
             )
     rows = [
-        {"stage": name, "what": what, "status": "skipped" if name in skipped else "run",
-         "reason": skipped.get(name, what)}
+        {
+            "stage": name,
+            "what": what,
+            "status": "skipped" if name in skipped else "run",
+            "reason": skipped.get(name, what),
+        }
         for name, what in STAGES.items()
     ]
     rows.append({
@@ -614,29 +691,41 @@ def figures(outcomes: list[Outcome], tables: Mapping[str, pd.DataFrame]) -> dict
         source = done["mag_step1"]["source"]
         out["mag_raw"] = plot_field(t, raw, f"Magnetometer, raw ({source})")
         out["mag_step1"] = plot_field(
-            t, fit.apply(raw), f"After step 1, the ellipsoid fit ({fit.used}; {source})",
+            t,
+            fit.apply(raw),
+            f"After step 1, the ellipsoid fit ({fit.used}; {source})",
             fit.field_norm,
         )
     if "acc_cube" in done:
         a = done["acc_cube"]
         out["acc_cube"] = plots.plot_before_after_errors(
-            a["labels"], a["magnitude_error_before_m_s2"], a["magnitude_error_after_m_s2"],
-            "m/s^2", f"Accelerometer fit (eq. 32) on {a['recording']} (in-sample)",
+            a["labels"],
+            a["magnitude_error_before_m_s2"],
+            a["magnitude_error_after_m_s2"],
+            "m/s^2",
+            f"Accelerometer fit (eq. 32) on {a['recording']} (in-sample)",
             quantity="|a| - g",
         )
     if "acc_known_orientation" in done:
         a = done["acc_known_orientation"]
         raw_norm = np.linalg.norm(np.asarray(a["position_means"], dtype=float), axis=1)
         out["acc_known_orientation"] = plots.plot_before_after_errors(
-            a["labels"], raw_norm - a["gravity_m_s2"], a["magnitude_error_m_s2"], "m/s^2",
-            "Accelerometer from faces of known orientation (in-sample)", quantity="|a| - g",
+            a["labels"],
+            raw_norm - a["gravity_m_s2"],
+            a["magnitude_error_m_s2"],
+            "m/s^2",
+            "Accelerometer from faces of known orientation (in-sample)",
+            quantity="|a| - g",
         )
     if "gyr_pose_to_pose" in done:
         g = done["gyr_pose_to_pose"]
         n = len(g["angle_errors_deg"])
         out["gyr_pose_to_pose"] = plots.plot_before_after_errors(
-            [f"{k + 1}" for k in range(n)], g["angle_errors_before_deg"], g["angle_errors_deg"],
-            "deg", "Gyroscope pose to pose (in-sample; before: nominal scale)",
+            [f"{k + 1}" for k in range(n)],
+            g["angle_errors_before_deg"],
+            g["angle_errors_deg"],
+            "deg",
+            "Gyroscope pose to pose (in-sample; before: nominal scale)",
             quantity="gravity-direction error",
         )
     return out

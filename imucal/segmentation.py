@@ -979,7 +979,9 @@ def segment_poses(
     """Hand-placed static poses (``poses``, ``tumble``, ``ferraris`` without a section list).
 
     Every static interval becomes a segment of kind 'static' (``s01``, ``s02``, ...). Without a
-    gyroscope (accelerometer-only loggers) quiet means a quiet accelerometer alone.
+    gyroscope (accelerometer-only loggers) quiet means a quiet accelerometer alone. When fewer
+    than :data:`imucal.holds.MIN_HOLDS` are found (poses held by hand: the tremor is above the
+    noise), the holds of :func:`imucal.holds.find_holds` replace them if it finds enough.
 
     Parameters
     ----------
@@ -995,7 +997,11 @@ def segment_poses(
     -------
     DataFrame
         Segments table rows; empty if the module never rests ``min_static_s``.
+        ``attrs['notes']`` (recording -> message) says which detector gave the holds, and why,
+        when the tremor-adaptive one was tried.
     """
+    from imucal.holds import MIN_HOLDS, find_holds, merge_overlapping  # holds builds on this module
+
     if gyr is not None:
         t, acc, gyr = _check_inputs(t_s, acc, gyr)
         try:
@@ -1005,14 +1011,24 @@ def segment_poses(
     else:
         t, acc, _ = _check_inputs(t_s, acc, np.zeros_like(acc))
         intervals = find_quiet_intervals(t, acc, settings)
-    merged: list[list[int]] = []
-    for a, b in sorted(intervals):  # windows of one rest broken by a twitch overlap: one pose
-        if merged and a <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], b)
+    merged = merge_overlapping(intervals)  # windows of one rest broken by a twitch: one pose
+    notes = {}
+    if len(merged) < MIN_HOLDS:
+        # the longest rest is the initial static interval of the method, when there is one
+        base = max(merged, key=lambda ab: ab[1] - ab[0]) if merged else None
+        adaptive = find_holds(t, acc, settings, base_interval=base)
+        found = f"the noise-derived detector found {len(merged)} static interval(s), fewer than"
+        if adaptive.multiple is not None:
+            merged = adaptive.intervals
+            used = f"holds from the tremor-adaptive detector (Tedaldi 2014), {adaptive.describe()}"
         else:
-            merged.append([a, b])
+            used = f"noise-derived intervals kept, tremor-adaptive detector: {adaptive.describe()}"
+        notes[recording] = f"{recording}: {found} the {MIN_HOLDS} of the cube fit; {used}"
+        logger.info(notes[recording])
     rows = [_row(recording, f"s{k:02d}", "static", t, a, b) for k, (a, b) in enumerate(merged, 1)]
-    return _frame(rows)
+    out = _frame(rows)
+    out.attrs["notes"] = notes
+    return out
 
 
 def manual_segments(recording: str, t_s: np.ndarray, entries: list[dict]) -> pd.DataFrame:

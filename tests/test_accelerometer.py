@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from imucal import errormodel
-from imucal.accelerometer import cube_crlb, fit_cube, make_calibration
+from imucal.accelerometer import cube_crlb, fit_cube, heldout_errors, make_calibration
 from imucal.columns import ACC, GYR, TIME
 from imucal.dataset import read_dataset
 from imucal.plots.inertial import plot_cube_magnitude_errors
@@ -92,6 +92,23 @@ def test_cube_figure_shows_the_fit_residuals():
     heights = np.array([bar.get_height() for bar in bottom.patches])
     assert np.allclose(heights, fit.magnitude_error_after_m_s2)
     assert [t.get_text() for t in bottom.get_xticklabels()] == list(fit.labels)
+
+
+def test_heldout_errors_leave_each_position_out():
+    matrix, bias = make_truth()
+    positions = make_positions(matrix, bias, np.random.default_rng(4))
+    before, after = heldout_errors(positions, G)
+    raw = np.array([np.linalg.norm(p.mean(axis=0)) - G for p in positions])
+    assert np.allclose(before, raw)
+    # a held-out position is off by its own mean's noise through the norm (NOISE / sqrt(n))
+    # plus the fit's error at it (3 positions of slack for 9 unknowns: a few times that)
+    assert np.all(np.abs(after) < 10 * NOISE / np.sqrt(N_SAMPLES))
+    # a position pushed off the sphere is seen held out, not absorbed by the fit
+    positions[0] = positions[0] * 1.01
+    _, shifted = heldout_errors(positions, G)
+    assert shifted[0] == pytest.approx(0.01 * G, rel=0.3)
+    with pytest.raises(ValueError, match="at least 10"):
+        heldout_errors(positions[:9], G)
 
 
 def test_cube_fit_refuses_fewer_than_nine_positions():

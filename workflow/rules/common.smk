@@ -4,17 +4,27 @@ from functools import lru_cache
 from pathlib import Path
 
 import yaml
+from snakemake.utils import validate
 
 import imucal
 from imucal.dataset import IMU_RECORDINGS, RECORDING_NAMES, read_dataset
 from imucal.partial import is_full_protocol
 
 DATASETS = sorted(config["datasets"])
-#: The public recordings (config/real/*.yaml, data into ../shared/data/real), run by `real`.
+#: The public recordings' configs (config/real/*.yaml), each checked against the schema
+#: without filling defaults: what one sets beside `datasets` overrides the global config for
+#: its datasets alone (e.g. `segmentation` for a logger's assumed rate).
+REAL_CONFIGS = {
+    path.stem: yaml.safe_load(path.read_text()) or {}
+    for path in sorted(Path(workflow.basedir, "config", "real").glob("*.yaml"))
+}
+for _real in REAL_CONFIGS.values():
+    validate(_real, "../schemas/config.schema.yaml", set_default=False)
+#: The public recordings (data into ../shared/data/real), run by `real`.
 REAL_DATASETS = {
     name: folder
-    for path in sorted(Path(workflow.basedir, "config", "real").glob("*.yaml"))
-    for name, folder in (yaml.safe_load(path.read_text()) or {}).get("datasets", {}).items()
+    for real in REAL_CONFIGS.values()
+    for name, folder in real.get("datasets", {}).items()
 }
 #: Package version as a param of every fit rule: an upgrade of imucal reruns them.
 IMUCAL_VERSION = imucal.__version__
@@ -31,6 +41,15 @@ def folder_of(name):
     if name not in folders:
         raise ValueError(f"dataset {name!r} is neither in config 'datasets' nor in config/real")
     return str(Path(folders[name]))
+
+
+def segmentation_settings(wildcards):
+    """The `segmentation` config of a dataset: global, updated by its config/real file."""
+    settings = dict(config["segmentation"])
+    for real in REAL_CONFIGS.values():
+        if wildcards.dataset in real.get("datasets", {}):
+            settings.update(real.get("segmentation", {}))
+    return settings
 
 
 def dataset_folder(wildcards):

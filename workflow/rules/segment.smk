@@ -36,12 +36,7 @@ rule segment:
     benchmark:
         "results/{dataset}/benchmarks/segment.tsv"
     params:
-        window_s=config["segmentation"]["window_s"],
-        p_false=config["segmentation"]["p_false"],
-        min_static_s=config["segmentation"]["min_static_s"],
-        rest_tol_dps=config["segmentation"]["rest_tol_dps"],
-        scale_tol=config["segmentation"]["scale_tol"],
-        rest_drift_dps_per_s=config["segmentation"]["rest_drift_dps_per_s"],
+        settings=segmentation_settings,
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/segment.py"

@@ -28,12 +28,7 @@ try:
         tables,
         ratetable=dataset.ratetable,
         manual=dataset.segments + sections,
-        window_s=p.window_s,
-        p_false=p.p_false,
-        min_static_s=p.min_static_s,
-        rest_tol_dps=p.rest_tol_dps,
-        scale_tol=p.scale_tol,
-        rest_drift_dps_per_s=p.rest_drift_dps_per_s,
+        **p.settings,
         fallback=True,
     )
     write_recording(
