@@ -116,3 +116,32 @@ def test_a_candidate_whose_replica_cannot_be_calibrated_does_not_fit():
     assert explained == ["good"]
     assert not broken.accepted and not broken.evaluated
     assert "cannot be calibrated (mag samples do not describe an ellipsoid)" in broken.note
+
+
+def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_saturation(tmp_path):
+    """A gyro range of 45 deg/s clips the rotation3d phases and every rate-table run: no gyro
+    scale can be fitted and the full twin cannot be built, yet the diagnosis ends, on the
+    static recording, with the reason and 'saturation' noted from the readings."""
+    from imucal.dataset import IMU_RECORDINGS, read_dataset
+    from imucal.gap import PipelineOptions, diagnose
+    from imucal.ingest import ingest_recording
+    from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
+    from imucal.sim.effects import make_effect, stream_rng
+
+    truth = make_truth("random", stream_rng(6, "truth"))
+    session = simulate_session(
+        truth, 7, ProtocolConfig(static_s=30.0), (make_effect("saturation", gyr=2950),)
+    )
+    info = read_dataset(write_session(session, tmp_path / "clipped"))
+    imu = {
+        r: ingest_recording(p, r, info, "test")[0]
+        for r, p in info.recordings.items()
+        if r in IMU_RECORDINGS
+    }
+    options = PipelineOptions(
+        info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm
+    )
+    result = diagnose(imu, None, options, dataset="clipped", replicas=5)
+    assert "the calibration chain stopped" in result["fallback"]
+    assert result["noted"] == ["saturation"]
+    assert set(result["saturation"]["clip_fraction"]) == {"gyr"}

@@ -9,7 +9,8 @@ with this pipeline (large misalignment under the exact rotation), with ``misalig
 A session whose calibration chain stops on its data (too few positions, a fit the samples do not
 support), or whose twin cannot be replicated, still gets a diagnosis: the static diagnosis of
 its ``static`` recording (:func:`imucal.gap.partial.diagnose_partial_session`), with the reason
-in ``fallback``.
+in ``fallback``; readings clipped at a sensor's range are then ``noted`` as ``saturation``
+(with the fraction per sensor), since clipping shows in the readings without a twin.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from imucal.gap.attribution import attribute, confusable
 from imucal.gap.effects import library, misalignment_report
 from imucal.gap.null import build_null, holm, run_replicas
 from imucal.gap.pipeline import PipelineOptions, calibrate_session
-from imucal.gap.statistics import CATALOGUE, HALVES, compute_statistics
+from imucal.gap.statistics import CATALOGUE, HALVES, clip_fractions, compute_statistics
 from imucal.gap.twin import build_twin
 
 FORMAT_VERSION = 1
@@ -107,6 +108,11 @@ def diagnose(
             crn_seeds=crn_seeds, detect_z=detect_z,
         )  # fmt: skip
         result["fallback"] = f"{where} ({err}); the static recording alone is diagnosed"
+        # clipping is seen in the readings themselves, with or without a twin
+        clipped = {s: f for s, f in clip_fractions(imu, options).items() if f > 0}
+        if clipped:
+            result["noted"] = ["saturation"]
+            result["saturation"] = {"clip_fraction": clipped}
         return result
     t_null = time.perf_counter()
     null_full = build_null(reps, None)

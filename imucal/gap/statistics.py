@@ -31,6 +31,7 @@ Statistics (units in the names of :data:`CATALOGUE`):
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from itertools import product
 
@@ -257,20 +258,26 @@ def _timing(fit: SessionFit, half) -> dict:
     return out | _clipping(fit, half)
 
 
-def _clipping(fit: SessionFit, half) -> dict:
-    """Fraction of samples within one LSB of a sensor's range (range from dataset.yaml)."""
-    opt = fit.extra["options"]
+def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> dict[str, float]:
+    """Per sensor, the fraction of its samples (all recordings, one time half or all) within
+    1.5 LSB of its range (``options.limit``: ``range_counts`` of dataset.yaml)."""
     out = {}
     for s in SENSORS:
         n = hit = 0
-        for table in fit.imu.values():
+        for table in tables.values():
             x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[_time_half(len(table), half)]
             x = x[np.all(np.isfinite(x), axis=1)]
-            limit = opt.limit(s) - 1.5 * float(opt.sensitivity[s])
+            limit = options.limit(s) - 1.5 * float(options.sensitivity[s])
             hit += int(np.any(np.abs(x) >= limit, axis=1).sum())
             n += len(x)
-        out[("ingest", s, "-", "all", "clip_fraction")] = hit / max(n, 1)
+        out[s] = hit / max(n, 1)
     return out
+
+
+def _clipping(fit: SessionFit, half) -> dict:
+    """Fraction of samples within one LSB of a sensor's range (range from dataset.yaml)."""
+    fractions = clip_fractions(fit.imu, fit.extra["options"], half)
+    return {("ingest", s, "-", "all", "clip_fraction"): f for s, f in fractions.items()}
 
 
 def _noise(fit: SessionFit, half) -> dict:
