@@ -145,3 +145,29 @@ def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_satura
     assert "the calibration chain stopped" in result["fallback"]
     assert result["noted"] == ["saturation"]
     assert set(result["saturation"]["clip_fraction"]) == {"gyr"}
+
+
+def test_backward_pass_drops_an_effect_a_later_one_explains():
+    """'early' closes location 0 only; 'late' closes locations 0 and 1. Accepted in that
+    order, 'early' closes nothing once 'late' is in the twin: it is dropped and reported as
+    confusable with 'late'. Two effects on disjoint locations are both kept."""
+    from imucal.gap.attribution import confusable, prune_backward
+
+    keys = [("s", "gyr", ax, "all", "resid_rms") for ax in "xyzw"[:3]]
+    rng = np.random.default_rng(1)
+    null = NullModel.from_values(keys, rng.normal(0, 0.01, (20, 3)))
+    stats = {"B": {k: float(np.exp(v)) for k, v in zip(keys, (0.5, 0.5, 0.0))}}
+
+    def cand(name, closes):
+        c = Candidate(name, {"p": 1}, {"p": 1}, 1.0, 10.0, accepted=True)
+        c.shift_b = {keys[i]: (0.5, 0.0) for i in closes}
+        return c
+
+    early, late = cand("early", [0]), cand("late", [0, 1])
+    explained, pruned = prune_backward([early, late], ["early", "late"], stats, null, 0.3)
+    assert explained == ["late"]
+    assert not early.accepted and "confusable with them" in early.note
+    assert confusable(pruned, explained, 0.3)[0]["rivals"] == ["early"]
+
+    a, b = cand("a", [0]), cand("b", [1])
+    assert prune_backward([a, b], ["a", "b"], stats, null, 0.3) == (["a", "b"], [])

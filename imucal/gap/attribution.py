@@ -9,7 +9,9 @@ parameters estimated on half A of the segments and measures the gap on half B. E
 accepted forward while the gap is significant: of the detected effects whose held-out shrink
 reaches ``min_heldout_shrink``, the one with the lowest held-out deviance
 (:meth:`~imucal.gap.null.NullModel.deviance`: it charges an effect for the spread it adds to
-the null, so that a stochastic effect cannot outrank a systematic one by widening it). An effect whose estimate fails
+the null, so that a stochastic effect cannot outrank a systematic one by widening it). A
+backward pass then drops an accepted effect that no longer closes ``min_heldout_shrink`` of the
+held-out gap once the others are in the twin, and reports it as confusable with them. An effect whose estimate fails
 its physics gate (e.g. a rate the Earth cannot have) or that the exact model absorbs
 (``opens_gap`` False) is never evaluated.
 """
@@ -206,7 +208,9 @@ def select_forward(
     shift, shift_b : dict
         Total null shift of the accepted effects (full statistics, half B).
     rounds : list of dict
-        Per selection round, effect -> held-out shrink (evaluated effects).
+        Per selection round ``{"winner", "shrinks"}`` (the accepted effect or None, and effect
+        -> held-out shrink of the evaluated effects), then one ``{"pruned", "by",
+        "heldout_shrink"}`` per effect the backward pass dropped.
     """
     shift: dict = {}
     shift_b: dict = {}
@@ -252,21 +256,96 @@ def select_forward(
             qualifies = c.heldout_shrink is not None and c.heldout_shrink >= min_heldout_shrink
             if qualifies and (best is None or c.heldout_deviance < best.heldout_deviance):
                 best = c
-        rounds.append({c.name: c.heldout_shrink for c in open_ if c.evaluated})
+        rounds.append({
+            "winner": best.name if best else None,
+            "shrinks": {c.name: c.heldout_shrink for c in open_ if c.evaluated},
+        })  # fmt: skip
         if best is None:
             break
         best.accepted = True
         explained.append(best.name)
         shift, shift_b = add_shifts(shift, best.shift), add_shifts(shift_b, best.shift_b)
+    explained, pruned = prune_backward(cands, explained, stats, null_b, min_heldout_shrink)
+    rounds += pruned
+    accepted = {c.name: c for c in cands if c.accepted}
+    shift, shift_b = {}, {}
+    for name in explained:
+        shift = add_shifts(shift, accepted[name].shift)
+        shift_b = add_shifts(shift_b, accepted[name].shift_b)
     return explained, shift, shift_b, rounds
 
 
+def prune_backward(
+    cands: Sequence[Candidate],
+    explained: Sequence[str],
+    stats: Mapping,
+    null_b: NullModel,
+    min_heldout_shrink: float,
+) -> tuple[list[str], list[dict]]:
+    """The backward pass of the selection: an accepted effect must still close its share of
+    the held-out gap once the effects accepted after it are in the twin.
+
+    Forward selection can accept an effect early that a later one explains better (two effects
+    with overlapping signatures). Each accepted effect's held-out shrink given all the others,
+    ``1 - gap(all) / gap(all but it)`` on half B, must reach ``min_heldout_shrink``; the one
+    furthest below is dropped (its candidate un-accepted, with a note) and the pass repeats.
+
+    Returns
+    -------
+    explained : list of str
+        The accepted effects left, in acceptance order.
+    pruned : list of dict
+        Per dropped effect ``{"pruned", "by", "heldout_shrink"}`` (see :func:`confusable`).
+    """
+    by_name = {c.name: c for c in cands}
+    explained = list(explained)
+    pruned = []
+
+    def gap_b(names) -> float:
+        shift_b: dict = {}
+        for n in names:
+            shift_b = add_shifts(shift_b, by_name[n].shift_b)
+        return null_b.gap(stats["B"], shift_b)
+
+    while len(explained) > 1:
+        with_all = gap_b(explained)
+        marginal = {}
+        for name in explained:
+            without = gap_b([n for n in explained if n != name])
+            marginal[name] = 1 - with_all / without if without > 0 else 0.0
+        worst = min(explained, key=lambda n: marginal[n])
+        if marginal[worst] >= min_heldout_shrink:
+            break
+        others = [n for n in explained if n != worst]
+        c = by_name[worst]
+        c.accepted = False
+        c.note = (
+            f"dropped: once {', '.join(others)} are in the twin it closes "
+            f"{marginal[worst]:.2f} of the held-out gap (< {min_heldout_shrink:g}); "
+            "confusable with them"
+        )
+        pruned.append({"pruned": worst, "by": others, "heldout_shrink": marginal[worst]})
+        explained = others
+    return explained, pruned
+
+
 def confusable(rounds: Sequence[Mapping], explained: Sequence[str], threshold: float) -> list:
-    """Effects that qualified in the round an accepted effect won but were not accepted later:
-    once the winner was in the twin they no longer closed anything, so the data explain the
-    same locations with either."""
+    """Effects the data cannot tell apart from an accepted one.
+
+    Those that qualified in the round an accepted effect won but were not accepted later (once
+    the winner was in the twin they no longer closed anything), and those the backward pass
+    dropped (:func:`prune_backward`): the data explain the same locations with either.
+    ``rounds`` are :func:`select_forward`'s.
+    """
     out = []
-    for winner, shrinks in zip(explained, rounds, strict=False):
+    for r in rounds:
+        if "pruned" in r:
+            out.append({"accepted": " + ".join(r["by"]), "rivals": [r["pruned"]],
+                        "heldout_shrink": {r["pruned"]: r["heldout_shrink"]}})  # fmt: skip
+            continue
+        winner, shrinks = r["winner"], r["shrinks"]
+        if winner not in explained:
+            continue
         rivals = [n for n, s in shrinks.items()
                   if n != winner and n not in explained and (s or 0) >= threshold]  # fmt: skip
         if rivals:
