@@ -42,7 +42,9 @@ expects one about its axis there and ``r`` is at least half a turn; its ``turns`
 **Cube positions** are static intervals; consecutive ones whose mean specific force points the
 same way (within half the 45-degree V-block step, 22.5 deg) are one position (a yaw about the
 vertical does not give the cube fit a new point): the longest is kept, the others are labelled
-``static``.
+``static``. A cube turned by hand rests with tremor above the noise: when the static intervals
+give fewer positions than the fit needs, the holds of the tremor-adaptive detector
+(:func:`imucal.holds.find_holds`) are grouped the same way, and the notes say so.
 
 **Rate-table runs** are gyro-quiet intervals (constant rate, not necessarily zero) of at least
 ``min_static_s`` (the steady part: the ends of the spin-up and spin-down stay within the noise
@@ -683,27 +685,33 @@ def segment_cube(
     ValueError
         If fewer than ``min_positions`` distinct positions are found.
     """
+    from imucal.holds import find_holds  # holds builds on this module
+
     t, acc, gyr = _check_inputs(t_s, acc, gyr)
-    static = find_static_intervals(t, acc, gyr, settings)
-    groups: list[list[tuple[int, int]]] = []
-    last_dir = None
-    for a, b in static.intervals:
-        g = acc[a:b].mean(axis=0)
-        g = g / np.linalg.norm(g)
-        if (
-            last_dir is not None
-            and np.degrees(np.arccos(np.clip(g @ last_dir, -1, 1))) < SAME_POSITION_DEG
-        ):
-            groups[-1].append((a, b))
-        else:
-            groups.append([(a, b)])
-        last_dir = g
+    try:
+        static = find_static_intervals(t, acc, gyr, settings)
+        intervals, rest = static.intervals, rest_note("cube", t, static, rejected=True)
+    except ValueError as err:  # nothing at rest within the noise: maybe held by hand
+        intervals, rest = [], f"cube: {err}"
+    groups = _positions(acc, intervals)
+    notes = [rest.removeprefix("cube: ")] if rest else []
+    if len(groups) < min_positions:
+        # poses held by hand: the tremor is above the noise (imucal.holds)
+        base = max(intervals, key=lambda ab: ab[1] - ab[0]) if intervals else None
+        adaptive = find_holds(t, acc, settings, base_interval=base)
+        held = _positions(acc, adaptive.intervals) if adaptive.multiple is not None else []
+        notes.append(
+            f"the noise-derived detector found {len(groups)} position(s); "
+            + (f"holds from the tremor-adaptive detector (Tedaldi 2014), {adaptive.describe()}"
+               if len(held) > len(groups) else f"tremor-adaptive detector: {adaptive.describe()}")
+        )  # fmt: skip
+        if len(held) > len(groups):
+            groups = held
     if len(groups) < min_positions:
         where = ", ".join(f"{t[g[0][0]]:.1f}-{t[g[-1][1] - 1]:.1f} s" for g in groups) or "none"
-        rest = rest_note("cube", t, static, rejected=True).removeprefix("cube: ")
         raise ValueError(
             f"cube: found {len(groups)} static position(s) ({where}); the cube fit needs at least "
-            f"{min_positions} (the protocol has 12)" + (f"; {rest}" if rest else "")
+            f"{min_positions} (the protocol has 12); " + "; ".join(notes)
         )
     if len(groups) != 12:
         logger.warning("cube: found %d positions; the protocol has 12", len(groups))
@@ -718,9 +726,27 @@ def segment_cube(
                 n_static += 1
                 rows.append(_row("cube", f"s{n_static:02d}", "static", t, a, b))
     out = _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
-    note = rest_note("cube", t, static, rejected=True)
-    out.attrs["notes"] = {"cube": note} if note else {}
+    out.attrs["notes"] = {"cube": "cube: " + "; ".join(notes)} if notes else {}
     return out
+
+
+def _positions(acc: np.ndarray, intervals: list[tuple[int, int]]) -> list[list[tuple[int, int]]]:
+    """Consecutive static intervals grouped into positions: a group's mean specific forces
+    (acc (n, 3)) point within ``SAME_POSITION_DEG`` of the one before."""
+    groups: list[list[tuple[int, int]]] = []
+    last_dir = None
+    for a, b in intervals:
+        g = acc[a:b].mean(axis=0)
+        g = g / np.linalg.norm(g)
+        if (
+            last_dir is not None
+            and np.degrees(np.arccos(np.clip(g @ last_dir, -1, 1))) < SAME_POSITION_DEG
+        ):
+            groups[-1].append((a, b))
+        else:
+            groups.append([(a, b)])
+        last_dir = g
+    return groups
 
 
 @dataclass(frozen=True)
