@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
-from imucal.sim.effects import EFFECTS, make_effect, stream_rng
+from imucal.sim.effects import CANONICAL, make_effect, stream_rng
 
 #: The blind sessions: the default protocol with a 120 s static recording (shorter rate-table
 #: plateaus, 4 s, split runs in the automatic segmentation).
@@ -41,7 +41,8 @@ def blind_plan(
         Effect -> number of unknown-effect sessions (the effect is injected and left out of
         the diagnosis's library).
     effects : list of str, optional
-        Effects to hide; default every simulator effect.
+        Effects to hide; default every canonical simulator effect (not the protocol
+        conditions such as ``hand_tremor``, which the library does not model).
 
     Returns
     -------
@@ -49,7 +50,7 @@ def blind_plan(
         ``name``, ``effect`` (None for no effect), ``seed``, ``exclude`` (effects left out of the
         library when diagnosing it), in name order.
     """
-    effects = sorted(EFFECTS) if effects is None else list(effects)
+    effects = sorted(CANONICAL) if effects is None else list(effects)
     specs = [{"effect": e, "exclude": []} for e in effects for _ in range(seeds_per_effect)]
     specs += [{"effect": None, "exclude": []} for _ in range(n_null)]
     specs += [{"effect": e, "exclude": [e]} for e, n in unknown.items() for _ in range(n)]
