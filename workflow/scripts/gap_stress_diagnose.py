@@ -17,6 +17,8 @@ result = diagnose_folder(
     crn_seeds=p.crn_seeds, detect_z=p.detect_z,
 )  # fmt: skip
 if result.get("failed"):
-    logging.error("%s failed in the %s:\n%s", snakemake.wildcards.session, result["failed_in"],
-                  "".join(result["traceback"]))  # fmt: skip
+    logging.getLogger(__name__).error(
+        "%s failed in the %s:\n%s", snakemake.wildcards.session, result["failed_in"],
+        "".join(result["traceback"]),
+    )  # fmt: skip
 write_json(result, snakemake.output.diagnosis)

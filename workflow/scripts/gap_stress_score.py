@@ -13,7 +13,7 @@ if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
-name = lambda path: Path(path).stem  # noqa: E731
+name = lambda path: Path(path).stem
 diagnoses = {name(f): read_json(f) for f in snakemake.input.diagnoses}
 keys = {name(f): read_json(f) for f in snakemake.input.sealed}
 score = score_stress(diagnoses, keys)
