@@ -118,7 +118,7 @@ def _key(items, diagnosable, conditions=()):
 
 
 def test_score_counts_fully_right_sessions_crashes_and_empty_nulls():
-    crash = failed_diagnosis("s4", "ValueError: cube: found 11 static intervals, expected 12\nmore")
+    crash = failed_diagnosis("s4", "ValueError: cube: found 11 static (0-1 s, 4-5 s)\nmore")
     crash.update(failed_in="pipeline", where="imucal/segmentation.py:10 find", calibration=None)
     calibration = _truth(gyr_bias=(0.1, 0.002, 0.0))
     calibration["acc"]["matrix"] = (np.eye(3) * 1.01).tolist()
@@ -128,7 +128,7 @@ def test_score_counts_fully_right_sessions_crashes_and_empty_nulls():
         "s2": _diag([], notes=["eq. 36 (gyro scale without tools) failed: repeated stamps"]),
         "s3": _diag(["bias_instability"]),  # a condition named as an effect
         "s4": crash,
-        "s5": failed_diagnosis("s5", "ValueError: cube: found 11 static intervals, expected 12"),
+        "s5": failed_diagnosis("s5", "ValueError: cube: found 2 static (3.5-4.1 s)"),
         "s6": _diag([]),
     }
     keys = {
@@ -150,8 +150,8 @@ def test_score_counts_fully_right_sessions_crashes_and_empty_nulls():
     assert rows["s1"]["extra"] == ["packet_loss"] and not rows["s1"]["fully_right"]
     assert rows["s5"]["missed"] == ["lever_arm"]
     assert rows["s2"]["stages_not_run"][0].startswith("eq. 36")
-    first = "ValueError: cube: found 11 static intervals, expected 12"
-    assert score["crash_groups"] == {first: ["s4", "s5"]}
+    assert rows["s4"]["error"] == "ValueError: cube: found 11 static (0-1 s, 4-5 s)"
+    assert score["crash_groups"] == {"ValueError: cube: found # static (...)": ["s4", "s5"]}
     assert score["crash_where"]["imucal/segmentation.py:10 find"] == ["s4"]
     assert score["by_item"]["hand_held"] == {"n": 2, "crashed": 1, "fully_right": 0}
     assert score["by_item"]["clean"] == {"n": 1, "crashed": 0, "fully_right": 1}

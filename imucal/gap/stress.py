@@ -12,6 +12,7 @@ docs/gap.md lists the magnitudes and their datasheet sources.
 
 from __future__ import annotations
 
+import re
 import traceback
 from collections.abc import Mapping
 from html import escape
@@ -247,6 +248,16 @@ def _first_line(error: str | None) -> str:
     return (error or "").strip().splitlines()[0] if error else ""
 
 
+def crash_cause(error: str) -> str:
+    """An error's first line with parenthesised detail as ``(...)`` and numbers as ``#``.
+
+    Sessions that fail for one reason differ in the numbers the message quotes (times,
+    counts); the cause groups them.
+    """
+    line = re.sub(r"\([^()]*\)", "(...)", _first_line(error))
+    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", line)
+
+
 def score_stress(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -> dict:
     """Unsealed scoring of the stress set.
 
@@ -261,7 +272,7 @@ def score_stress(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) 
         ``n``, ``crashes`` (count), ``fully_right`` ([k, n]), ``fully_right_fraction``,
         ``null_explained_empty`` ([k, n] over the sessions without library effects),
         ``by_item`` (condition, harsh variant or effect -> n, crashed, fully_right),
-        ``crash_groups`` (first error line -> session names), ``crash_where`` (innermost
+        ``crash_groups`` (:func:`crash_cause` -> session names), ``crash_where`` (innermost
         package frame -> session names), ``calibration_error_median`` (sensor -> bias, matrix
         over the sessions with a calibration), ``sessions`` (the detail).
     """
@@ -296,7 +307,7 @@ def score_stress(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) 
             n_null += 1
             null_ok += not crashed and not explained
         if crashed:
-            groups.setdefault(row["error"], []).append(name)
+            groups.setdefault(crash_cause(row["error"]), []).append(name)
             where.setdefault(row["where"] or "(outside the package)", []).append(name)
         for item in spec["items"] or ["clean"]:
             b = by_item.setdefault(item, {"n": 0, "crashed": 0, "fully_right": 0})
