@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from imucal.sim import EFFECTS, PRESETS, parse_effect, simulate
-from imucal.sim.effects import CANONICAL, REALISTIC
+from imucal.sim.effects import REALISTIC
 
 
 def _effect(spec: str):
@@ -18,7 +18,7 @@ def _effect(spec: str):
 
 def _effects_epilog() -> str:
     lines = ["effects and their defaults (a typical realistic magnitude; see docs/simulator.md):"]
-    for name in CANONICAL:
+    for name in REALISTIC:
         params = ",".join(f"{k}={v}" for k, v in REALISTIC[name].items())
         lines.append(f"  {name}:{params}")
     return "\n".join(lines)

@@ -7,6 +7,7 @@ allowed 5 standard errors, an integral of N samples 5 random-walk standard devia
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -39,7 +40,8 @@ from imucal.sim import (
     simulate_session,
 )
 from imucal.sim.effects import RecordingContext, stream_rng
-from imucal.sim.motion import Motion, move, turn
+from imucal.sim.motion import Motion, Tremor, hold, move, turn
+from imucal.sim.protocol import plan_cube
 from imucal.sim.session import RATE_HZ, SENSITIVITY
 from imucal.sim.truth import PAPER_GYR_BIAS, PAPER_GYR_SCALE, World
 
@@ -399,6 +401,106 @@ def test_random_preset_is_seeded_and_fits_int16_at_400_dps():
         rates = np.radians(400) * np.vstack([np.eye(3), -np.eye(3)])
         reading = errormodel.invert(gyr.matrix, gyr.bias, rates)
         assert np.abs(reading).max() / SENSITIVITY["gyr"] < 32767 - 100  # margin: 20 noise std
+
+
+def test_mems_preset_has_consumer_turn_on_biases_and_fits_int16_at_400_dps():
+    truths = [make_truth("mems", stream_rng(seed, "truth")) for seed in range(300)]
+    gyr_bias = np.array([t.calibration.gyr.bias for t in truths])
+    acc_bias = np.array([t.calibration.acc.bias for t in truths])
+    assert np.abs(gyr_bias).max() <= np.radians(20.0) and np.abs(gyr_bias).max() > 0.3
+    assert np.abs(acc_bias).max() <= 0.6 and np.abs(acc_bias).max() > 0.55
+    assert np.abs(acc_bias).min() >= 0.05
+    scales = np.array([t.calibration.gyr.decomposition.scale for t in truths])
+    assert 0.95 <= scales.min() and scales.max() <= 1.2  # as in the random preset
+    assert all(t.preset == "mems" for t in truths)
+    limit = 32767 - 100  # margin: 20 noise std
+    for t in truths:
+        gyr = t.calibration.gyr
+        # worst reading of a 400 deg/s rate along any direction: |row of inv(matrix)| * rate
+        worst = np.linalg.norm(np.linalg.inv(gyr.matrix), axis=1) * np.radians(400) + np.abs(
+            gyr.bias
+        )
+        assert worst.max() / SENSITIVITY["gyr"] < limit
+    # the other presets keep their ranges
+    random = np.array([make_truth("random", stream_rng(s, "truth")).calibration.gyr.bias
+                       for s in range(300)])  # fmt: skip
+    assert np.abs(random).max() <= 0.2
+
+
+def test_slow_handling_motions_take_their_configured_time():
+    config = ProtocolConfig(cube_move_s=(8.0, 12.0), cube_position_s=(2.5, 3.5))
+    plan = plan_cube(config, stream_rng(3, "protocol"))
+    moves = [p for p in plan.motion.pieces if p.profile == "smooth"]
+    holds = [p for p in plan.motion.pieces if p.profile == "hold"]
+    assert len(moves) == 11 and len(holds) == 12
+    assert all(8.0 <= p.duration_s <= 12.0 for p in moves)
+    assert all(2.5 <= p.duration_s <= 3.5 for p in holds)
+    t = np.arange(0.0, plan.motion.duration_s, DT)
+    state = evaluate_motion(plan.motion, t)
+    fast = evaluate_motion(plan_cube(ProtocolConfig(), stream_rng(3, "protocol")).motion, t)
+    # the same turns over about 3.5 times the time: the peak rate drops accordingly
+    assert (
+        np.linalg.norm(state.omega_b, axis=1).max()
+        < 0.5 * np.linalg.norm(fast.omega_b, axis=1).max()
+    )
+
+
+def test_tremor_rates_are_the_derivative_of_the_orientation():
+    rng = np.random.default_rng(0)
+    tremor = Tremor(
+        np.radians(np.array([[0.3, 0.3, 0.01, 0.01]] * 3)),
+        np.hstack([rng.uniform(0.1, 0.8, (3, 2)), rng.uniform(4.0, 12.0, (3, 2))]),
+        rng.uniform(0.0, 2 * np.pi, (3, 4)),
+        0.5,
+    )
+    r0 = Rotation.from_rotvec([0.2, -0.4, 1.0])
+    target = Rotation.from_rotvec([1.0, 0.5, -0.3])
+    for base in (hold(0.0, 3.0, r0), move(0.0, 3.0, r0, target, [0, 0.6, 0.8], 0.05, 1.5)):
+        piece = dataclasses.replace(base, tremor=tremor)
+        t = np.linspace(0.0, 3.0, 30001)
+        state = evaluate_motion(Motion((piece,)), t)
+        h = t[1] - t[0]
+        finite = (state.rotation[:-1].inv() * state.rotation[1:]).as_rotvec() / h
+        midpoint = (state.omega_b[:-1] + state.omega_b[1:]) / 2
+        np.testing.assert_allclose(finite, midpoint, atol=1e-7)  # O(h^2) of the midpoint rule
+        np.testing.assert_allclose(
+            np.diff(state.omega_b, axis=0) / h,
+            (state.omega_dot_b[:-1] + state.omega_dot_b[1:]) / 2,
+            atol=1e-5,
+        )
+        # starts and ends at rest on the piece's own orientations (the envelope)
+        assert (state.rotation[0].inv() * piece.start).magnitude() < 1e-12
+        assert (state.rotation[-1].inv() * piece.end).magnitude() < 1e-12
+        np.testing.assert_allclose(state.omega_b[[0, -1]], evaluate_motion(
+            Motion((base,)), t[[0, -1]]).omega_b, atol=1e-12)  # fmt: skip
+    with pytest.raises(ValueError, match="share one shape"):
+        Tremor(np.zeros((3, 2)), np.zeros((3, 3)), np.zeros((3, 2)), 0.5)
+
+
+@pytest.mark.parametrize(
+    ("config", "gyr_counts"),
+    [
+        (ProtocolConfig(static_s=STATIC_S), 1965),  # a 30 deg/s range below the phase rates
+        (ProtocolConfig(static_s=STATIC_S, phase_rate_dps=(300.0, 300.0, 300.0)), 16375),
+    ],
+)
+def test_saturation_clips_inside_the_rotation3d_phases(config, gyr_counts):
+    truth = make_truth("paper", stream_rng(SEED, "truth"))
+    saturation = make_effect("saturation", gyr=gyr_counts)
+    on = simulate_session(truth, SEED, config, (saturation,))
+    off = simulate_session(truth, SEED, config)
+    counts = on.logs["rotation3d"].counts["gyr"]
+    t = on.logs["rotation3d"].sample / RATE_HZ
+    for seg in on.plans["rotation3d"].segments:
+        if seg.kind != "phase":
+            continue
+        # the plateau: ramps of phase_ramp_s at both ends
+        m = (t >= seg.start_s + config.phase_ramp_s) & (t < seg.end_s - config.phase_ramp_s)
+        j = AXES.index(seg.axis)
+        assert np.all(np.abs(counts[m, j]) == gyr_counts), seg.label
+        assert np.all(np.abs(off.logs["rotation3d"].counts["gyr"][m, j]) > gyr_counts)
+    assert np.abs(counts).max() == gyr_counts
+    np.testing.assert_array_equal(on.logs["cube"].counts["acc"], off.logs["cube"].counts["acc"])
 
 
 def test_motion_rates_are_the_derivative_of_the_orientation():

@@ -24,6 +24,7 @@ from imucal.sim import ProtocolConfig, evaluate_motion, make_truth, simulate_ses
 from imucal.sim.effects import (
     CANONICAL,
     EFFECTS,
+    PROTOCOL_EFFECTS,
     REALISTIC,
     make_effect,
     parse_effect,
@@ -92,8 +93,8 @@ def count_tol(session, sensor: str, n: int) -> float:
 
 
 def test_all_14_effects_are_registered_with_realistic_defaults_and_a_magnitude():
-    assert len(CANONICAL) == 14 and sorted(CANONICAL) == sorted(EFFECTS)
-    for name in CANONICAL:
+    assert len(CANONICAL) == 14 and sorted(CANONICAL + PROTOCOL_EFFECTS) == sorted(EFFECTS)
+    for name in CANONICAL + PROTOCOL_EFFECTS:
         effect = make_effect(name)
         assert REALISTIC[name] == effect.params() == EFFECTS[name].realistic()
         m = effect.magnitude()
@@ -517,3 +518,86 @@ def test_large_misalignment_sets_alpha_and_only_the_small_angle_form_misses_it(t
         dataclasses.replace(effect, acc_deg=0.0).on_truth(truth).calibration.acc
         == truth.calibration.acc
     )
+
+
+# --- the harsh end of a consumer part and a module held by hand ------------------------------
+
+
+def test_hand_tremor_moves_only_the_cube_holds_with_consistent_rate_and_attitude(truth, base):
+    effect = make_effect("hand_tremor")
+    on = render(truth, effect)
+    assert same_counts(on, base, recs=("rotation3d", "ratetable", "static"))
+    realised = on.realised["hand_tremor"]["cube"]
+    positions = segs(on, "cube", "position")
+    assert sorted(realised) == [s.label for s in positions]
+    rate_rms = np.degrees([realised[s.label]["rate_rms_rad_s"] for s in positions])
+    angle_rms = np.degrees([realised[s.label]["angle_rms_rad"] for s in positions])
+    assert 0.5 < rate_rms.mean() < 2.0 and 0.1 < angle_rms.mean() < 1.0  # deg/s, deg per axis
+    for seg in positions:
+        m = mask(on, "cube", seg)
+        gyr = calibrated(on, "cube", "gyr")[m]
+        # the calibrated gyro's RMS is the realised tremor rate plus the white noise
+        noise = np.linalg.norm(truth.calibration.gyr.matrix, axis=1) * truth.noise["gyr"]
+        expected = np.hypot(realised[seg.label]["rate_rms_rad_s"], noise)
+        np.testing.assert_allclose(np.sqrt((gyr**2).mean(axis=0)), expected, rtol=0.2)
+        # the specific force turns with the hold: integrate the true rate, rotate gravity
+        state = evaluate_motion(on.rendered["cube"].motion, module_time(on, "cube")[m])
+        angle = (state.rotation[0].inv() * state.rotation).magnitude()
+        acc = calibrated(on, "cube", "acc")[m]
+        g = state.rotation.apply(truth.world.specific_force, inverse=True)
+        sigma = np.linalg.norm(truth.calibration.acc.matrix, axis=1).max() * truth.noise["acc"]
+        assert np.abs(acc - g).mean() < 2 * sigma  # residual is the noise only
+        assert np.degrees(angle.max()) > 0.2  # it did move
+    # the nominal plan is kept; the rendered holds start and end on the nominal orientations
+    for nominal, rendered in zip(on.plans["cube"].motion.pieces, on.rendered["cube"].motion.pieces):
+        assert (nominal.start.inv() * rendered.start).magnitude() < 1e-12
+    with pytest.raises(ValueError, match="tremor band must satisfy"):
+        make_effect("hand_tremor", tremor_min_hz=12.0, tremor_max_hz=4.0)
+
+
+def test_temperature_drift_at_the_harsh_end_of_a_consumer_part(truth, base):
+    # MPU-9250 spreads: gyro 0.24 deg/s/K, accelerometer 1.5 mg/K; a 15 K warm-up
+    effect = make_effect(
+        "temperature_drift", gyr_per_k=4.4e-3, acc_per_k=0.0196, rise_c=15.0, tau_s=300.0
+    )
+    on = render(truth, effect)
+    dT = on.logs["static"].extra["temp_c"] - effect.start_c
+    assert dT.max() > 10.0
+    for sensor in ("gyr", "acc"):
+        d = reading(on, "static", sensor) - reading(base, "static", sensor)
+        k = getattr(effect, f"{sensor}_per_k")
+        n = len(d)
+        tol = count_tol(on, sensor, n) + k * 0.005
+        if sensor == "acc":  # the scale drift multiplies g on the up axis
+            u = errormodel.invert(truth.calibration.acc.matrix, np.zeros(3),
+                                  np.array([[0.0, 0.0, truth.world.gravity_m_s2]]))[0]  # fmt: skip
+            expected = (k + effect.acc_scale_per_k * u) * dT.mean()
+        else:  # at rest the gyro's input is zero: the scale drift does not show
+            expected = k * dT.mean()
+        np.testing.assert_allclose(d.mean(axis=0), expected, atol=tol)
+    assert all(c == 0 for rec in on.clipped.values() for c in rec.values())
+
+
+def test_bias_random_walk_of_the_stress_set_wanders_by_rw_sqrt_t():
+    # gyr_rw 2e-4 rad/s/sqrt(s): after 600 s the RMS change is 4.9e-3 rad/s (0.28 deg/s)
+    rw, horizon = 2e-4, 600.0
+    effect = make_effect("bias_instability", gyr_rw=rw, gyr_gm=0.0, acc_rw=0.0, acc_gm=0.0)
+    change = np.vstack([
+        np.diff(effect.bias(np.array([0.0, horizon]), 10.0, seed)["gyr"], axis=0)
+        for seed in range(60)
+    ])  # fmt: skip
+    # 180 draws: the RMS to ~5 %, allow 15 %
+    np.testing.assert_allclose(np.sqrt((change**2).mean()), rw * np.sqrt(horizon), rtol=0.15)
+    assert np.degrees(rw * np.sqrt(horizon)) == pytest.approx(0.28, abs=0.01)
+
+
+def test_large_misalignment_of_8_deg_on_a_mems_truth_fits_int16():
+    effect = make_effect("large_misalignment", acc_deg=8.0, gyr_deg=8.0, mag_deg=8.0)
+    truth = effect.on_truth(make_truth("mems", stream_rng(SEED, "truth")))
+    for s in SENSORS:
+        alpha = truth.calibration.sensor(s).decomposition.alpha_rad
+        np.testing.assert_allclose(np.linalg.norm(alpha), np.radians(8.0))
+    on = simulate_session(truth, SEED, CONFIG)
+    assert on.clipped["ratetable"]["gyr"] == 0
+    peak = np.abs(reading(on, "ratetable", "gyr")).max()
+    assert np.degrees(peak) > 400 / 1.2 and peak / on.sensitivity["gyr"] < INT16_MAX

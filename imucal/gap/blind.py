@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
-from imucal.sim.effects import EFFECTS, make_effect, stream_rng
+from imucal.sim.effects import CANONICAL, make_effect, stream_rng
 
 #: The blind sessions: the default protocol with a 120 s static recording (shorter rate-table
 #: plateaus, 4 s, split runs in the automatic segmentation).
@@ -41,7 +41,8 @@ def blind_plan(
         Effect -> number of unknown-effect sessions (the effect is injected and left out of
         the diagnosis's library).
     effects : list of str, optional
-        Effects to hide; default every simulator effect.
+        Effects to hide; default every canonical simulator effect (not the protocol
+        conditions such as ``hand_tremor``, which the library does not model).
 
     Returns
     -------
@@ -49,7 +50,7 @@ def blind_plan(
         ``name``, ``effect`` (None for no effect), ``seed``, ``exclude`` (effects left out of the
         library when diagnosing it), in name order.
     """
-    effects = sorted(EFFECTS) if effects is None else list(effects)
+    effects = sorted(CANONICAL) if effects is None else list(effects)
     specs = [{"effect": e, "exclude": []} for e in effects for _ in range(seeds_per_effect)]
     specs += [{"effect": None, "exclude": []} for _ in range(n_null)]
     specs += [{"effect": e, "exclude": [e]} for e, n in unknown.items() for _ in range(n)]
@@ -65,26 +66,55 @@ def public_plan(plan: list[dict]) -> dict:
     return {s["name"]: list(s["exclude"]) for s in plan}
 
 
+def spec_effects(spec: Mapping) -> tuple:
+    """The simulator effects of a session spec.
+
+    ``effects`` (a list of ``{"effect": name, "params": {...}}``) when the spec has it, else
+    the single ``effect`` (None for none) at its realistic magnitude.
+    """
+    if "effects" in spec:
+        return tuple(make_effect(e["effect"], **e["params"]) for e in spec["effects"])
+    return () if spec["effect"] is None else (make_effect(spec["effect"]),)
+
+
 def render_blind_session(spec: Mapping, folder: str | Path, sealed: str | Path) -> None:
-    """Render one blind session to ``folder`` and its answer key to ``sealed`` (JSON)."""
-    effects = () if spec["effect"] is None else (make_effect(spec["effect"]),)
-    truth = make_truth("random", stream_rng(spec["seed"], "truth"))
-    config = ProtocolConfig(**BLIND_PROTOCOL)
+    """Render one blind session to ``folder`` and its answer key to ``sealed`` (JSON).
+
+    Parameters
+    ----------
+    spec : dict
+        ``name``, ``seed`` and the effects (see :func:`spec_effects`); optionally ``preset``
+        (truth preset, default 'random'), ``protocol`` (:class:`ProtocolConfig` settings over
+        :data:`BLIND_PROTOCOL`; lists become tuples) and ``description``.
+    folder : str or Path
+        The session's dataset folder, written without ``truth.json``.
+    sealed : str or Path
+        The answer key: ``spec``, ``magnitude`` (of the first effect, None without one),
+        ``magnitudes`` (effect -> magnitude) and ``truth`` (truth.json).
+    """
+    effects = spec_effects(spec)
+    truth = make_truth(spec.get("preset", "random"), stream_rng(spec["seed"], "truth"))
+    protocol = {**BLIND_PROTOCOL, **spec.get("protocol", {})}
+    config = ProtocolConfig(
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in protocol.items()}
+    )
     session = simulate_session(
         truth, spec["seed"], config, effects, name=spec["name"],
-        description="blind session (answer key sealed)",
+        description=spec.get("description", "blind session (answer key sealed)"),
     )  # fmt: skip
     folder = Path(folder)
     write_session(session, folder)
     key = json.loads((folder / "truth.json").read_text())
     (folder / "truth.json").unlink()
-    magnitude = None
-    if effects:
-        m = effects[0].magnitude()
-        magnitude = {"value": m.value, "unit": m.unit, "meaning": m.meaning}
+    magnitudes = {}
+    for effect in effects:
+        m = effect.magnitude()
+        magnitudes[effect.name] = {"value": m.value, "unit": m.unit, "meaning": m.meaning}
+    magnitude = magnitudes[effects[0].name] if effects else None
     Path(sealed).parent.mkdir(parents=True, exist_ok=True)
     Path(sealed).write_text(json.dumps(
-        {"spec": dict(spec), "magnitude": magnitude, "truth": key}, indent=1, default=float
+        {"spec": dict(spec), "magnitude": magnitude, "magnitudes": magnitudes, "truth": key},
+        indent=1, default=float,
     ))  # fmt: skip
 
 

@@ -3,7 +3,8 @@
 A :class:`Motion` is a sequence of :class:`Piece` s that tile the time axis of one recording. Each
 piece starts from a known orientation and turns frame B about one fixed axis *of B* (a body axis)
 with a smooth angle profile, optionally with a small "wobble" rotation about a second body axis
-that vanishes, with its rate, at both ends of the piece (hand handling). Orientation, body rate and
+that vanishes, with its rate, at both ends of the piece (hand handling), and optionally with a
+:class:`Tremor` on top (a module held by hand). Orientation, body rate and
 body angular acceleration are all closed-form, so the simulated gyroscope integrates exactly to
 the orientation change: no numerical differentiation anywhere.
 
@@ -20,6 +21,71 @@ from scipy.spatial.transform import Rotation
 
 #: Angle profiles of a piece.
 PROFILES = ("hold", "smooth", "ramp")
+
+
+@dataclass(frozen=True)
+class Tremor:
+    """A small rotation ``Exp(a_x e_x) Exp(a_y e_y) Exp(a_z e_z)`` on top of a piece (body axes).
+
+    Each angle is a sum of sinusoids, ``a_i(tau) = env(tau) sum_k A_ik sin(2 pi f_ik tau +
+    phi_ik)``, under an envelope that rises from 0 to 1 over ``ramp_s`` at the start of the
+    piece and falls back at its end with zero rate and zero angular acceleration at both ends
+    (cycloidal ramps), so the piece still starts and ends at its nominal orientations.
+
+    Attributes
+    ----------
+    amplitude_rad : ndarray, shape (3, k)
+        Amplitudes ``A`` (rad) per body axis x, y, z and component.
+    freq_hz : ndarray, shape (3, k)
+        Frequencies ``f`` (Hz).
+    phase_rad : ndarray, shape (3, k)
+        Phases ``phi`` (rad).
+    ramp_s : float
+        Rise and fall time of the envelope (s), > 0 and at most half the piece.
+    """
+
+    amplitude_rad: np.ndarray
+    freq_hz: np.ndarray
+    phase_rad: np.ndarray
+    ramp_s: float
+
+    def __post_init__(self) -> None:
+        shapes = {np.shape(self.amplitude_rad), np.shape(self.freq_hz), np.shape(self.phase_rad)}
+        if len(shapes) != 1 or len(next(iter(shapes))) != 2 or next(iter(shapes))[0] != 3:
+            raise ValueError(f"tremor arrays must share one shape (3, k), got {sorted(shapes)}")
+        if not self.ramp_s > 0:
+            raise ValueError(f"tremor ramp_s must be > 0 s, got {self.ramp_s}")
+
+    def angles(
+        self, tau_s: np.ndarray, duration_s: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Angles (rad), rates (rad/s), accelerations (rad/s^2), each shape (n, 3)."""
+        if not 0 < 2 * self.ramp_s <= duration_s:
+            raise ValueError(
+                f"tremor ramp_s {self.ramp_s} s must be at most half the piece ({duration_s} s)"
+            )
+        tau = np.asarray(tau_s, dtype=float)[:, None, None]
+        w = 2 * np.pi * np.asarray(self.freq_hz)[None]
+        arg = w * tau + np.asarray(self.phase_rad)[None]
+        amp = np.asarray(self.amplitude_rad)[None]
+        s = (amp * np.sin(arg)).sum(-1)
+        ds = (amp * w * np.cos(arg)).sum(-1)
+        dds = -(amp * w**2 * np.sin(arg)).sum(-1)
+        e, de, dde = _envelope(tau[:, 0, 0], duration_s, self.ramp_s)
+        e, de, dde = e[:, None], de[:, None], dde[:, None]
+        return e * s, de * s + e * ds, dde * s + 2 * de * ds + e * dds
+
+
+def _envelope(tau_s: np.ndarray, duration_s: float, ramp_s: float):
+    """Flat-top envelope with cycloidal ramps: value, first and second derivative, shape (n,)."""
+    # a ramp is x - sin(2 pi x) / (2 pi) with x = tau / ramp_s: zero slope and curvature at 0, 1
+    x = np.clip(np.minimum(tau_s, duration_s - tau_s) / ramp_s, 0.0, 1.0)
+    sign = np.where(tau_s <= duration_s - tau_s, 1.0, -1.0)
+    c = 2 * np.pi * x
+    value = x - np.sin(c) / (2 * np.pi)
+    slope = sign * (1 - np.cos(c)) / ramp_s
+    curvature = 2 * np.pi * np.sin(c) / ramp_s**2
+    return value, slope, curvature
 
 
 @dataclass(frozen=True)
@@ -51,6 +117,8 @@ class Piece:
         Wobble amplitude (rad); 0 for none.
     wobble_cycles : float
         Number of wobble oscillations over the piece.
+    tremor : Tremor or None
+        A small rotation on top of the piece (hand-held holds); None for none.
     """
 
     start_s: float
@@ -63,6 +131,7 @@ class Piece:
     wobble_axis_b: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     wobble_rad: float = 0.0
     wobble_cycles: float = 1.0
+    tremor: Tremor | None = None
 
     def __post_init__(self) -> None:
         if self.profile not in PROFILES:
@@ -81,7 +150,7 @@ class Piece:
 
     @property
     def end(self) -> Rotation:
-        """Orientation at the end of the piece (the wobble has returned to zero)."""
+        """Orientation at the end of the piece (the wobble and the tremor have returned to zero)."""
         if self.profile == "hold":
             return self.start
         return self.start * Rotation.from_rotvec(self.axis_b * self.angle_rad)
@@ -195,6 +264,52 @@ def _wobble(piece: Piece, tau_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     return a * e * f, a * (de * f + e * df) / T, a * (dde * f + 2 * de * df + e * ddf) / T**2
 
 
+def _piece_state(piece: Piece, tau: np.ndarray) -> tuple[Rotation, np.ndarray, np.ndarray]:
+    """Orientation, body rate and acceleration of a piece (tremor excluded) at local times."""
+    n = tau.size
+    if piece.profile == "hold":
+        still = Rotation.from_quat(np.tile(piece.start.as_quat(), (n, 1)))
+        return still, np.zeros((n, 3)), np.zeros((n, 3))
+    theta, rate, acc = _profile(piece, tau)
+    a = piece.axis_b
+    main = piece.start * Rotation.from_rotvec(np.outer(theta, a))
+    if piece.wobble_rad == 0.0:
+        return main, np.outer(rate, a), np.outer(acc, a)
+    u = piece.wobble_axis_b
+    w, dw, ddw = _wobble(piece, tau)
+    wob = Rotation.from_rotvec(np.outer(w, u))
+    a_rot = wob.apply(a, inverse=True)
+    spin = a_rot * rate[:, None]
+    omega = spin + np.outer(dw, u)
+    omega_dot = a_rot * acc[:, None] - np.cross(np.outer(dw, u), spin) + np.outer(ddw, u)
+    return main * wob, omega, omega_dot
+
+
+def _with_tremor(
+    tremor: Tremor, duration_s: float, tau: np.ndarray, rot: Rotation, w_m: np.ndarray,
+    dw_m: np.ndarray,
+) -> tuple[Rotation, np.ndarray, np.ndarray]:  # fmt: skip
+    """``R = M P`` with ``P = E_x E_y E_z`` the tremor: orientation, body rate, acceleration.
+
+    With ``Q_i`` the product of the factors after ``E_i`` and ``w_Q`` its body rate,
+    ``w_P = sum_i Q_i^T e_i a_i'`` and ``w_P' = sum_i (Q_i^T e_i a_i'' - w_Qi x Q_i^T e_i a_i')``;
+    then ``w = P^T w_M + w_P`` and ``w' = P^T w_M' - w_P x P^T w_M + w_P'``.
+    """
+    a, da, dda = tremor.angles(tau, duration_s)
+    n = tau.size
+    w_p = np.zeros((n, 3))
+    dw_p = np.zeros((n, 3))
+    q = Rotation.from_quat(np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)))
+    for i in (2, 1, 0):  # from the last factor: Q_z = I, Q_y = E_z, Q_x = E_y E_z
+        e = np.eye(3)[i]
+        v = q.apply(e, inverse=True)
+        dw_p += v * dda[:, i : i + 1] - np.cross(w_p, v * da[:, i : i + 1])
+        w_p += v * da[:, i : i + 1]
+        q = Rotation.from_rotvec(np.outer(a[:, i], e)) * q
+    w_in = q.apply(w_m, inverse=True)
+    return rot * q, w_in + w_p, q.apply(dw_m, inverse=True) - np.cross(w_p, w_in) + dw_p
+
+
 def evaluate_motion(motion: Motion, t_s: np.ndarray) -> KinematicState:
     """Orientation, body rate and body angular acceleration at times ``t_s``.
 
@@ -215,7 +330,8 @@ def evaluate_motion(motion: Motion, t_s: np.ndarray) -> KinematicState:
     -----
     A piece's orientation is ``R0 Exp(theta(t) a) Exp(w(t) u)`` with body axes ``a`` (motion)
     and ``u`` (wobble). Its body rate is ``Exp(w u)^T a theta' + u w'`` and the angular
-    acceleration ``Exp(w u)^T a theta'' - (u w') x (Exp(w u)^T a theta') + u w''``.
+    acceleration ``Exp(w u)^T a theta'' - (u w') x (Exp(w u)^T a theta') + u w''``. A
+    :class:`Tremor` multiplies it on the right (see :func:`_with_tremor`).
     """
     t = np.asarray(t_s, dtype=float)
     n = t.size
@@ -233,25 +349,12 @@ def evaluate_motion(motion: Motion, t_s: np.ndarray) -> KinematicState:
         if not np.any(sel):
             continue
         tau = t[sel] - piece.start_s
-        if piece.profile == "hold":
-            quat[sel] = piece.start.as_quat()
-            continue
-        theta, rate, acc = _profile(piece, tau)
-        a = piece.axis_b
-        main = piece.start * Rotation.from_rotvec(np.outer(theta, a))
-        if piece.wobble_rad == 0.0:
-            quat[sel] = main.as_quat()
-            omega[sel] = np.outer(rate, a)
-            omega_dot[sel] = np.outer(acc, a)
-            continue
-        u = piece.wobble_axis_b
-        w, dw, ddw = _wobble(piece, tau)
-        wob = Rotation.from_rotvec(np.outer(w, u))
-        quat[sel] = (main * wob).as_quat()
-        a_rot = wob.apply(a, inverse=True)
-        spin = a_rot * rate[:, None]
-        omega[sel] = spin + np.outer(dw, u)
-        omega_dot[sel] = a_rot * acc[:, None] - np.cross(np.outer(dw, u), spin) + np.outer(ddw, u)
+        rot, w_b, dw_b = _piece_state(piece, tau)
+        if piece.tremor is not None:
+            rot, w_b, dw_b = _with_tremor(piece.tremor, piece.duration_s, tau, rot, w_b, dw_b)
+        quat[sel] = rot.as_quat()
+        omega[sel] = w_b
+        omega_dot[sel] = dw_b
     return KinematicState(t, Rotation.from_quat(quat), omega, omega_dot)
 
 

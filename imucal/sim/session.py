@@ -48,6 +48,7 @@ FILES = {
 PRESET_EFFECTS = {
     "paper": {},
     "random": {},
+    "mems": {},
     "demo": {
         "packet_loss": {"fraction": 0.005, "model": "gilbert", "burst_mean": 4.0},
         "time_offset": {"offset_s": 0.32, "drift_ppm": 10.0},
@@ -348,7 +349,7 @@ def simulate(
     ----------
     folder : str or Path
     preset : str
-        'paper', 'random' or 'demo' (see :mod:`imucal.sim.truth`).
+        'paper', 'random', 'demo' or 'mems' (see :mod:`imucal.sim.truth`).
     seed : int
     effects : tuple of Effect
         Added to the preset's effects, replacing one of the same name.

@@ -11,6 +11,9 @@ Presets
 ``demo``
     The ``paper`` truth; the demo's packet loss and reference clock offset are effects
     (see :mod:`imucal.sim.effects`), not part of the truth.
+``mems``
+    The ``random`` preset with the turn-on biases of a harsh consumer part (MPU-6050 class):
+    gyroscope up to +-20 deg/s per axis, accelerometer up to +-0.6 m/s^2 (about 60 mg).
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import SENSORS, SI_UNITS
 
-PRESETS = ("paper", "random", "demo")
+PRESETS = ("paper", "random", "demo", "mems")
 
 #: White-noise standard deviation of the module's readings (SI, per axis), estimated from the
 #: static recording of the conformance session: about 8.3 counts acc, 5.6 counts gyr, 4.0 counts
@@ -66,6 +69,17 @@ _RANDOM_RANGES = {
     "gyr": {"bias": (0.0, 0.2), "scale": (0.95, 1.2), "angle": 0.035},
     "mag": {"bias": (0.05, 0.3), "scale": (0.95, 1.05), "angle": 0.035},
 }
+#: Ranges of the ``mems`` preset: the ``random`` ranges with a consumer part's turn-on biases
+#: (MPU-6050 datasheet: gyro initial zero-rate output +-20 deg/s; accelerometer zero-g offset
+#: +-50 mg x/y, +-80 mg z). With the default gyro sensitivity (int16 = 500 deg/s), 400 deg/s at
+#: the smallest scale 0.95, a 2-deg non-orthogonality and a 20 deg/s bias read at most about
+#: 445 deg/s, inside the int16 range (``tests/test_sim.py`` checks the bound).
+_MEMS_RANGES = {
+    **_RANDOM_RANGES,
+    "acc": {**_RANDOM_RANGES["acc"], "bias": (0.05, 0.6)},
+    "gyr": {**_RANDOM_RANGES["gyr"], "bias": (0.0, np.radians(20.0))},
+}
+_RANGES = {"random": _RANDOM_RANGES, "mems": _MEMS_RANGES}
 
 
 @dataclass(frozen=True)
@@ -133,13 +147,13 @@ def _sensor(sensor: str, bias, scale, xi_rad, alpha_rad, method: str) -> SensorC
     )
 
 
-def _random_sensor(sensor: str, rng: np.random.Generator) -> SensorCalibration:
-    r = _RANDOM_RANGES[sensor]
+def _random_sensor(sensor: str, rng: np.random.Generator, preset: str) -> SensorCalibration:
+    r = _RANGES[preset][sensor]
     bias = rng.uniform(*r["bias"], 3) * rng.choice([-1.0, 1.0], 3)
     scale = rng.uniform(*r["scale"], 3)
     xi = rng.uniform(-r["angle"], r["angle"], 3)
     alpha = rng.uniform(-r["angle"], r["angle"], 3)
-    return _sensor(sensor, bias, scale, xi, alpha, "simulated truth (random preset)")
+    return _sensor(sensor, bias, scale, xi, alpha, f"simulated truth ({preset} preset)")
 
 
 def make_truth(
@@ -153,9 +167,9 @@ def make_truth(
     Parameters
     ----------
     preset : str
-        'paper', 'random' or 'demo' (see the module docstring).
+        'paper', 'random', 'demo' or 'mems' (see the module docstring).
     rng : numpy.random.Generator
-        Used by the 'random' preset only.
+        Used by the 'random' and 'mems' presets only.
     noise : dict, optional
         Module white-noise std per sensor (SI); default :data:`MODULE_NOISE`.
     world : World, optional
@@ -175,8 +189,8 @@ def make_truth(
     noise = dict(MODULE_NOISE if noise is None else noise)
     if sorted(noise) != sorted(SENSORS) or any(not v >= 0 for v in noise.values()):
         raise ValueError(f"noise must give a std >= 0 for each of {SENSORS}, got {noise}")
-    if preset == "random":
-        sensors = [_random_sensor(s, rng) for s in SENSORS]
+    if preset in _RANGES:
+        sensors = [_random_sensor(s, rng, preset) for s in SENSORS]
         angle = rng.uniform(np.radians(1.0), np.radians(3.0))
         axis = rng.normal(size=3)
         mounting = axis / np.linalg.norm(axis) * angle

@@ -325,3 +325,16 @@ def blind_spec(wildcards):
 def blind_exclude(wildcards):
     """Effects left out of the diagnosis's library for one blind session."""
     return _BLIND_EXCLUDE[wildcards.session]
+
+
+#: The stress set (imucal.gap.stress): sessions at the harsh end of consumer MEMS parts.
+from imucal.gap.stress import stress_plan
+
+_STRESS = config["stress"]
+_STRESS_PLAN = stress_plan(_STRESS["seed"], _STRESS["seeds_alone"], _STRESS["n_clean"])
+STRESS_SESSIONS = [s["name"] for s in _STRESS_PLAN]
+
+
+def stress_spec(wildcards):
+    """The sealed spec of one stress session (only the render rule takes it)."""
+    return next(s for s in _STRESS_PLAN if s["name"] == wildcards.session)

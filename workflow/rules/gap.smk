@@ -1,7 +1,9 @@
 # Sim-to-real gap diagnosis (issue 6): every dataset against its twin (imucal.gap), in the
 # default run; the blind check (`snakemake --cores 2 blind`) renders sessions with hidden
 # effects, keeps their answer keys under results/blind/sealed/ (an input of the scorer only)
-# and scores the diagnoses.
+# and scores the diagnoses; the stress set (`snakemake --cores 2 stress`) does the same with
+# sessions at the harsh end of consumer MEMS parts, recording a session the pipeline or the
+# diagnosis fails on as a crash.
 
 
 rule gap_diagnose:
@@ -68,8 +70,9 @@ rule gap_diagnose_partial:
         "../scripts/gap_diagnose_partial.py"
 
 
-# reports/blind.html is the blind check's page, not a dataset's lab report
+# reports/blind.html and reports/stress.html are pages of the checks, not datasets' lab reports
 ruleorder: blind_score > report
+ruleorder: stress_score > report
 
 
 rule blind_render:
@@ -137,3 +140,73 @@ rule blind:
     input:
         "results/blind/score.json",
         "reports/blind.html",
+
+
+# The stress set renders with the blind check's script (the spec carries truth preset, protocol
+# and effects); its diagnosis records a failure instead of failing the rule.
+rule stress_render:
+    conda:
+        "../envs/imucal.yaml"
+    output:
+        folder=directory("results/stress/data/{session}"),
+        key="results/stress/sealed/{session}.json",
+    log:
+        "results/stress/logs/render/{session}.log",
+    benchmark:
+        "results/stress/benchmarks/render/{session}.tsv"
+    params:
+        spec=stress_spec,
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_blind_render.py"
+
+
+rule stress_diagnose:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        folder="results/stress/data/{session}",
+    output:
+        diagnosis="results/stress/diagnoses/{session}.json",
+    log:
+        "results/stress/logs/diagnose/{session}.log",
+    benchmark:
+        "results/stress/benchmarks/diagnose/{session}.tsv"
+    params:
+        replicas=config["stress"]["replicas"],
+        alpha=config["gap"]["alpha"],
+        seed=config["gap"]["seed"],
+        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
+        crn_seeds=config["gap"]["crn_seeds"],
+        detect_z=config["gap"]["detect_z"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_stress_diagnose.py"
+
+
+rule stress_score:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        diagnoses=expand(
+            "results/stress/diagnoses/{session}.json", session=STRESS_SESSIONS
+        ),
+        sealed=expand("results/stress/sealed/{session}.json", session=STRESS_SESSIONS),
+        benchmarks=expand(
+            "results/stress/benchmarks/diagnose/{session}.tsv", session=STRESS_SESSIONS
+        ),
+    output:
+        score="results/stress/score.json",
+        html="reports/stress.html",
+    log:
+        "results/stress/logs/score.log",
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_stress_score.py"
+
+
+rule stress:
+    input:
+        "results/stress/score.json",
+        "reports/stress.html",

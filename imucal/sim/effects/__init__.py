@@ -14,6 +14,7 @@ from imucal.sim.effects.base import (
     register,
     stream_rng,
 )
+from imucal.sim.effects.handling import HandTremor
 from imucal.sim.effects.kinematic import EarthRotation, LeverArm
 from imucal.sim.effects.magnetic import MagLatency, PlatformMagnetic, platform_yaw
 from imucal.sim.effects.mounting import PLACEMENT_CONVENTION, LargeMisalignment, PlacementError
@@ -44,18 +45,24 @@ CANONICAL = (
     "large_misalignment",
 )
 
+#: Effects that change how the protocol is carried out rather than the sensor or the setup
+#: (a module held by hand); the gap diagnosis has no model of them.
+PROTOCOL_EFFECTS = ("hand_tremor",)
+
 #: Effect name -> its typical realistic parameters (MEMS-class module, MTx-class reference).
-REALISTIC = {name: EFFECTS[name].realistic() for name in CANONICAL}
+REALISTIC = {name: EFFECTS[name].realistic() for name in CANONICAL + PROTOCOL_EFFECTS}
 
 __all__ = [
     "CANONICAL",
     "EFFECTS",
     "PLACEMENT_CONVENTION",
+    "PROTOCOL_EFFECTS",
     "REALISTIC",
     "BiasInstability",
     "EarthRotation",
     "Effect",
     "GSensitivity",
+    "HandTremor",
     "LargeMisalignment",
     "LeverArm",
     "MagLatency",
