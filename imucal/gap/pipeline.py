@@ -112,8 +112,10 @@ def calibrate_session(
     if missing:
         raise ValueError(f"the gap diagnosis needs the recordings {missing}; got {sorted(imu)}")
     imu = dict(imu)
-    if segments is None:
-        segments = segment_dataset(imu, ratetable=dict(options.ratetable or {}) or None)
+    if segments is None:  # as the workflow: a recording whose protocol is not found keeps poses
+        segments = segment_dataset(
+            imu, ratetable=dict(options.ratetable or {}) or None, fallback=True
+        )
     low = lowpass_recording(
         imu["rotation3d"], order=options.lowpass_order, cutoff_hz=options.lowpass_cutoff_hz
     )
@@ -138,18 +140,28 @@ def calibrate_session(
     try:
         scale = stages.estimate_gyr_scale(imu["rotation3d"], segments, bias, align, acc, mag)
     except ValueError as err:
-        # eq. 36 integrates on the receive timestamps and refuses repeated ones; with a rate
-        # table the final calibration does not need it, so the diagnosis goes on and says so
+        # eq. 36 integrates on the receive timestamps and refuses repeated ones, or phases
+        # clipped at the range; with a rate table the final calibration does not need it, so
+        # the diagnosis goes on and says so
         if "ratetable" not in imu:
             raise
         notes.append(f"eq. 36 (gyro scale without tools) failed: {err}")
         scale = None
     table = table_align = None
     if "ratetable" in imu:
-        table, _ = stages.fit_gyr_table(
-            imu["ratetable"], segments, saturation_limit_rad_s=options.limit("gyr")
-        )
-        table_align = stages.align_gyr(low, segments, table["bias"], table["upper"], exact=exact)
+        try:
+            table, _ = stages.fit_gyr_table(
+                imu["ratetable"], segments, saturation_limit_rad_s=options.limit("gyr")
+            )
+            table_align = stages.align_gyr(
+                low, segments, table["bias"], table["upper"], exact=exact
+            )
+        except ValueError as err:
+            # as the workflow: the tool-free result calibrates when eq. 36 ran
+            if scale is None:
+                raise
+            notes.append(f"rate-table fit (eq. 33) failed: {err}; the tool-free result is used")
+            table = table_align = None
     gyr, _ = stages.combine_gyr(bias, align, scale, table, table_align, exact=exact)
     calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None

@@ -179,7 +179,8 @@ def diagnose_folder(
     -------
     dict
         The diagnosis (diagnosis.json) plus ``calibration`` (the pipeline's calibration,
-        :meth:`ImuCalibration.to_dict`, None when the pipeline failed). When anything raises:
+        :meth:`ImuCalibration.to_dict`, None when the pipeline failed or the data allow no
+        complete calibration: ``calibration_incomplete`` then says why). When anything raises:
         :func:`~imucal.gap.blind.failed_diagnosis` with ``failed`` = ``"Type: message"``,
         ``failed_in`` ('pipeline' or 'diagnosis'), ``where`` (innermost package frame) and
         ``traceback``.
@@ -200,8 +201,11 @@ def diagnose_folder(
         options = PipelineOptions(
             info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm
         )
-        fit = calibrate_session(imu, tables.get("reference"), options)
-        calibration = fit.calibration.to_dict()
+        try:
+            fit = calibrate_session(imu, tables.get("reference"), options)
+            calibration, incomplete = fit.calibration.to_dict(), None
+        except ValueError as err:  # the data allow no complete calibration: an outcome
+            incomplete = str(err)
         result = diagnose(
             imu, tables.get("reference"), options, dataset=dataset, replicas=replicas,
             alpha=alpha, seed=seed, min_heldout_shrink=min_heldout_shrink,
@@ -214,6 +218,8 @@ def diagnose_folder(
             where=_where(err),
             traceback=traceback.format_exception(err),
         )
+    else:
+        result["calibration_incomplete"] = incomplete
     result["calibration"] = calibration
     return result
 
