@@ -117,6 +117,9 @@ def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
         "explained": diagnosis["explained"],
         "remaining": diagnosis["remaining"],
         "confusable": diagnosis.get("confusable", []),
+        "fallback": diagnosis.get("fallback"),
+        "noted": diagnosis.get("noted", []),
+        "saturation": diagnosis.get("saturation"),
         "null": diagnosis.get("null", {}),
         "figures": dict(figures),
     }
