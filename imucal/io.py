@@ -496,7 +496,9 @@ def read_segments(path: str | Path) -> pd.DataFrame:
     Returns
     -------
     DataFrame, shape (m, 11)
-        The columns of :data:`imucal.segmentation.SEGMENT_COLUMNS` (``docs/architecture.md``).
+        The columns of :data:`imucal.segmentation.SEGMENT_COLUMNS` (``docs/architecture.md``);
+        ``attrs`` ``notes`` and ``held_by_hand`` as :func:`imucal.segmentation.segment_dataset`
+        gave them (empty for a table written without them).
 
     Raises
     ------
@@ -507,12 +509,14 @@ def read_segments(path: str | Path) -> pd.DataFrame:
     """
     from imucal.segmentation import SEGMENT_COLUMNS  # io stays light for the ingest
 
-    table, _ = read_recording(path)
+    table, metadata = read_recording(path)
     missing = [c for c in SEGMENT_COLUMNS if c not in table.columns]
     if missing:
         raise ValueError(
             f"{path}: segments table lacks the columns {missing}; expected {SEGMENT_COLUMNS}"
         )
+    table.attrs["notes"] = dict(metadata.get("notes", {}))
+    table.attrs["held_by_hand"] = list(metadata.get("held_by_hand", []))
     return table
 
 

@@ -695,6 +695,7 @@ def segment_cube(
         intervals, rest = [], f"cube: {err}"
     groups = _positions(acc, intervals)
     notes = [rest.removeprefix("cube: ")] if rest else []
+    by_hand = False
     if len(groups) < min_positions:
         # poses held by hand: the tremor is above the noise (imucal.holds)
         base = max(intervals, key=lambda ab: ab[1] - ab[0]) if intervals else None
@@ -706,7 +707,7 @@ def segment_cube(
                if len(held) > len(groups) else f"tremor-adaptive detector: {adaptive.describe()}")
         )  # fmt: skip
         if len(held) > len(groups):
-            groups = held
+            groups, by_hand = held, True
     if len(groups) < min_positions:
         where = ", ".join(f"{t[g[0][0]]:.1f}-{t[g[-1][1] - 1]:.1f} s" for g in groups) or "none"
         raise ValueError(
@@ -727,6 +728,7 @@ def segment_cube(
                 rows.append(_row("cube", f"s{n_static:02d}", "static", t, a, b))
     out = _frame(rows).sort_values("start_s", kind="stable").reset_index(drop=True)
     out.attrs["notes"] = {"cube": "cube: " + "; ".join(notes)} if notes else {}
+    out.attrs["held_by_hand"] = ["cube"] if by_hand else []
     return out
 
 
@@ -1038,7 +1040,7 @@ def segment_poses(
         t, acc, _ = _check_inputs(t_s, acc, np.zeros_like(acc))
         intervals = find_quiet_intervals(t, acc, settings)
     merged = merge_overlapping(intervals)  # windows of one rest broken by a twitch: one pose
-    notes = {}
+    notes, held_by_hand = {}, []
     if len(merged) < MIN_HOLDS:
         # the longest rest is the initial static interval of the method, when there is one
         base = max(merged, key=lambda ab: ab[1] - ab[0]) if merged else None
@@ -1046,6 +1048,7 @@ def segment_poses(
         found = f"the noise-derived detector found {len(merged)} static interval(s), fewer than"
         if adaptive.multiple is not None:
             merged = adaptive.intervals
+            held_by_hand = [recording]
             used = f"holds from the tremor-adaptive detector (Tedaldi 2014), {adaptive.describe()}"
         else:
             used = f"noise-derived intervals kept, tremor-adaptive detector: {adaptive.describe()}"
@@ -1054,6 +1057,7 @@ def segment_poses(
     rows = [_row(recording, f"s{k:02d}", "static", t, a, b) for k, (a, b) in enumerate(merged, 1)]
     out = _frame(rows)
     out.attrs["notes"] = notes
+    out.attrs["held_by_hand"] = held_by_hand
     return out
 
 
@@ -1236,6 +1240,8 @@ def segment_dataset(
         Columns ``SEGMENT_COLUMNS``, recordings in protocol order, segments in time order.
         ``attrs['notes']`` (recording -> message): the fallbacks, and the rate-table runs found
         clipped at the sensor range or split by a disturbance (:func:`segment_ratetable`).
+        ``attrs['held_by_hand']``: recordings whose holds came from the tremor-adaptive
+        detector (:mod:`imucal.holds`): held by hand, not at rest.
     """
     settings = DetectorSettings(
         window_s, p_false, min_static_s, rest_tol_dps, scale_tol, rest_drift_dps_per_s
@@ -1246,7 +1252,7 @@ def segment_dataset(
         raise ValueError(
             f"manual segments name recording(s) {unknown}; the dataset has {sorted(tables)}"
         )
-    frames, notes = [], {}
+    frames, notes, held_by_hand = [], {}, []
     for name in [r for r in RECORDINGS if r in tables] + sorted(set(tables) - set(RECORDINGS)):
         mine = [e for e in manual if e["recording"] == name]
         t = tables[name][TIME].to_numpy(dtype=float)
@@ -1264,7 +1270,9 @@ def segment_dataset(
             notes[name] = f"{name}: automatic segmentation failed ({err}); static poses only"
             logger.warning(notes[name])
             frames.append(_segment_pose_recording(name, tables[name], settings))
+        held_by_hand += frames[-1].attrs.get("held_by_hand", [])
         logger.info("%s: %d segments", name, len(frames[-1]))
     out = pd.concat(frames, ignore_index=True) if frames else _frame([])
     out.attrs["notes"] = notes
+    out.attrs["held_by_hand"] = held_by_hand
     return out

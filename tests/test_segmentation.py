@@ -621,3 +621,4 @@ def test_a_cube_turned_by_hand_gets_its_positions_from_the_tremor_adaptive_holds
     for row, s in zip(positions.itertuples(), true, strict=True):
         assert s["start_s"] - 0.5 <= row.start_s and row.end_s <= s["end_s"] + 0.5
     assert "tremor-adaptive detector" in seg.attrs["notes"]["cube"]
+    assert seg.attrs["held_by_hand"] == ["cube"]  # the diagnosis leaves these holds out of rest

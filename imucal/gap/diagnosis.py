@@ -94,7 +94,7 @@ def diagnose(
     try:
         fit = calibrate_session(imu, reference, options, segments)
         stats = {h: compute_statistics(fit, h) for h in HALVES}
-        twin = build_twin(fit, options)
+        twin = build_twin(fit, fit.extra["options"])
         reps = run_replicas(twin, replicas, seed)
     except ValueError as err:
         from imucal.gap.partial import diagnose_partial_session
@@ -180,6 +180,7 @@ def diagnose(
         },  # fmt: skip
         "twin": twin.describe(),
         "pipeline_notes": list(fit.extra.get("notes", [])),
+        "held_by_hand": list(fit.extra["options"].held_by_hand),
         "settings": {
             "seed": seed, "min_heldout_shrink": min_heldout_shrink, "crn_seeds": crn_seeds,
             "detect_z": detect_z, "exclude": list(exclude),

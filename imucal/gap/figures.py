@@ -118,6 +118,7 @@ def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
         "remaining": diagnosis["remaining"],
         "confusable": diagnosis.get("confusable", []),
         "fallback": diagnosis.get("fallback"),
+        "held_by_hand": diagnosis.get("held_by_hand", []),
         "noted": diagnosis.get("noted", []),
         "saturation": diagnosis.get("saturation"),
         "null": diagnosis.get("null", {}),

@@ -9,7 +9,7 @@ Snakemake and without files.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -36,6 +36,11 @@ class PipelineOptions:
         Sensor -> largest |count|, SI unit per count (``dataset.yaml``).
     ratetable : dict or None
         ``{'axes': [...], 'rates_dps': [...]}``.
+    held_by_hand : tuple of str
+        Recordings whose holds the segmentation found held by hand (tremor above the noise,
+        :mod:`imucal.holds`): not at rest, so their holds take no part in the resting
+        statistics of the diagnosis. Set from the session's segments; a replica keeps the
+        session's (its own holds are rendered without tremor).
     """
 
     gravity_m_s2: float
@@ -46,6 +51,7 @@ class PipelineOptions:
     exact_rotation: bool = True
     lowpass_order: int = 4
     lowpass_cutoff_hz: float = 5.0
+    held_by_hand: tuple = ()
 
     def limit(self, sensor: str) -> float:
         """Sensor range in SI units."""
@@ -116,6 +122,8 @@ def calibrate_session(
         segments = segment_dataset(
             imu, ratetable=dict(options.ratetable or {}) or None, fallback=True
         )
+    held = sorted(set(options.held_by_hand) | set(segments.attrs.get("held_by_hand", [])))
+    options = replace(options, held_by_hand=tuple(held))
     low = lowpass_recording(
         imu["rotation3d"], order=options.lowpass_order, cutoff_hz=options.lowpass_cutoff_hz
     )

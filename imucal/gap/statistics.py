@@ -16,7 +16,9 @@ Statistics (units in the names of :data:`CATALOGUE`):
 * accelerometer cube: RMS and time slope of the ``|a| - g`` position residuals;
 * gyroscope at rest: spread of the calibrated position means, their slope on specific force,
   their component along the vertical; the world-fixed rate (north, east, up) that all resting
-  segments share (the Earth's);
+  segments share (the Earth's); a cube held by hand (``PipelineOptions.held_by_hand``) is not
+  at rest: its positions give no gyro-at-rest statistic and no direction residual, for the
+  session and its replicas alike;
 * rate table: RMS of the run-mean residuals, their rate^2 and rate^3 coefficients, runs left
   out; accelerometer run means against rate^2 (centripetal);
 * gyroscope scale without tools: eq. 36 scale over the final scale, per phase;
@@ -322,7 +324,8 @@ def _cube(fit: SessionFit, half) -> dict:
         ),
     }
     res = cube_direction_residuals(fit, half)[0]
-    if len(res) >= 3:
+    # a hold by hand is not at the nominal orientation: its direction says nothing of the fit
+    if len(res) >= 3 and "cube" not in fit.extra["options"].held_by_hand:
         out[("acc_cube", "acc", "dir", "position", "dir_resid_rad")] = float(
             np.sqrt(np.mean(np.sum(res**2, axis=1)))
         )
@@ -412,6 +415,8 @@ def resting_gyro(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _gyr_rest(fit: SessionFit, half) -> dict:
+    if "cube" in fit.extra["options"].held_by_hand:  # the hand sways: the gyro is not at rest
+        return {}
     w, f = resting_gyro(fit, half)
     out = {}
     up = f / np.linalg.norm(f, axis=1, keepdims=True)
@@ -750,11 +755,13 @@ def _reference(fit: SessionFit, half) -> dict:
 def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
     """The session's resting segments per recording: rotation3d rests, cube positions, the rate
     table's runs at 0 deg/s and the static recording cut in 8 blocks (every other one for a
-    half); recordings in the protocol's order, segments in time order within each."""
+    half); recordings in the protocol's order, segments in time order within each. Holds of
+    a recording held by hand (``options.held_by_hand``) are not rest and are left out."""
     out = []
+    held = fit.extra["options"].held_by_hand
     for rec, kind in (("rotation3d", "static"), ("cube", "position"), ("ratetable", "run"),
                       ("static", "static")):  # fmt: skip
-        if rec not in fit.imu:
+        if rec not in fit.imu or rec in held:
             continue
         rows = _rows(fit, rec, kind)
         if rec == "ratetable":

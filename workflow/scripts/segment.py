@@ -35,7 +35,8 @@ try:
         segments,
         snakemake.output.segments,
         {"dataset": dataset.name, "imucal_version": p.imucal_version,
-         "notes": segments.attrs.get("notes", {})},
+         "notes": segments.attrs.get("notes", {}),
+         "held_by_hand": segments.attrs.get("held_by_hand", [])},
     )
     logging.info(
         "%d segments -> %s\n%s", len(segments), snakemake.output.segments, segments.to_string()
