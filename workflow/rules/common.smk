@@ -68,6 +68,11 @@ def full_protocol(name):
     return is_full_protocol(dataset_of(name))
 
 
+#: The configured and public datasets: a lab report is one of theirs (reports/blind.html and
+#: reports/stress.html are the checks' pages, not datasets).
+ALL_DATASETS_PATTERN = "|".join(sorted({**REAL_DATASETS, **config["datasets"]})) or "(?!)"
+
+
 def datasets_pattern(full):
     """Regex of the configured and public datasets on one path (full protocol or partial).
 

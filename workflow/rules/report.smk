@@ -50,6 +50,8 @@ rule validation_figures:
 
 
 rule report:
+    wildcard_constraints:
+        dataset=ALL_DATASETS_PATTERN,
     conda:
         "../envs/imucal.yaml"
     input:
