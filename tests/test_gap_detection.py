@@ -148,6 +148,10 @@ def test_a_non_monotone_effect_is_detected_only_above_its_last_miss():
     # named at 0.25 by chance, missed at 0.5: the limit is 1, not 0.25
     score = _score(_sessions("packet_loss", {0.25: 9, 0.5: 8, 1: 10, 2: 9}, unit="1"))
     assert score["effects"]["packet_loss"]["limit"]["factor"] == 1
+    # missed at the harshest level: no limit, and the note says why
+    score = _score(_sessions("packet_loss", {0.5: 10, 1: 10, 2: 6}, unit="1"))
+    e = score["effects"]["packet_loss"]
+    assert e["limit"] is None and "harshest level is missed" in e["limit_note"]
 
 
 def test_an_effect_never_reached_and_false_positives():
@@ -155,7 +159,7 @@ def test_an_effect_never_reached_and_false_positives():
         _sessions("earth_rotation", {0.5: 0, 1: 2, 4: 8}, unit="rad/s", other="g_sensitivity")
     )
     e = score["effects"]["earth_rotation"]
-    assert e["limit"] is None
+    assert e["limit"] is None and e["limit_note"] == "not reached in the grid"
     assert [lv["other_explained"] for lv in e["levels"]] == [10, 8, 2]
     assert score["false_positive"] == [20, 30]
 
@@ -179,11 +183,13 @@ def test_a_crash_names_nothing_and_the_estimates_of_the_named_are_summarised():
         "d0": _diag(["lever_arm"], effects=lever),
         "d1": _diag(["lever_arm"], effects=lever),
         "d2": failed_diagnosis("d2", "ValueError: no static interval"),
+        "d3": _diag(noted=["lever_arm"]),  # noted, not explained: not named
     }
     keys = {n: _key("lever_arm", 1, 0.01) for n in diagnoses}
     score = score_detection(diagnoses, keys, rate=0.9, confidence=0.95)
     (lv,) = score["effects"]["lever_arm"]["levels"]
-    assert (lv["named"], lv["n"], lv["crashed"], lv["detected"]) == (2, 3, 1, False)
+    assert (lv["named"], lv["n"], lv["crashed"], lv["detected"]) == (2, 4, 1, False)
+    assert lv["noted_only"] == 1
     assert lv["median_heldout_shrink"] == pytest.approx(0.8)
     assert lv["median_magnitude_rel_error"] == pytest.approx(0.2)
     assert score["crashes"] == 1

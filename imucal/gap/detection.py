@@ -218,6 +218,7 @@ def _level(rows: list[dict], key: Mapping, rate: float, confidence: float) -> di
         "rate": k / n, "cp_lower": clopper_pearson_lower(k, n, confidence),
         "detected": k >= needed, "crashed": sum(r["crashed"] for r in rows),
         "other_explained": sum(bool(r["other_explained"]) for r in rows),
+        "noted_only": sum(not r["named"] and r["effect"] in r["noted"] for r in rows),
         "median_heldout_shrink": _median([r["heldout_shrink"] for r in named]),
         "median_magnitude_rel_error": _median([r["magnitude_rel_error"] for r in named]),
     }  # fmt: skip
@@ -248,6 +249,15 @@ def detection_limit(effect: str, levels: Sequence[Mapping]) -> dict | None:
             break
         limit = lv
     return limit
+
+
+def _limit_note(limit: Mapping | None, levels: Sequence[Mapping]) -> str:
+    """Why an effect has no limit, or '' when it has one."""
+    if limit is not None:
+        return ""
+    if any(lv["detected"] for lv in levels):
+        return "not reached in the grid: the harshest level is missed, milder ones detected"
+    return "not reached in the grid"
 
 
 def score_detection(
@@ -281,9 +291,11 @@ def score_detection(
         ``criterion`` (``rate``, ``confidence``), ``effects`` (effect -> ``levels``, by factor:
         ``factor``, ``magnitude`` and ``unit`` (:meth:`Effect.magnitude`), ``magnitude_si``
         and ``unit_si``, ``n``, ``named``, ``needed``, ``rate``, ``cp_lower``, ``detected``,
-        ``crashed``, ``other_explained``, ``median_heldout_shrink`` and
+        ``crashed``, ``other_explained``, ``noted_only`` (sessions that note the effect without
+        naming it, e.g. ``saturation`` noted by the static fallback), ``median_heldout_shrink`` and
         ``median_magnitude_rel_error`` (|est - true| / true) over the sessions that name the
-        effect, None without any; and ``limit``: the :func:`detection_limit` level or None),
+        effect, None without any; ``limit``: the :func:`detection_limit` level or None, and
+        ``limit_note``: why there is none, '' with one),
         ``false_positive`` ([k, n] sessions in which another effect is explained),
         ``crashes``, ``n``, ``sessions`` (the detail).
     """
@@ -314,7 +326,12 @@ def score_detection(
             _level(by_factor[f], first_key[(effect, f)], rate, confidence)
             for f in sorted(by_factor)
         ]
-        effects[effect] = {"levels": levels, "limit": detection_limit(effect, levels)}
+        limit = detection_limit(effect, levels)
+        effects[effect] = {
+            "levels": levels,
+            "limit": limit,
+            "limit_note": _limit_note(limit, levels),
+        }
     order = [e for e in CANONICAL if e in effects] + sorted(set(effects) - set(CANONICAL))
     return {
         "criterion": {"rate": rate, "confidence": confidence},

@@ -194,13 +194,16 @@ def render_detection_page(score: Mapping) -> str:
         for f in factors:
             lv = by_factor.get(f)
             text = "" if lv is None else f"{lv['named']}/{lv['n']}"
+            if lv and lv["noted_only"]:
+                text += f" (+{lv['noted_only']} noted)"
             row += f"<td>{f'<b>{text}</b>' if lv and lv['detected'] else text}</td>"
         cells += f"<tr><th>{escape(name)}</th>{row}</tr>"
     limits = ""
     for name, e in effects.items():
         lv = e["limit"]
         if lv is None:
-            limits += f"<tr><th>{escape(name)}</th><td colspan=5>not reached in the grid</td></tr>"
+            note = escape(e["limit_note"])
+            limits += f"<tr><th>{escape(name)}</th><td colspan=5>{note}</td></tr>"
             continue
         limits += (
             f"<tr><th>{escape(name)}</th><td>x{lv['factor']:g}</td>"
@@ -229,5 +232,7 @@ magnitude is the gyro clip level, the largest). Sessions in which another effect
 <h2>Detection limits</h2><table><tr><th>effect</th><th>factor</th><th>magnitude</th>
 <th>SI</th><th>named</th><th>rate, {confidence:.0%} lower bound</th></tr>{limits}</table>
 <h2>Sessions naming the effect, by factor of the realistic magnitude</h2>
+<p>"(+m noted)": sessions that note the effect without naming it (e.g. saturation noted by
+the static fallback when the calibration chain stops).</p>
 <table><tr><th>effect</th>{head}</tr>{cells}</table>""",
     )
