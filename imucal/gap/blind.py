@@ -129,7 +129,7 @@ def failed_diagnosis(dataset: str, error: str) -> dict:
 
 
 def estimated_magnitude(effect: str, params) -> float | None:
-    """Headline magnitude (:meth:`Effect.magnitude`, SI) of an effect's estimated parameters.
+    """Headline magnitude (:meth:`Effect.magnitude`, its unit) of an effect's estimated parameters.
 
     None when there is no estimate or its parameters make no valid simulator effect.
     """
@@ -147,9 +147,9 @@ def effect_estimate(diagnosis: Mapping, effect: str) -> tuple[float | None, floa
     Returns
     -------
     heldout_shrink : float or None
-        Fraction (0..1) of the held-out gap the effect closes; None when it was not evaluated.
+        Fraction of the held-out gap the effect closes; None when it was not evaluated.
     magnitude : float or None
-        :func:`estimated_magnitude` of its estimate (SI, the unit of :meth:`Effect.magnitude`).
+        :func:`estimated_magnitude` of its estimate, in the unit of :meth:`Effect.magnitude`.
     """
     entry = next((e for e in diagnosis["effects"] if e["name"] == effect), None)
     if entry is None:
