@@ -183,13 +183,14 @@ def test_a_crash_names_nothing_and_the_estimates_of_the_named_are_summarised():
         "d0": _diag(["lever_arm"], effects=lever),
         "d1": _diag(["lever_arm"], effects=lever),
         "d2": failed_diagnosis("d2", "ValueError: no static interval"),
-        "d3": _diag(noted=["lever_arm"]),  # noted, not explained: not named
+        "d3": _diag(noted=["lever_arm", "large_misalignment"]),  # noted, not explained
     }
     keys = {n: _key("lever_arm", 1, 0.01) for n in diagnoses}
     score = score_detection(diagnoses, keys, rate=0.9, confidence=0.95)
     (lv,) = score["effects"]["lever_arm"]["levels"]
     assert (lv["named"], lv["n"], lv["crashed"], lv["detected"]) == (2, 4, 1, False)
-    assert lv["noted_only"] == 1
+    assert lv["noted_only"] == 1 and lv["other_noted"] == 1
+    assert score["false_noted"] == [1, 4] and score["false_positive"] == [0, 4]
     assert lv["median_heldout_shrink"] == pytest.approx(0.8)
     assert lv["median_magnitude_rel_error"] == pytest.approx(0.2)
     assert score["crashes"] == 1

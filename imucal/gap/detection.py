@@ -219,6 +219,7 @@ def _level(rows: list[dict], key: Mapping, rate: float, confidence: float) -> di
         "detected": k >= needed, "crashed": sum(r["crashed"] for r in rows),
         "other_explained": sum(bool(r["other_explained"]) for r in rows),
         "noted_only": sum(not r["named"] and r["effect"] in r["noted"] for r in rows),
+        "other_noted": sum(bool(r["other_noted"]) for r in rows),
         "median_heldout_shrink": _median([r["heldout_shrink"] for r in named]),
         "median_magnitude_rel_error": _median([r["magnitude_rel_error"] for r in named]),
     }  # fmt: skip
@@ -297,6 +298,8 @@ def score_detection(
         effect, None without any; ``limit``: the :func:`detection_limit` level or None, and
         ``limit_note``: why there is none, '' with one),
         ``false_positive`` ([k, n] sessions in which another effect is explained),
+        ``false_noted`` ([k, n] sessions in which another effect is noted: the false alarms of
+        a ``large_misalignment`` named by ``noted``; ``other_noted`` per level),
         ``crashes``, ``n``, ``sessions`` (the detail).
     """
     if not 0 < rate <= 1 or not 0 < confidence < 1:
@@ -314,6 +317,7 @@ def score_detection(
             "named": named, "crashed": crashed, "explained": list(diag.get("explained", [])),
             "noted": list(diag.get("noted", [])),
             "other_explained": [e for e in diag.get("explained", []) if e != effect],
+            "other_noted": [e for e in diag.get("noted", []) if e != effect],
             "heldout_shrink": shrink, "magnitude_est": est,
             "magnitude_rel_error": abs(est - true) / abs(true) if est is not None and true else None,
         }  # fmt: skip
@@ -338,6 +342,7 @@ def score_detection(
         "n": len(rows),
         "crashes": sum(r["crashed"] for r in rows),
         "false_positive": [sum(bool(r["other_explained"]) for r in rows), len(rows)],
+        "false_noted": [sum(bool(r["other_noted"]) for r in rows), len(rows)],
         "effects": {e: effects[e] for e in order},
         "sessions": rows,
     }

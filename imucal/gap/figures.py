@@ -228,7 +228,9 @@ def render_detection_page(score: Mapping) -> str:
 name the effect (explained; large misalignment, which opens no gap, noted). The detection limit
 is the least harsh level detected together with every harsher one (for saturation, whose
 magnitude is the gyro clip level, the largest). Sessions in which another effect was explained:
-<b>{fp} of {n}</b>. Crashes (named nothing): {score["crashes"]}.{timing}</p>
+<b>{fp} of {n}</b>; another effect noted: <b>{score["false_noted"][0]} of {n}</b> (a large
+misalignment named by noted is to be read against it). Crashes (named nothing):
+{score["crashes"]}.{timing}</p>
 <h2>Detection limits</h2><table><tr><th>effect</th><th>factor</th><th>magnitude</th>
 <th>SI</th><th>named</th><th>rate, {confidence:.0%} lower bound</th></tr>{limits}</table>
 <h2>Sessions naming the effect, by factor of the realistic magnitude</h2>
