@@ -533,6 +533,30 @@ def write_table(table: pd.DataFrame, path: str | Path) -> None:
     _write_atomic(path, lambda tmp: table.to_csv(tmp, index=False, lineterminator="\n"))
 
 
+def read_benchmark_seconds(paths: list[str | Path]) -> dict:
+    """Wall-clock time of the jobs of Snakemake benchmark files (column ``s``, seconds).
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Benchmark TSV files, one job each (the first row is read).
+
+    Returns
+    -------
+    dict
+        ``median`` and ``max`` over the files, s.
+
+    Raises
+    ------
+    ValueError
+        If ``paths`` is empty.
+    """
+    if not paths:
+        raise ValueError("no benchmark files; expected at least one")
+    seconds = [float(pd.read_csv(_existing(p, "benchmark"), sep="\t")["s"].iloc[0]) for p in paths]
+    return {"median": float(np.median(seconds)), "max": max(seconds)}
+
+
 # --------------------------------------------------------------------------------------------
 # JSON and calibration files
 

@@ -5,7 +5,8 @@ Modules: :mod:`.pipeline` (the calibration stages in process), :mod:`.twin` (the
 under the paper's model), :mod:`.statistics` (the locations of the gap map), :mod:`.null`
 (replicas, scores, Holm, total gap), :mod:`.effects` (estimators and signatures),
 :mod:`.attribution` (held-out forward selection), :mod:`.diagnosis` (diagnosis.json),
-:mod:`.figures` (report section), :mod:`.blind` (the blind check). See docs/gap.md.
+:mod:`.figures` (report section), :mod:`.blind` (the blind check), :mod:`.stress` (the stress
+set), :mod:`.detection` (detection limits). See docs/gap.md.
 """
 
 from imucal.gap.diagnosis import FORMAT_VERSION, diagnose

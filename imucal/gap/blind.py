@@ -128,13 +128,33 @@ def failed_diagnosis(dataset: str, error: str) -> dict:
     }  # fmt: skip
 
 
-def _estimated_magnitude(effect: str, params) -> float | None:
+def estimated_magnitude(effect: str, params) -> float | None:
+    """Headline magnitude (:meth:`Effect.magnitude`, its unit) of an effect's estimated parameters.
+
+    None when there is no estimate or its parameters make no valid simulator effect.
+    """
     if params is None:
         return None
     try:
         return float(make_effect(effect, **params).magnitude().value)
     except (ValueError, TypeError, NotImplementedError):
         return None
+
+
+def effect_estimate(diagnosis: Mapping, effect: str) -> tuple[float | None, float | None]:
+    """What a diagnosis says of one effect: its held-out shrink and estimated magnitude.
+
+    Returns
+    -------
+    heldout_shrink : float or None
+        Fraction of the held-out gap the effect closes; None when it was not evaluated.
+    magnitude : float or None
+        :func:`estimated_magnitude` of its estimate, in the unit of :meth:`Effect.magnitude`.
+    """
+    entry = next((e for e in diagnosis["effects"] if e["name"] == effect), None)
+    if entry is None:
+        return None, None
+    return entry["heldout_shrink"], estimated_magnitude(effect, entry["params"])
 
 
 def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -> dict:
@@ -192,10 +212,9 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
             n_eff += 1
             hits += hit
             hits_explained += named == truth_effect
-            entry = next((e for e in diag["effects"] if e["name"] == truth_effect), None)
-            hs = entry["heldout_shrink"] if entry and entry["heldout_shrink"] is not None else 0.0
+            hs, est = effect_estimate(diag, truth_effect)
+            hs = 0.0 if hs is None else hs
             shrinks.append(hs)
-            est = _estimated_magnitude(truth_effect, entry["params"] if entry else None)
             true = key["magnitude"]["value"] if key["magnitude"] else None
             if est is not None and true:
                 rel.setdefault(truth_effect, []).append(abs(est - true) / abs(true))

@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from html import escape
 
 import numpy as np
 from matplotlib.colors import LogNorm
@@ -104,7 +105,9 @@ def verdict(diagnosis: Mapping) -> str:
 
 
 def _params(params: Mapping) -> str:
-    return ", ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in params.items())
+    return ", ".join(
+        f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in params.items()
+    )
 
 
 def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
@@ -126,10 +129,18 @@ def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
     }
 
 
+def _page(title: str, body: str) -> str:
+    """A self-contained HTML page of a check of the diagnosis (blind check, detection sweep)."""
+    return f"""<!doctype html><html><head><meta charset="utf-8"><title>{escape(title)}</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:auto}}td,th{{border:1px solid #ccc;
+padding:2px 6px;text-align:center}}table{{border-collapse:collapse}}</style></head><body>
+{body}
+</body></html>
+"""
+
+
 def render_blind_page(score: Mapping) -> str:
     """The blind check's report page (self-contained HTML)."""
-    from html import escape
-
     effects = sorted(score["confusion"])
     named = sorted({n for row in score["confusion"].values() for n in row})
     head = "".join(f"<th>{escape(n)}</th>" for n in named)
@@ -149,21 +160,82 @@ def render_blind_page(score: Mapping) -> str:
     null_ok, n_null = score["null_explained_empty"]
     top1, top1_explained = score["top1"], score.get("top1_explained_only")
     shrink = score["median_heldout_shrink_true"]
-    return f"""<!doctype html><html><head><meta charset="utf-8"><title>Blind check</title>
-<style>body{{font-family:sans-serif;max-width:60em;margin:auto}}td,th{{border:1px solid #ccc;
-padding:2px 6px;text-align:center}}table{{border-collapse:collapse}}</style></head><body>
-<h1>Blind check of the gap diagnosis</h1>
+    return _page(
+        "Blind check",
+        f"""<h1>Blind check of the gap diagnosis</h1>
 <p>Top-1 identification: <b>{_percent(top1)}</b> of
-{score['n_effect_sessions']} effect sessions ({_percent(top1_explained)} counting explained
+{score["n_effect_sessions"]} effect sessions ({_percent(top1_explained)} counting explained
 effects only; an effect that opens no gap, large misalignment under the exact rotation, can
 only be noted). No-effect sessions with nothing explained:
 <b>{null_ok} of {n_null}</b>. Median held-out shrink of the true effect:
 <b>{_percent(shrink)}</b>. Diagnosis time per session: median
-{score['diagnosis_seconds']['median']:.0f} s, max {score['diagnosis_seconds']['max']:.0f} s.</p>
+{score["diagnosis_seconds"]["median"]:.0f} s, max {score["diagnosis_seconds"]["max"]:.0f} s.</p>
 <h2>Confusion matrix</h2><p>Rows: hidden effect; columns: first explained effect, or with
 nothing explained the first noted one, marked "(noted)", or none.</p>
 <table><tr><th>hidden \\ named</th>{head}</tr>{body}</table>
 <h2>Unknown-effect sessions</h2><ul>{unknown}</ul>
-<h2>Relative error of the estimated magnitude (median)</h2><ul>{rel}</ul>
-</body></html>
-"""
+<h2>Relative error of the estimated magnitude (median)</h2><ul>{rel}</ul>""",
+    )
+
+
+def _magnitude(value: float, unit: str) -> str:
+    return f"{value:.3g} {escape(unit)}"
+
+
+def render_detection_page(score: Mapping) -> str:
+    """The detection sweep's report page (self-contained HTML): k/n per effect and factor,
+    the detection limits."""
+    effects = score["effects"]
+    factors = sorted({lv["factor"] for e in effects.values() for lv in e["levels"]})
+    head = "".join(f"<th>x{f:g}</th>" for f in factors)
+    cells = ""
+    for name, e in effects.items():
+        by_factor = {lv["factor"]: lv for lv in e["levels"]}
+        row = ""
+        for f in factors:
+            lv = by_factor.get(f)
+            text = "" if lv is None else f"{lv['named']}/{lv['n']}"
+            if lv and lv["noted_only"]:
+                text += f" (+{lv['noted_only']} noted)"
+            row += f"<td>{f'<b>{text}</b>' if lv and lv['detected'] else text}</td>"
+        cells += f"<tr><th>{escape(name)}</th>{row}</tr>"
+    limits = ""
+    for name, e in effects.items():
+        lv = e["limit"]
+        if lv is None:
+            note = escape(e["limit_note"])
+            limits += f"<tr><th>{escape(name)}</th><td colspan=5>{note}</td></tr>"
+            continue
+        limits += (
+            f"<tr><th>{escape(name)}</th><td>x{lv['factor']:g}</td>"
+            f"<td>{_magnitude(lv['magnitude'], lv['unit'])}</td>"
+            f"<td>{_magnitude(lv['magnitude_si'], lv['unit_si'])}</td>"
+            f"<td>{lv['named']}/{lv['n']}</td><td>{lv['cp_lower']:.2f}</td></tr>"
+        )
+    rate, confidence = score["criterion"]["rate"], score["criterion"]["confidence"]
+    fp, n = score["false_positive"]
+    seconds = score.get("diagnosis_seconds")
+    timing = (
+        f" Diagnosis time per session: median {seconds['median']:.0f} s, max "
+        f"{seconds['max']:.0f} s."
+        if seconds
+        else ""
+    )
+    return _page(
+        "Detection limits",
+        f"""<h1>Detection limits of the gap diagnosis</h1>
+<p>{n} sessions, each with one library effect at a factor of its realistic magnitude
+(docs/gap.md). A level is detected (bold) when at least ceil({rate:g} n) of its n sessions
+name the effect (explained; large misalignment, which opens no gap, noted). The detection limit
+is the least harsh level detected together with every harsher one (for saturation, whose
+magnitude is the gyro clip level, the largest). Sessions in which another effect was explained:
+<b>{fp} of {n}</b>; another effect noted: <b>{score["false_noted"][0]} of {n}</b> (a large
+misalignment named by noted is to be read against it). Crashes (named nothing):
+{score["crashes"]}.{timing}</p>
+<h2>Detection limits</h2><table><tr><th>effect</th><th>factor</th><th>magnitude</th>
+<th>SI</th><th>named</th><th>rate, {confidence:.0%} lower bound</th></tr>{limits}</table>
+<h2>Sessions naming the effect, by factor of the realistic magnitude</h2>
+<p>"(+m noted)": sessions that note the effect without naming it (e.g. saturation noted by
+the static fallback when the calibration chain stops).</p>
+<table><tr><th>effect</th>{head}</tr>{cells}</table>""",
+    )

@@ -343,3 +343,21 @@ STRESS_SESSIONS = [s["name"] for s in _STRESS_PLAN]
 def stress_spec(wildcards):
     """The sealed spec of one stress session (only the render rule takes it)."""
     return next(s for s in _STRESS_PLAN if s["name"] == wildcards.session)
+
+
+#: The detection sweep (imucal.gap.detection): each library effect alone over a grid of factors.
+from imucal.gap.detection import detection_plan
+
+_DETECTION = config["detection"]
+_DETECTION_PLAN = detection_plan(
+    _DETECTION["seed"],
+    _DETECTION["factors"],
+    _DETECTION["seeds_per_level"],
+    _DETECTION["effects"] or None,
+)
+DETECTION_SESSIONS = [s["name"] for s in _DETECTION_PLAN]
+
+
+def detection_spec(wildcards):
+    """The sealed spec of one detection session (only the render rule takes it)."""
+    return next(s for s in _DETECTION_PLAN if s["name"] == wildcards.session)

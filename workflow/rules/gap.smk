@@ -3,7 +3,8 @@
 # effects, keeps their answer keys under results/blind/sealed/ (an input of the scorer only)
 # and scores the diagnoses; the stress set (`snakemake --cores 2 stress`) does the same with
 # sessions at the harsh end of consumer MEMS parts, recording a session the pipeline or the
-# diagnosis fails on as a crash.
+# diagnosis fails on as a crash; the detection sweep (`snakemake --cores 2 detection`) renders
+# each library effect alone over a grid of magnitudes and scores its detection limit.
 
 
 rule gap_diagnose:
@@ -73,6 +74,7 @@ rule gap_diagnose_partial:
 # reports/blind.html and reports/stress.html are pages of the checks, not datasets' lab reports
 ruleorder: blind_score > report
 ruleorder: stress_score > report
+ruleorder: detection_score > report
 
 
 rule blind_render:
@@ -210,3 +212,75 @@ rule stress:
     input:
         "results/stress/score.json",
         "reports/stress.html",
+
+
+# The detection sweep renders with the blind check's script and diagnoses with the stress set's
+# (a crash is recorded and names nothing).
+rule detection_render:
+    conda:
+        "../envs/imucal.yaml"
+    output:
+        folder=directory("results/detection/data/{session}"),
+        key="results/detection/sealed/{session}.json",
+    log:
+        "results/detection/logs/render/{session}.log",
+    benchmark:
+        "results/detection/benchmarks/render/{session}.tsv"
+    params:
+        spec=detection_spec,
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_blind_render.py"
+
+
+rule detection_diagnose:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        folder="results/detection/data/{session}",
+    output:
+        diagnosis="results/detection/diagnoses/{session}.json",
+    log:
+        "results/detection/logs/diagnose/{session}.log",
+    benchmark:
+        "results/detection/benchmarks/diagnose/{session}.tsv"
+    params:
+        replicas=config["detection"]["replicas"],
+        alpha=config["gap"]["alpha"],
+        seed=config["gap"]["seed"],
+        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
+        crn_seeds=config["gap"]["crn_seeds"],
+        detect_z=config["gap"]["detect_z"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_stress_diagnose.py"
+
+
+rule detection_score:
+    conda:
+        "../envs/imucal.yaml"
+    input:
+        diagnoses=expand(
+            "results/detection/diagnoses/{session}.json", session=DETECTION_SESSIONS
+        ),
+        sealed=expand("results/detection/sealed/{session}.json", session=DETECTION_SESSIONS),
+        benchmarks=expand(
+            "results/detection/benchmarks/diagnose/{session}.tsv", session=DETECTION_SESSIONS
+        ),
+    output:
+        score="results/detection/score.json",
+        html="reports/detection.html",
+    log:
+        "results/detection/logs/score.log",
+    params:
+        rate=config["detection"]["rate"],
+        confidence=config["detection"]["confidence"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_detection_score.py"
+
+
+rule detection:
+    input:
+        "results/detection/score.json",
+        "reports/detection.html",
