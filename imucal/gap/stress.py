@@ -268,8 +268,9 @@ def crash_cause(error: str) -> str:
 def is_named(effect: str, diagnosis: Mapping) -> bool:
     """The diagnosis names the effect: it is explained, or noted when it opens no gap.
 
-    An effect of :data:`NOTED_ONLY` (``large_misalignment``, absorbed by the exact rotation)
-    is named when it is in ``noted``; every other effect when it is in ``explained``.
+    An effect of :data:`NOTED_ONLY` (``large_misalignment``, absorbed by the exact rotation;
+    ``saturation``, seen in the readings when the full twin cannot be built) is named when it
+    is explained or noted; every other effect when it is in ``explained``.
     """
     return effect in diagnosis.get("explained", []) or (
         effect in NOTED_ONLY and effect in diagnosis.get("noted", [])
@@ -280,8 +281,9 @@ def score_stress(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) 
     """Unsealed scoring of the stress set.
 
     A session is **fully right** when it did not crash, every injected library effect is
-    explained (or, for :data:`NOTED_ONLY`, noted) and nothing else is explained. A session without library effects (clean or conditions only) is right when
-    nothing is explained; a crash is never right.
+    explained (or, for :data:`NOTED_ONLY`, noted) and nothing else is explained. A session
+    without library effects (clean or conditions only) is right when nothing is explained; a
+    crash is never right.
 
     Returns
     -------
