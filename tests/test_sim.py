@@ -445,6 +445,20 @@ def test_slow_handling_motions_take_their_configured_time():
     )
 
 
+def assert_rates_are_derivatives(state, t, atol_dot):
+    """The body rate is the derivative of the orientation and the angular acceleration that of
+    the rate (finite differences, O(h^2) of the midpoint rule); ``t`` (n,) evenly spaced, s."""
+    h = t[1] - t[0]
+    finite = (state.rotation[:-1].inv() * state.rotation[1:]).as_rotvec() / h
+    midpoint = (state.omega_b[:-1] + state.omega_b[1:]) / 2
+    np.testing.assert_allclose(finite, midpoint, atol=1e-7)
+    np.testing.assert_allclose(
+        np.diff(state.omega_b, axis=0) / h,
+        (state.omega_dot_b[:-1] + state.omega_dot_b[1:]) / 2,
+        atol=atol_dot,
+    )
+
+
 def test_tremor_rates_are_the_derivative_of_the_orientation():
     rng = np.random.default_rng(0)
     tremor = Tremor(
@@ -459,15 +473,7 @@ def test_tremor_rates_are_the_derivative_of_the_orientation():
         piece = dataclasses.replace(base, tremor=tremor)
         t = np.linspace(0.0, 3.0, 30001)
         state = evaluate_motion(Motion((piece,)), t)
-        h = t[1] - t[0]
-        finite = (state.rotation[:-1].inv() * state.rotation[1:]).as_rotvec() / h
-        midpoint = (state.omega_b[:-1] + state.omega_b[1:]) / 2
-        np.testing.assert_allclose(finite, midpoint, atol=1e-7)  # O(h^2) of the midpoint rule
-        np.testing.assert_allclose(
-            np.diff(state.omega_b, axis=0) / h,
-            (state.omega_dot_b[:-1] + state.omega_dot_b[1:]) / 2,
-            atol=1e-5,
-        )
+        assert_rates_are_derivatives(state, t, atol_dot=1e-5)
         # starts and ends at rest on the piece's own orientations (the envelope)
         assert (state.rotation[0].inv() * piece.start).magnitude() < 1e-12
         assert (state.rotation[-1].inv() * piece.end).magnitude() < 1e-12
@@ -508,15 +514,7 @@ def test_motion_rates_are_the_derivative_of_the_orientation():
     piece = move(0.0, 3.0, r0, Rotation.from_rotvec([1.0, 0.5, -0.3]), [0, 0.6, 0.8], 0.05, 1.5)
     t = np.linspace(0.0, 3.0, 30001)
     state = evaluate_motion(Motion((piece,)), t)
-    h = t[1] - t[0]
-    finite = (state.rotation[:-1].inv() * state.rotation[1:]).as_rotvec() / h
-    midpoint = (state.omega_b[:-1] + state.omega_b[1:]) / 2
-    np.testing.assert_allclose(finite, midpoint, atol=1e-7)  # O(h^2) of the midpoint rule
-    np.testing.assert_allclose(
-        np.diff(state.omega_b, axis=0) / h,
-        (state.omega_dot_b[:-1] + state.omega_dot_b[1:]) / 2,
-        atol=1e-6,
-    )
+    assert_rates_are_derivatives(state, t, atol_dot=1e-6)
 
 
 def test_bad_effect_specs_are_rejected_with_the_offending_value():
