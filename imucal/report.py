@@ -740,7 +740,7 @@ def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
     """Context of the gap-diagnosis partial (``_gap.html.j2``): diagnosis.json, then figures."""
     if not paths:
         return None
-    from imucal.gap.figures import report_context
+    from imucal.gap.figures import observations_context, report_context
 
     diagnosis, *figures = [Path(p) for p in paths]
     d = _load_json(diagnosis, "gap diagnosis")
@@ -748,7 +748,7 @@ def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
     scope = {"scope": d.get("scope", "full"), "reason": d.get("reason", ""),
              "not_observable": d.get("not_observable", {})}  # fmt: skip
     if scope["scope"] == "none":
-        return scope
+        return {**observations_context(d), **scope}
     return {**report_context(d, {f.stem: embed_figure(f) for f in figures}), **scope}
 
 

@@ -517,3 +517,31 @@ def test_unknown_std_entries_print_the_value_alone(artifacts):
         format_number(bias[1]),
         f"{format_number(bias[2])} ± 0.0002",
     ]
+
+
+def test_gap_section_of_an_unscored_and_of_a_fallback_diagnosis(artifacts, tmp_path):
+    """A diagnosis that scored nothing (no static recording) and one that fell back to the
+    static recording both render, with the reason, what was noted and the hands."""
+    from imucal.gap.partial import unscored_diagnosis
+
+    unscored = tmp_path / "unscored.json"
+    unscored.write_text(
+        json.dumps(unscored_diagnosis("demo", "the session has no static recording"))
+    )
+    fallback = tmp_path / "fallback.json"
+    diag = unscored_diagnosis("demo", "no stream")
+    diag.update(fallback="the calibration chain stopped (gyro clipped)", noted=["saturation"],
+                saturation={"clip_fraction": {"gyr": 0.12}}, held_by_hand=["cube"])  # fmt: skip
+    fallback.write_text(json.dumps(diag))
+    for path, texts in (
+        (unscored, ["No location could be scored: the session has no static recording"]),
+        (fallback, ["The full diagnosis could not run:", "gyr 12 %", "Held by hand"]),
+    ):
+        context = build_report_context(
+            dataset="demo", summary=artifacts["summary"], calibration=artifacts["calibration"],
+            gap=[path],
+        )  # fmt: skip
+        html = render_report(context)
+        assert parse(html).errors == []
+        for text in texts:
+            assert text in html, text

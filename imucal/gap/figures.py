@@ -110,9 +110,21 @@ def _params(params: Mapping) -> str:
     )
 
 
+def observations_context(diagnosis: Mapping) -> dict:
+    """What the diagnosis says besides the gap (any scope): why the full diagnosis could not
+    run, what it noted, which recordings were held by hand."""
+    return {
+        "fallback": diagnosis.get("fallback"),
+        "held_by_hand": diagnosis.get("held_by_hand", []),
+        "noted": diagnosis.get("noted", []),
+        "saturation": diagnosis.get("saturation"),
+    }
+
+
 def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
     """Context of the ``_gap.html.j2`` partial: verdict, tables, embedded figure data."""
     return {
+        **observations_context(diagnosis),
         "verdict": verdict(diagnosis),
         "gap": diagnosis["gap"],
         "locations": diagnosis["locations"][:20],
@@ -120,10 +132,6 @@ def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
         "explained": diagnosis["explained"],
         "remaining": diagnosis["remaining"],
         "confusable": diagnosis.get("confusable", []),
-        "fallback": diagnosis.get("fallback"),
-        "held_by_hand": diagnosis.get("held_by_hand", []),
-        "noted": diagnosis.get("noted", []),
-        "saturation": diagnosis.get("saturation"),
         "null": diagnosis.get("null", {}),
         "figures": dict(figures),
     }
