@@ -14,6 +14,7 @@ or malformed file, a bug) are not caught: they still stop the run with their mes
 from __future__ import annotations
 
 import logging
+import textwrap
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -69,14 +70,8 @@ def _not_run_figure(stage: str, reason: str, path: Path) -> None:
 
     fig = Figure(figsize=(8, 2.2))
     fig.text(0.02, 0.85, f"{stage} did not run", fontsize=12, weight="bold", va="top")
-    words, lines, line = reason.split(), [], ""
-    for w in words:  # wrap at ~110 characters, at most 6 lines
-        if len(line) + len(w) > 110:
-            lines.append(line)
-            line = ""
-        line = f"{line} {w}".strip()
-    lines.append(line)
-    fig.text(0.02, 0.65, "\n".join(lines[:6]), fontsize=8, va="top", family="monospace")
+    text = textwrap.fill(reason, width=110, max_lines=6, placeholder=" ...")
+    fig.text(0.02, 0.65, text, fontsize=8, va="top", family="monospace")
     fig.savefig(path, dpi=90)
 
 
