@@ -179,24 +179,25 @@ def _quantisation_step(x: np.ndarray) -> float:
     return float(steps.min()) if steps.size else 0.0
 
 
-def _quantisation_variance(x: np.ndarray) -> np.ndarray:
-    return np.array([_quantisation_step(x[:, k]) ** 2 / 12 for k in range(x.shape[1])])
-
-
-def at_extreme(x: np.ndarray, a: int, b: int, sign: float) -> np.ndarray:
+def at_extreme(
+    x: np.ndarray, a: int, b: int, sign: float, step: float | None = None
+) -> np.ndarray:
     """Rows ``a .. b - 1`` of one axis ``x`` (n,) that sit on the recording's extreme reading
-    of the given sign (within half a quantisation step): readings clipped at the range."""
+    of the given sign (within half a quantisation ``step``, found from ``x`` when not given):
+    readings clipped at the range."""
     extreme = x.max() if sign > 0 else x.min()
-    return np.abs(x[a:b] - extreme) <= _quantisation_step(x) / 2
+    step = _quantisation_step(x) if step is None else step
+    return np.abs(x[a:b] - extreme) <= step / 2
 
 
-def _clipped_windows(x: np.ndarray, window: int) -> np.ndarray:
+def _clipped_windows(x: np.ndarray, window: int, steps: np.ndarray) -> np.ndarray:
     """Windows (n - window + 1, k) holding a reading clipped at the range on that axis: the
-    axis's extreme reading of either sign, when at least :data:`MIN_CLIPPED_SAMPLES` hold it."""
+    axis's extreme reading of either sign, when at least :data:`MIN_CLIPPED_SAMPLES` hold it.
+    ``steps`` (k,): the quantisation step of each axis."""
     out = np.zeros((x.shape[0] - window + 1, x.shape[1]), dtype=bool)
     for k in range(x.shape[1]):
         for sign in (1.0, -1.0):
-            hit = at_extreme(x[:, k], 0, x.shape[0], sign)
+            hit = at_extreme(x[:, k], 0, x.shape[0], sign, steps[k])
             if hit.sum() >= MIN_CLIPPED_SAMPLES:
                 c = np.concatenate([[0], np.cumsum(hit)])
                 out[:, k] |= (c[window:] - c[:-window]) > 0
@@ -227,12 +228,14 @@ def find_quiet_windows(x: np.ndarray, window: int, p_false: float) -> tuple[np.n
     ValueError
         If the signal is constant on some axis (no noise and no quantisation step to use).
     """
+    x = np.asarray(x, dtype=float)
     var = moving_variance(x, window)
     dof = window - 1
-    floor = _quantisation_variance(np.asarray(x, dtype=float))
+    steps = np.array([_quantisation_step(x[:, k]) for k in range(x.shape[1])])
+    floor = steps**2 / 12
     # seed: the quietest NOISE_QUANTILE of the windows are noise only; windows that touch a
     # reading clipped at the sensor range hold less noise and are left out of that axis's seed
-    clean = ~_clipped_windows(np.asarray(x, dtype=float), window)
+    clean = ~_clipped_windows(x, window, steps)
     seed = [
         np.quantile(v[ok], NOISE_QUANTILE) if ok.any() else np.quantile(v, NOISE_QUANTILE)
         for v, ok in zip(var.T, clean.T)
