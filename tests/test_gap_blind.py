@@ -69,3 +69,10 @@ def test_plan_hides_the_effects_behind_names():
     assert set(public) == {s["name"] for s in plan}
     assert sum(bool(v) for v in public.values()) == 1
     assert all("effect" not in str(v) for v in public.values())
+
+
+def test_score_check_refuses_an_unknown_check():
+    from imucal.gap.checks import score_check
+
+    with pytest.raises(ValueError, match="expected one of"):
+        score_check("blindfold", [], [], [])

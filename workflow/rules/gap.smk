@@ -133,9 +133,11 @@ rule blind_score:
     log:
         "results/blind/logs/score.log",
     params:
+        check="blind",
+        options={},
         imucal_version=IMUCAL_VERSION,
     script:
-        "../scripts/gap_blind_score.py"
+        "../scripts/gap_check_score.py"
 
 
 rule blind:
@@ -203,9 +205,11 @@ rule stress_score:
     log:
         "results/stress/logs/score.log",
     params:
+        check="stress",
+        options={},
         imucal_version=IMUCAL_VERSION,
     script:
-        "../scripts/gap_stress_score.py"
+        "../scripts/gap_check_score.py"
 
 
 rule stress:
@@ -273,11 +277,14 @@ rule detection_score:
     log:
         "results/detection/logs/score.log",
     params:
-        rate=config["detection"]["rate"],
-        confidence=config["detection"]["confidence"],
+        check="detection",
+        options={
+            "rate": config["detection"]["rate"],
+            "confidence": config["detection"]["confidence"],
+        },
         imucal_version=IMUCAL_VERSION,
     script:
-        "../scripts/gap_detection_score.py"
+        "../scripts/gap_check_score.py"
 
 
 rule detection:
