@@ -83,7 +83,7 @@ def _add_apply(sub: argparse._SubParsersAction) -> None:
 
 def _run_apply(args: argparse.Namespace) -> int:
     from imucal.io import read_calibration, read_recording, write_recording
-    from imucal.stages import apply_calibration
+    from imucal.pipeline.stages import apply_calibration
 
     table, metadata = read_recording(args.recording)
     calibrated, metadata = apply_calibration(table, metadata, read_calibration(args.calibration))

@@ -44,3 +44,14 @@ def sensor_columns(sensor: str) -> tuple[str, str, str]:
         return SENSOR_COLUMNS[sensor]
     except KeyError:
         raise ValueError(f"unknown sensor {sensor!r}; expected one of {SENSORS}") from None
+
+
+#: Columns of the segments table (``results/{dataset}/segments.parquet``), in order
+#: (docs/architecture.md).
+SEGMENT_COLUMNS = (
+    "recording", "label", "kind", "start_s", "end_s", "start_index", "end_index",
+    "axis", "rate_dps", "sense", "turns", "up", "angle_deg",
+)  # fmt: skip
+#: Kinds of segment.
+KINDS = ("static", "phase", "transition", "position", "run")
+

@@ -1,6 +1,6 @@
 """The sim-to-real gap of a session off the paper's protocol, on what its static recording shows.
 
-A partial session (:mod:`imucal.partial`) has no cube, rate table or reference, so the
+A partial session (:mod:`imucal.pipeline.partial`) has no cube, rate table or reference, so the
 full-protocol diagnosis (:func:`imucal.gap.diagnose`) cannot refit it. What such a session
 usually does have is a long ``static`` recording, and that is where this diagnosis looks. The
 definitions are those of :mod:`imucal.gap`:

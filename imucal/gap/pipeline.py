@@ -2,7 +2,7 @@
 
 The gap statistics of a recorded session and of its twin replicas must come from the same code
 path, so both go through :func:`calibrate_session`, which calls the stage functions of
-:mod:`imucal.stages` in the workflow's order (as ``tests/test_pipeline.py`` does), without
+:mod:`imucal.pipeline.stages` in the workflow's order (as ``tests/test_pipeline.py`` does), without
 Snakemake and without files.
 """
 
@@ -14,11 +14,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from imucal import stages, validation
+from imucal import validation
+
+from imucal.pipeline import stages
 from imucal.calibration import ImuCalibration
 from imucal.columns import GYR, SEQ, TIME
-from imucal.filtering import lowpass_recording
-from imucal.segmentation import segment_dataset
+from imucal.segments.filtering import lowpass_recording
+from imucal.segments.segmentation import segment_dataset
 
 
 @dataclass(frozen=True)
@@ -38,7 +40,7 @@ class PipelineOptions:
         ``{'axes': [...], 'rates_dps': [...]}``.
     held_by_hand : tuple of str
         Recordings whose holds the segmentation found held by hand (tremor above the noise,
-        :mod:`imucal.holds`): not at rest, so their holds take no part in the resting
+        :mod:`imucal.segments.holds`): not at rest, so their holds take no part in the resting
         statistics of the diagnosis. Set from the session's segments; a replica keeps the
         session's (its own holds are rendered without tremor).
     """

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from imucal.columns import SENSORS
-from imucal.dataset import IMU_RECORDINGS, read_dataset
+from imucal.io.dataset import IMU_RECORDINGS, read_dataset
 from imucal.gap.blind import failed_diagnosis
 from imucal.gap.diagnosis import diagnose
 from imucal.gap.pipeline import PipelineOptions, calibrate_session

@@ -7,9 +7,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from imucal.accelerometer import CubeFit
+from imucal.fits.accelerometer import CubeFit
 from imucal.columns import AXES
-from imucal.gyroscope import RateTableFit
+from imucal.fits.gyroscope import RateTableFit
 
 #: Okabe-Ito colours (colour-blind safe): before / after, and per axis.
 BEFORE_COLOUR = "#E69F00"

@@ -23,8 +23,8 @@ import time
 import numpy as np
 
 from imucal import errormodel
-from imucal.accelerometer import cube_crlb, fit_cube
-from imucal.gyroscope import (
+from imucal.fits.accelerometer import cube_crlb, fit_cube
+from imucal.fits.gyroscope import (
     estimate_bias,
     fit_rate_table,
     fit_rate_table_magnitude,

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.magnetometer import calibrate_alignment, fit_ellipsoid
+from imucal.fits.magnetometer import calibrate_alignment, fit_ellipsoid
 
 RATE_HZ = 10.0
 #: Per-axis white noise of the normalised magnetometer; the conformance session's residual RMS

@@ -7,8 +7,8 @@ import yaml
 from snakemake.utils import validate
 
 import imucal
-from imucal.dataset import IMU_RECORDINGS, RECORDING_NAMES, read_dataset
-from imucal.partial import is_full_protocol
+from imucal.io.dataset import IMU_RECORDINGS, RECORDING_NAMES, read_dataset
+from imucal.pipeline.partial import is_full_protocol
 
 DATASETS = sorted(config["datasets"])
 #: The public recordings' configs (config/real/*.yaml), each checked against the schema

@@ -1,5 +1,5 @@
 # Sessions that do not follow the paper's whole protocol (public recordings, hand-held data):
-# every stage the recordings allow, in one rule (imucal.partial), and the stage listing
+# every stage the recordings allow, in one rule (imucal.pipeline.partial), and the stage listing
 # results/{dataset}/stages.json of every session.
 
 

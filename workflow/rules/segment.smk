@@ -1,7 +1,7 @@
 # Stage 2: low-pass filter and segmentation. The low-pass runs per recording (zero-phase
-# Butterworth per contiguous block, imucal.filtering); the segmentation finds the static
+# Butterworth per contiguous block, imucal.segments.filtering); the segmentation finds the static
 # intervals, rotation3d phases, cube positions and rate-table runs of a dataset in one table
-# (imucal.segmentation, or the manual `segments:` of dataset.yaml), plotted per recording.
+# (imucal.segments.segmentation, or the manual `segments:` of dataset.yaml), plotted per recording.
 
 
 rule lowpass:

@@ -4,7 +4,7 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_calibration, read_recording, write_recording
-from imucal.stages import apply_calibration
+from imucal.pipeline.stages import apply_calibration
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -5,7 +5,7 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_json, write_json
-from imucal.stages import calibration_of_what_ran
+from imucal.pipeline.stages import calibration_of_what_ran
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -3,7 +3,7 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.dataset import IMU_RECORDINGS, read_dataset
+from imucal.io.dataset import IMU_RECORDINGS, read_dataset
 from imucal.gap import PipelineOptions, diagnose
 from imucal.gap.blind import failed_diagnosis
 from imucal.ingest import ingest_recording

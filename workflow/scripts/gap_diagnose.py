@@ -3,7 +3,7 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.dataset import IMU_RECORDINGS, read_dataset
+from imucal.io.dataset import IMU_RECORDINGS, read_dataset
 from imucal.gap import PipelineOptions, diagnose
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.io import read_recording, read_segments, write_json

@@ -3,7 +3,7 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.gap.partial import diagnose_partial_session
 from imucal.io import read_json, read_recording, write_json

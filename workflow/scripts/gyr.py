@@ -4,8 +4,8 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import write_json
-from imucal.outcome import read_artifact, read_optional_artifact, stage_guard
-from imucal.stages import combine_gyr
+from imucal.pipeline.outcome import read_artifact, read_optional_artifact, stage_guard
+from imucal.pipeline.stages import combine_gyr
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,8 +4,8 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording, read_segments, write_json
-from imucal.outcome import read_artifact, stage_guard
-from imucal.stages import align_gyr, gyr_bias_value
+from imucal.pipeline.outcome import read_artifact, stage_guard
+from imucal.pipeline.stages import align_gyr, gyr_bias_value
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,8 +4,8 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording, read_segments, write_json
-from imucal.outcome import stage_guard
-from imucal.stages import estimate_gyr_bias
+from imucal.pipeline.outcome import stage_guard
+from imucal.pipeline.stages import estimate_gyr_bias
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,7 +4,7 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
 from imucal.io import write_recording
 

@@ -1,9 +1,9 @@
-"""Rule lowpass: ingested recording -> zero-phase low-pass per contiguous block (imucal.filtering)."""
+"""Rule lowpass: ingested recording -> zero-phase low-pass per contiguous block (imucal.segments.filtering)."""
 
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.filtering import lowpass_recording
+from imucal.segments.filtering import lowpass_recording
 from imucal.io import read_recording, write_recording
 
 if TYPE_CHECKING:

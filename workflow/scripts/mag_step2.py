@@ -4,9 +4,9 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording, read_segments, write_json
-from imucal.outcome import read_artifact, stage_guard
+from imucal.pipeline.outcome import read_artifact, stage_guard
 from imucal.plots.magnetometer import plot_magnetometer_steps
-from imucal.stages import align_mag
+from imucal.pipeline.stages import align_mag
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,9 +4,9 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal import partial
+from imucal.pipeline import partial
 from imucal.calibration import FORMAT_VERSION
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.io import read_recording, read_segments, write_json
 
 if TYPE_CHECKING:

@@ -1,12 +1,12 @@
-"""Rule segment: ingested IMU recordings of a dataset -> segments table (imucal.segmentation)."""
+"""Rule segment: ingested IMU recordings of a dataset -> segments table (imucal.segments.segmentation)."""
 
 import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.io import read_recording, write_recording
-from imucal.segmentation import segment_dataset
+from imucal.segments.segmentation import segment_dataset
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake

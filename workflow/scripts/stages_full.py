@@ -5,9 +5,9 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.io import read_json, read_recording, write_json
-from imucal.partial import STAGES, full_protocol_stages
+from imucal.pipeline.partial import STAGES, full_protocol_stages
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,8 +4,8 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_calibration, read_recording, read_segments, write_json
-from imucal.outcome import stage_guard
-from imucal.stages import validate_session
+from imucal.pipeline.outcome import stage_guard
+from imucal.pipeline.stages import validate_session
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,8 +4,8 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_calibration, read_recording
-from imucal.outcome import read_artifact, stage_guard
-from imucal.stages import plot_validation
+from imucal.pipeline.outcome import read_artifact, stage_guard
+from imucal.pipeline.stages import plot_validation
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

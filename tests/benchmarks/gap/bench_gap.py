@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 import time
 
-from imucal.dataset import IMU_RECORDINGS, read_dataset
+from imucal.io.dataset import IMU_RECORDINGS, read_dataset
 from imucal.gap import PipelineOptions, calibrate_session, diagnose
 from imucal.ingest import ingest_recording
 

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from imucal.accelerometer import heldout_errors
+from imucal.fits.accelerometer import heldout_errors
 from imucal.columns import ACC
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.io import read_recording, read_segments
 
 for folder in map(Path, sys.argv[1:]):

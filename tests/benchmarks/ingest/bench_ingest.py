@@ -23,7 +23,7 @@ import numpy as np
 import pyarrow.csv as pacsv
 
 from imucal.columns import ACC, GYR, MAG, RAW_COLUMNS, SEQ_MODULUS
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
 from imucal.io import write_recording
 

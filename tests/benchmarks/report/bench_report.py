@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from imucal.dataset import read_dataset
+from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
 
 REPO = Path(__file__).resolve().parents[3]

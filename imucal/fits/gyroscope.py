@@ -1,0 +1,663 @@
+"""Gyroscope bias (eqs. 34-35), scale without tools (eq. 36) and rate-table fit (eq. 33).
+
+Zhang et al. (2014) calibrate the gyroscope in two ways:
+
+* with a rate table (eq. 33): constant-rate runs about x, y and z of frame B. Every run's true
+  rate vector is known, so :func:`fit_rate_table` solves a *linear* least-squares problem for
+  the full matrix and the bias (closed-form covariance, equal to the Cramer-Rao bound). Its
+  upper-triangular factor is ``S'_gyr``; the rotation ``T_R,gyr`` comes from the platform phases.
+  :func:`fit_rate_table_magnitude` is the magnitude-only alternative; with runs about three axes
+  it cannot observe the cross terms of ``S'`` (see its Notes).
+* without tools: the bias from a static recording by the least-squares slope of the cumulative
+  sum (eqs. 34-35, :func:`estimate_bias`, next to the plain mean), ``T_R,gyr`` from the rotation
+  phases (:mod:`imucal.fits.alignment`, eqs. 28-31), then the scale per phase from the orientation
+  change seen by the accelerometer / magnetometer (eq. 36, :func:`measure_angle_change` and
+  :func:`estimate_scale`). Alignment comes before scale, as the paper stresses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from imucal.fits.accelerometer import MagnitudeModelFit, fit_magnitude_model
+from imucal.calibration import SensorCalibration
+from imucal.columns import AXES
+from imucal.errormodel import upper_triangular_factor
+
+#: Fewest samples per static segment for a slope and a noise estimate.
+MIN_STATIC_SAMPLES = 10
+
+
+# --------------------------------------------------------------------------------------------
+# Bias (eqs. 34-35)
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GyroBias:
+    """Gyroscope bias from static data, two estimators.
+
+    Attributes
+    ----------
+    bias_ls_rad_s : ndarray, shape (3,)
+        Least-squares slope of the cumulative sum (eqs. 34-35), rad/s.
+    std_ls_rad_s : ndarray, shape (3,)
+        Its standard deviation under white noise (exact for the sample count), rad/s.
+    bias_mean_rad_s : ndarray, shape (3,)
+        Plain mean of all samples, rad/s.
+    std_mean_rad_s : ndarray, shape (3,)
+        ``noise_std / sqrt(n)``, rad/s.
+    noise_std_rad_s : ndarray, shape (3,)
+        Sample noise per axis from first differences (``std(diff) / sqrt(2)``), rad/s.
+    n_samples : int
+        Samples used, over all segments.
+    n_segments : int
+    """
+
+    bias_ls_rad_s: np.ndarray
+    std_ls_rad_s: np.ndarray
+    bias_mean_rad_s: np.ndarray
+    std_mean_rad_s: np.ndarray
+    noise_std_rad_s: np.ndarray
+    n_samples: int
+    n_segments: int
+
+
+def _static_segments(static: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
+    if isinstance(static, np.ndarray) and static.ndim == 2:
+        segments = [static]
+    else:
+        segments = [np.asarray(s, dtype=float) for s in static]
+    if not segments:
+        raise ValueError("no static data given; expected an (n, 3) array or a list of them")
+    out = []
+    for i, s in enumerate(segments):
+        s = np.asarray(s, dtype=float)
+        if s.ndim != 2 or s.shape[1] != 3:
+            raise ValueError(f"static segment {i}: expected shape (n, 3), got {s.shape}")
+        if len(s) < MIN_STATIC_SAMPLES:
+            raise ValueError(
+                f"static segment {i}: {len(s)} samples, need at least {MIN_STATIC_SAMPLES}"
+            )
+        bad = int(np.sum(~np.isfinite(s).all(axis=1)))
+        if bad:
+            raise ValueError(
+                f"static segment {i}: {bad} of {len(s)} gyroscope samples are not finite; "
+                "expected finite rad/s on every row"
+            )
+        out.append(s)
+    return out
+
+
+def estimate_bias(static: np.ndarray | Sequence[np.ndarray]) -> GyroBias:
+    """Gyroscope bias from static data by the cumulative-sum slope (eqs. 34-35) and the mean.
+
+    Parameters
+    ----------
+    static : ndarray, shape (n, 3), or sequence of ndarray, each shape (n_i, 3)
+        Gyroscope readings at rest (rad/s): the static recording, or the static pauses of
+        other recordings when there is none.
+
+    Returns
+    -------
+    GyroBias
+
+    Raises
+    ------
+    ValueError
+        If there is no data, a segment has fewer than 10 samples or non-finite values.
+
+    Notes
+    -----
+    Eq. 34 sums the readings, ``y_i = sum_{k<=i} w_k``, and eq. 35 takes the least-squares slope
+    of ``y_i`` against ``i``. With several segments the slope is common and each segment has its
+    own intercept (each cumulative sum restarts at its segment).
+
+    The slope is linear in the readings: ``b = sum_k C_k w_k`` with
+    ``C_k = sum_{i>=k} (i - mean(i)) / S_xx``. For one segment of ``n`` samples
+    ``C_k = 6 (n-k+1)(k-1) / (n (n^2-1))``, parabolic weights that vanish at both ends, sum to 1
+    (so the slope is unbiased), and give ``var = sigma^2 sum C_k^2``, which tends to
+    ``1.2 sigma^2 / n``: the slope's std is ``sqrt(1.2) = 1.095`` times the plain mean's
+    ``sigma / sqrt(n)``. Under white noise the mean is the minimum-variance unbiased estimator;
+    the paper's "does not suffer from outliers" does not hold for a linear estimator, but the
+    slope does down-weight the ends of the recording, where handling disturbs the sensor.
+    Both standard deviations assume white noise; bias instability adds to them on long records.
+    """
+    segments = _static_segments(static)
+    sxy = np.zeros(3)
+    sxx = 0.0
+    for s in segments:
+        x = np.arange(1, len(s) + 1, dtype=float)
+        y = np.cumsum(s, axis=0)  # eq. 34
+        xc = x - x.mean()
+        sxy += xc @ (y - y.mean(axis=0))
+        sxx += xc @ xc
+    slope = sxy / sxx  # eq. 35, common slope over the segments
+    weight_ss = 0.0
+    for s in segments:
+        x = np.arange(1, len(s) + 1, dtype=float)
+        c = (x - x.mean()) / sxx
+        weight_ss += float(np.sum(np.cumsum(c[::-1])[::-1] ** 2))
+    stacked = np.vstack(segments)
+    # first differences remove a slowly varying bias from the noise estimate
+    diff_ss = sum(np.sum(np.diff(s, axis=0) ** 2, axis=0) for s in segments)
+    diff_n = sum(len(s) - 1 for s in segments)
+    noise = np.sqrt(diff_ss / diff_n / 2.0)
+    n = len(stacked)
+    return GyroBias(
+        bias_ls_rad_s=slope,
+        std_ls_rad_s=noise * np.sqrt(weight_ss),
+        bias_mean_rad_s=stacked.mean(axis=0),
+        std_mean_rad_s=noise / np.sqrt(n),
+        noise_std_rad_s=noise,
+        n_samples=n,
+        n_segments=len(segments),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Scale without tools (eq. 36)
+# --------------------------------------------------------------------------------------------
+
+
+def _axis_index(axis: str) -> int:
+    if axis not in AXES:
+        raise ValueError(f"axis must be one of {AXES}, got {axis!r}")
+    return AXES.index(axis)
+
+
+def _plane_angle(vectors: np.ndarray, k: int) -> np.ndarray:
+    """Angle of the projection on the plane normal to axis ``k`` (right-handed about it)."""
+    i, j = (k + 1) % 3, (k + 2) % 3
+    return np.arctan2(vectors[:, j], vectors[:, i])
+
+
+def measure_angle_change(
+    before: np.ndarray,
+    during: np.ndarray,
+    after: np.ndarray,
+    axis: str,
+    *,
+    min_projection: float = 0.3,
+) -> float:
+    """Rotation angle of the body about ``axis`` of B from a reference vector (for eq. 36).
+
+    A vector fixed in the world (gravity, the magnetic field) seen in the body frame turns by
+    ``-phi`` about the axis when the body turns by ``+phi``. The angle of its projection on the
+    plane normal to the axis (atan2) is followed through the phase and unwrapped, so full turns
+    count; a raw Euler angle could not represent them (see NOTES.md).
+
+    Parameters
+    ----------
+    before, after : ndarray, shape (n_b, 3) and (n_a, 3)
+        Calibrated vectors (frame B) during the static pauses before and after the phase; rows
+        with NaN (a 10 Hz magnetometer on a faster clock) are ignored.
+    during : ndarray, shape (n, 3)
+        Calibrated vectors during the phase (NaN rows ignored), only used to count turns: two
+        consecutive valid samples must be less than half a turn apart.
+    axis : {'x', 'y', 'z'}
+        Rotation axis of the phase in frame B.
+    min_projection : float
+        Smallest accepted ``|projection| / |vector|`` of the pause means; below it the vector is
+        too close to the axis to measure an angle (gravity in phase z).
+
+    Returns
+    -------
+    float
+        Signed rotation of the body about ``axis``, rad (right-handed).
+
+    Raises
+    ------
+    ValueError
+        If a pause has no valid sample, or the vector lies too close to the axis.
+
+    Notes
+    -----
+    The end points are the angles of the pause *means*: at rest there is no dynamic
+    acceleration, the 10 Hz magnetometer is not tied to a phase boundary, and averaging
+    reduces the noise (about ``sigma / (|projection| sqrt(n))`` rad); the samples during the
+    motion only decide the number of whole turns. The rate must then be integrated from a
+    time in the pause before to a time in the pause after (:func:`estimate_scale`).
+    For phases x and y both gravity and the field can serve (averaging the two halves the
+    variance); for phase z only the field can.
+    """
+    k = _axis_index(axis)
+    ends = []
+    for name, block in (("before", before), ("after", after)):
+        b = np.asarray(block, dtype=float)
+        valid = b[np.isfinite(b).all(axis=1)]
+        if len(valid) == 0:
+            raise ValueError(f"the pause {name} the phase {axis!r} has no valid vector sample")
+        mean = valid.mean(axis=0)
+        fraction = np.hypot(mean[(k + 1) % 3], mean[(k + 2) % 3]) / np.linalg.norm(mean)
+        if fraction < min_projection:
+            raise ValueError(
+                f"phase {axis!r}: the vector's projection on the plane normal to {axis} is "
+                f"{fraction:.3f} of its norm in the pause {name}, need >= {min_projection}; "
+                "a vector along the rotation axis cannot measure the angle "
+                "(use the magnetometer for phase z)"
+            )
+        ends.append(mean)
+    d = np.asarray(during, dtype=float)
+    track = np.vstack([ends[0], d[np.isfinite(d).all(axis=1)], ends[1]])
+    angle = np.unwrap(_plane_angle(track, k))
+    return float(-(angle[-1] - angle[0]))
+
+
+@dataclass(frozen=True)
+class PhaseScale:
+    """Gyroscope scale of one axis from a rotation phase (eq. 36).
+
+    Attributes
+    ----------
+    axis : str
+    scale : float
+        ``|angle_change / integrated_angle|``.
+    angle_change_rad : float
+        Body rotation measured from acc / mag, rad.
+    integrated_angle_rad : float
+        Integral of the aligned rate component over the window, rad.
+    std : float or None
+        Standard deviation of ``scale`` from the gyro white noise (and ``angle_std_rad``), or
+        None when no noise level was given.
+    max_gap_s : float
+        Largest time step in the window (lost packets), s.
+    sign_agrees : bool
+        Whether angle change and integrated rate have the same sign (False hints at a sign or
+        axis mix-up upstream).
+    """
+
+    axis: str
+    scale: float
+    angle_change_rad: float
+    integrated_angle_rad: float
+    std: float | None
+    max_gap_s: float
+    sign_agrees: bool
+
+
+def estimate_scale(
+    t_s: np.ndarray,
+    rate_rad_s: np.ndarray,
+    axis: str,
+    angle_change_rad: float,
+    *,
+    noise_std_rad_s: float | None = None,
+    angle_std_rad: float = 0.0,
+) -> PhaseScale:
+    """Scale of the gyroscope about ``axis`` from one rotation phase (eq. 36).
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Timestamps, s, strictly increasing (gaps from lost packets allowed).
+    rate_rad_s : ndarray, shape (n, 3)
+        Gyroscope rate after bias removal and alignment, ``T_R (w - o)``, with unit scale, rad/s;
+        the window runs from the pause before the phase to the pause after it.
+    axis : {'x', 'y', 'z'}
+        Rotation axis of the phase in frame B.
+    angle_change_rad : float
+        Body rotation over the same window from :func:`measure_angle_change`, rad.
+    noise_std_rad_s : float, optional
+        Gyro white-noise std of one sample on this axis (e.g. ``GyroBias.noise_std_rad_s``).
+    angle_std_rad : float
+        Standard deviation of ``angle_change_rad``.
+
+    Returns
+    -------
+    PhaseScale
+
+    Raises
+    ------
+    ValueError
+        If the timestamps are not strictly increasing, values are not finite, or the rotation
+        is too small to measure a scale (integrated angle below 0.1 rad).
+
+    Notes
+    -----
+    The rate is integrated with the trapezoidal rule on the actual timestamps, not
+    ``N * t_s`` as printed: with lost packets a constant step would undercount the angle. Across
+    a gap the rate is interpolated linearly. The integral of white noise has variance
+    ``sigma^2 sum_k w_k^2`` with the trapezoid weights ``w_k`` (about ``sigma^2 T dt``).
+    The aligned rate ``T_R (w - o)`` differs from ``T_R S (w - o) / s_axis`` by terms of the
+    order of the misalignment angle squared times the scale spread; ``T_N`` is not observable
+    without a rate table.
+    """
+    k = _axis_index(axis)
+    t = np.asarray(t_s, dtype=float)
+    w = np.asarray(rate_rad_s, dtype=float)
+    if t.ndim != 1 or w.shape != (len(t), 3):
+        raise ValueError(f"expected t_s (n,) and rate_rad_s (n, 3), got {t.shape} and {w.shape}")
+    if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(w[:, k])):
+        raise ValueError(f"phase {axis!r}: timestamps and rates must be finite, at least 2 rows")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        i = int(np.argmax(dt <= 0))
+        raise ValueError(
+            f"phase {axis!r}: timestamps not strictly increasing at row {i + 1} "
+            f"({t[i]!r} s -> {t[i + 1]!r} s)"
+        )
+    weights = np.zeros(len(t))
+    weights[:-1] += dt / 2
+    weights[1:] += dt / 2
+    integrated = float(weights @ w[:, k])
+    if abs(integrated) < 0.1:
+        raise ValueError(
+            f"phase {axis!r}: the integrated rate is {integrated:.3g} rad; expected a rotation "
+            "of at least 0.1 rad about the phase axis"
+        )
+    scale = abs(angle_change_rad / integrated)  # eq. 36
+    std = None
+    if noise_std_rad_s is not None:
+        int_var = noise_std_rad_s**2 * float(weights @ weights)
+        std = scale * float(
+            np.sqrt(int_var / integrated**2 + angle_std_rad**2 / angle_change_rad**2)
+        )
+    return PhaseScale(
+        axis=axis,
+        scale=scale,
+        angle_change_rad=float(angle_change_rad),
+        integrated_angle_rad=integrated,
+        std=std,
+        max_gap_s=float(dt.max()),
+        sign_agrees=bool(np.sign(integrated) == np.sign(angle_change_rad)),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Rate table (eq. 33)
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RateTableFit:
+    """Vector fit of the rate table runs (eq. 33): ``w_true = K (w_raw - b)``.
+
+    Attributes
+    ----------
+    matrix : ndarray, shape (3, 3)
+        ``K`` (maps bias-free readings to frame B).
+    bias : ndarray, shape (3,)
+        ``b``, rad/s.
+    upper : ndarray, shape (3, 3)
+        ``S'_gyr``: upper-triangular factor of ``K`` (``K = rotation @ upper``).
+    rotation : ndarray, shape (3, 3)
+        The rotation factor of ``K`` (the table's view of ``T_R,gyr``).
+    covariance : ndarray, shape (12, 12)
+        Covariance of ``(K row-major, b)`` (delta method from the exact covariance of
+        ``(K^-1, b)``).
+    std_matrix, std_upper : ndarray, shape (3, 3)
+    std_bias : ndarray, shape (3,)
+    noise_std_rad_s : ndarray, shape (3,)
+        Noise of one sample per axis behind the covariance (given or from the residuals).
+    residual_rad_s : ndarray, shape (n_runs, 3)
+        ``w_raw - (K^-1 w_true + b)`` per run, rad/s.
+    magnitude_error_before_rad_s, magnitude_error_after_rad_s : ndarray, shape (n_runs,)
+        ``|w_raw| - |w_true|`` and ``|K (w_raw - b)| - |w_true|`` (the paper's Fig. 15).
+    dof : int
+        ``n_runs - 4`` (each axis: 3 matrix entries and a bias).
+    """
+
+    matrix: np.ndarray
+    bias: np.ndarray
+    upper: np.ndarray
+    rotation: np.ndarray
+    covariance: np.ndarray
+    std_matrix: np.ndarray
+    std_upper: np.ndarray
+    std_bias: np.ndarray
+    noise_std_rad_s: np.ndarray
+    residual_rad_s: np.ndarray
+    magnitude_error_before_rad_s: np.ndarray
+    magnitude_error_after_rad_s: np.ndarray
+    dof: int
+
+
+def _check_runs(
+    run_means: np.ndarray, rates_rad_s: np.ndarray, n_samples: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    w = np.asarray(run_means, dtype=float)
+    r = np.asarray(rates_rad_s, dtype=float)
+    n = np.asarray(n_samples, dtype=float)
+    if w.ndim != 2 or w.shape[1] != 3 or r.shape != w.shape or n.shape != (len(w),):
+        raise ValueError(
+            f"expected run_means (n, 3), rates_rad_s (n, 3), n_samples (n,); got {w.shape}, "
+            f"{r.shape}, {n.shape}"
+        )
+    for name, a in (("run_means", w), ("rates_rad_s", r)):
+        bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
+        if len(bad):
+            raise ValueError(f"{name}: runs {bad.tolist()} are not finite; expected finite rad/s")
+    if np.any(n < 1):
+        raise ValueError(f"n_samples must be >= 1 per run, got {n.tolist()}")
+    return w, r, n
+
+
+def _design(rates: np.ndarray) -> np.ndarray:
+    design = np.column_stack([rates, np.ones(len(rates))])
+    rank = np.linalg.matrix_rank(design)
+    if rank < 4:
+        raise ValueError(
+            f"the true rate vectors span {rank - 1} dimension(s) plus the bias; expected runs about "
+            "three independent axes (and rates of both signs or a zero run)"
+        )
+    return design
+
+
+def _upper_jacobian(matrix: np.ndarray) -> np.ndarray:
+    """d vec(upper factor) / d vec(matrix), shape (9, 9), by central differences."""
+    h = 1e-7
+    jac = np.zeros((9, 9))
+    for i in range(9):
+        step = np.zeros(9)
+        step[i] = h
+        plus = upper_triangular_factor(matrix + step.reshape(3, 3))[1]
+        minus = upper_triangular_factor(matrix - step.reshape(3, 3))[1]
+        jac[:, i] = (plus - minus).ravel() / (2 * h)
+    return jac
+
+
+def fit_rate_table(
+    run_means: np.ndarray,
+    rates_rad_s: np.ndarray,
+    n_samples: np.ndarray,
+    *,
+    noise_std_rad_s: np.ndarray | None = None,
+) -> RateTableFit:
+    """Full matrix and bias from rate-table runs by linear least squares (eq. 33, vector form).
+
+    Parameters
+    ----------
+    run_means : ndarray, shape (n_runs, 3)
+        Mean gyroscope reading of each steady run, rad/s (sensor frame).
+    rates_rad_s : ndarray, shape (n_runs, 3)
+        True rate vector of each run in frame B: nominal rate times the unit table axis, rad/s.
+    n_samples : ndarray, shape (n_runs,)
+        Samples behind each mean (weights).
+    noise_std_rad_s : ndarray, shape (3,), optional
+        White-noise std of one sample per axis. If given, the covariance is the Cramer-Rao bound
+        for that noise; otherwise the noise is estimated from the weighted residuals
+        (``dof = n_runs - 4``), which also absorbs run-to-run errors of the table.
+
+    Returns
+    -------
+    RateTableFit
+
+    Raises
+    ------
+    ValueError
+        On shape mismatches, non-finite values, or rates that do not span three axes.
+
+    Notes
+    -----
+    ``w_true = K (w_raw - b)`` is ``w_raw = A w_true + b`` with ``A = K^-1``: for each sensor axis
+    ``k`` a linear regression of ``w_raw[:, k]`` on ``(w_true, 1)`` with weights ``n_j``. The
+    estimate of ``(A, b)`` is exact least squares with covariance ``sigma_k^2 (X^T N X)^-1`` per
+    row, which is the Cramer-Rao bound for Gaussian noise (the problem is linear-Gaussian).
+    ``K = A^-1`` and its QR factor follow by the delta method (first order).
+    """
+    w, r, n = _check_runs(run_means, rates_rad_s, n_samples)
+    design = _design(r)
+    gram_inv = np.linalg.inv(design.T @ (n[:, None] * design))
+    coef = gram_inv @ design.T @ (n[:, None] * w)  # (4, 3): rows A^T then b
+    a = coef[:3].T
+    bias = coef[3]
+    residual = w - design @ coef
+    dof = len(w) - 4
+    if noise_std_rad_s is None:
+        if dof < 1:
+            raise ValueError(
+                f"{len(w)} runs leave no residual degrees of freedom to estimate the noise; "
+                "pass noise_std_rad_s or use at least 5 runs"
+            )
+        noise = np.sqrt(np.sum(n[:, None] * residual**2, axis=0) / dof)
+    else:
+        noise = np.asarray(noise_std_rad_s, dtype=float).reshape(3)
+    matrix = np.linalg.inv(a)
+    covariance = _matrix_bias_covariance(matrix, gram_inv, noise)
+    rotation, upper = upper_triangular_factor(matrix)
+    j_upper = _upper_jacobian(matrix)
+    cov_upper = j_upper @ covariance[:9, :9] @ j_upper.T
+    calibrated = (w - bias) @ matrix.T
+    return RateTableFit(
+        matrix=matrix,
+        bias=bias,
+        upper=upper,
+        rotation=rotation,
+        covariance=covariance,
+        std_matrix=np.sqrt(np.diag(covariance)[:9]).reshape(3, 3),
+        std_upper=np.sqrt(np.clip(np.diag(cov_upper), 0, None)).reshape(3, 3),
+        std_bias=np.sqrt(np.diag(covariance)[9:]),
+        noise_std_rad_s=noise,
+        residual_rad_s=residual,
+        magnitude_error_before_rad_s=np.linalg.norm(w, axis=1) - np.linalg.norm(r, axis=1),
+        magnitude_error_after_rad_s=np.linalg.norm(calibrated, axis=1) - np.linalg.norm(r, axis=1),
+        dof=dof,
+    )
+
+
+def _matrix_bias_covariance(
+    matrix: np.ndarray, gram_inv: np.ndarray, noise: np.ndarray
+) -> np.ndarray:
+    """Covariance of ``(K row-major, b)`` from that of ``(A = K^-1, b)``, shape (12, 12)."""
+    # parameters of sensor row k: (A[k, :], b[k]) with covariance noise_k^2 * gram_inv;
+    # rows are independent (each axis has its own noise)
+    cov_ab = np.zeros((12, 12))  # order: A row-major (9), b (3)
+    for k in range(3):
+        idx = [3 * k, 3 * k + 1, 3 * k + 2, 9 + k]
+        cov_ab[np.ix_(idx, idx)] = noise[k] ** 2 * gram_inv
+    # dK = -K dA K  ->  dK_ij / dA_ab = -K_ia K_bj
+    jac = np.zeros((12, 12))
+    jac[:9, :9] = -np.einsum("ia,bj->ijab", matrix, matrix).reshape(9, 9)
+    jac[9:, 9:] = np.eye(3)
+    return jac @ cov_ab @ jac.T
+
+
+def rate_table_crlb(
+    matrix: np.ndarray,
+    rates_rad_s: np.ndarray,
+    n_samples: np.ndarray,
+    noise_std_rad_s: np.ndarray,
+) -> np.ndarray:
+    """Cramer-Rao bound of ``(K row-major, b)`` for the rate table at a known truth.
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (3, 3)
+        True ``K``.
+    rates_rad_s : ndarray, shape (n_runs, 3)
+        True rate vectors, rad/s.
+    n_samples : ndarray, shape (n_runs,)
+    noise_std_rad_s : ndarray, shape (3,)
+        Sample white noise per axis, rad/s.
+
+    Returns
+    -------
+    ndarray, shape (12, 12)
+        Exact for ``(K^-1, b)`` (linear-Gaussian), mapped to ``K`` to first order.
+    """
+    r = np.asarray(rates_rad_s, dtype=float)
+    n = np.asarray(n_samples, dtype=float)
+    design = _design(r)
+    gram_inv = np.linalg.inv(design.T @ (n[:, None] * design))
+    return _matrix_bias_covariance(
+        np.asarray(matrix, dtype=float), gram_inv, np.asarray(noise_std_rad_s, dtype=float)
+    )
+
+
+def fit_rate_table_magnitude(
+    run_means: np.ndarray,
+    rates_rad_s: np.ndarray,
+    n_samples: np.ndarray,
+    noise_std_rad_s: np.ndarray,
+) -> MagnitudeModelFit:
+    """Magnitude-only rate-table fit: ``|S'(w_raw - o)| = |rate|`` (LM, as eq. 32 for the cube).
+
+    Parameters
+    ----------
+    run_means : ndarray, shape (n_runs, 3)
+        Mean reading of each run, rad/s.
+    rates_rad_s : ndarray, shape (n_runs, 3)
+        True rate vectors, rad/s; only their norms are used. Zero-rate runs are left out (the
+        norm is not differentiable at zero).
+    n_samples : ndarray, shape (n_runs,)
+    noise_std_rad_s : ndarray, shape (3,)
+        Sample white noise per axis, rad/s (the residual weights).
+
+    Returns
+    -------
+    MagnitudeModelFit
+        Check ``singular_values``: a smallest-to-largest ratio near zero means some parameters
+        are not determined by the data and their values are those of the starting point.
+
+    Notes
+    -----
+    With runs about the three axes of B only, the readings lie on three lines through the
+    bias, ``w = A r e_k + b``, and ``|S' A r e_k| = |r|`` for all rates ``r`` only constrains the
+    three column norms of ``S' A``. Of the 6 entries of ``S'`` just 3 combinations are
+    observable (with the 3 bias components): the cross terms are not, unlike the cube, whose
+    45-degree positions add directions. Use :func:`fit_rate_table` (vector form) instead.
+    """
+    w, r, n = _check_runs(run_means, rates_rad_s, n_samples)
+    norms = np.linalg.norm(r, axis=1)
+    moving = norms > 0
+    w, norms, n = w[moving], norms[moving], n[moving]
+    # start: bias from the mean of the runs (rates of both signs cancel), isotropic scale
+    bias0 = w.mean(axis=0)
+    scale0 = np.sum(norms) / np.sum(np.linalg.norm(w - bias0, axis=1))
+    return fit_magnitude_model(w, norms, n, noise_std_rad_s, scale0 * np.eye(3), bias0)
+
+
+def make_calibration(
+    bias: np.ndarray,
+    matrix: np.ndarray,
+    method: str,
+    *,
+    std_bias: np.ndarray | None = None,
+    std_matrix: np.ndarray | None = None,
+) -> SensorCalibration:
+    """Gyroscope calibration from a bias and a matrix (``T_R,gyr S'_gyr`` or ``T_R diag(scale)``).
+
+    Parameters
+    ----------
+    bias : ndarray, shape (3,)
+        rad/s.
+    matrix : ndarray, shape (3, 3)
+    method : str
+        Description of the variants used, for the report.
+    std_bias : ndarray, shape (3,), optional
+    std_matrix : ndarray, shape (3, 3), optional
+
+    Returns
+    -------
+    SensorCalibration
+    """
+    std = {}
+    if std_bias is not None:
+        std["bias"] = np.asarray(std_bias, dtype=float)
+    if std_matrix is not None:
+        std["matrix"] = np.asarray(std_matrix, dtype=float)
+    return SensorCalibration("gyr", bias, matrix, "rad/s", std, method)

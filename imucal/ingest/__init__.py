@@ -1,0 +1,25 @@
+"""Ingest: raw logs to SI-unit tables with their checks and summary (``recording``), the packet
+counter and receive timestamps (``timebase``).
+"""
+
+from imucal.ingest.recording import (
+    MAX_LISTED_GAPS,
+    REF_TICK_MODULUS,
+    check_log,
+    counts_to_si,
+    reference_to_table,
+    ingest_recording,
+    summarize_recording,
+    summarize_dataset,
+)
+
+__all__ = [
+    "MAX_LISTED_GAPS",
+    "REF_TICK_MODULUS",
+    "check_log",
+    "counts_to_si",
+    "ingest_recording",
+    "reference_to_table",
+    "summarize_dataset",
+    "summarize_recording",
+]

@@ -1,0 +1,48 @@
+"""Files and readers: the raw logs, the declared readers of ``dataset.yaml``, parquet and JSON.
+
+``raw`` reads the native IMU CSV log and the MT Manager export; ``readers`` the declared
+formats (tables, MATLAB, HDF5, streams); ``dataset`` the ``dataset.yaml`` declaration; ``store``
+what the pipeline writes and reads back. Only this layer touches files.
+"""
+
+from imucal.io.raw import (
+    IMU_CSV_FORMAT,
+    MT_MANAGER_FORMAT,
+    RawDataError,
+    MtManagerExport,
+    read_imu_csv,
+    read_mt_manager_export,
+)
+from imucal.io.store import (
+    METADATA_KEY,
+    sha256_file,
+    write_recording,
+    read_recording,
+    read_segments,
+    write_table,
+    read_benchmark_seconds,
+    write_json,
+    read_json,
+    write_calibration,
+    read_calibration,
+)
+
+__all__ = [
+    "IMU_CSV_FORMAT",
+    "METADATA_KEY",
+    "MT_MANAGER_FORMAT",
+    "MtManagerExport",
+    "RawDataError",
+    "read_benchmark_seconds",
+    "read_calibration",
+    "read_imu_csv",
+    "read_json",
+    "read_mt_manager_export",
+    "read_recording",
+    "read_segments",
+    "sha256_file",
+    "write_calibration",
+    "write_json",
+    "write_recording",
+    "write_table",
+]

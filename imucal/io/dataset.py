@@ -1,0 +1,253 @@
+"""The dataset description (``dataset.yaml``): loading, schema validation and defaults."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import jsonschema
+import yaml
+
+#: Recording roles of the paper's protocol (the automatic segmentation knows them).
+IMU_RECORDINGS = ("rotation3d", "cube", "ratetable", "static")
+#: Roles of other protocols found in public recordings: Ferraris (1995) six faces and three
+#: 360-degree rotations, Tedaldi (2014) hand-placed poses, free tumbling for ellipsoid fits.
+OTHER_RECORDINGS = ("ferraris", "poses", "tumble")
+#: The reference IMU (Xsens MT Manager export).
+REFERENCE = "reference"
+#: Every recording role, in protocol order.
+RECORDING_NAMES = (*IMU_RECORDINGS, REFERENCE, *OTHER_RECORDINGS)
+
+
+def _schema() -> dict:
+    text = resources.files("imucal.io").joinpath("schemas/dataset.schema.yaml").read_text()
+    return yaml.safe_load(text)
+
+
+def _with_defaults(schema: dict, instance: dict) -> dict:
+    """Fill in the ``default`` of every absent property, recursively (objects only)."""
+    out = dict(instance)
+    for key, sub in schema.get("properties", {}).items():
+        if key not in out and "default" in sub:
+            out[key] = sub["default"]
+        if isinstance(out.get(key), dict) and sub.get("type") == "object":
+            out[key] = _with_defaults(sub, out[key])
+    return out
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A calibration session on disk.
+
+    Attributes
+    ----------
+    name : str
+    folder : Path
+    gravity_m_s2 : float
+    field_norm : float
+        Norm of the magnetic field after sensitivity (1 for a normalised magnetometer).
+    sensitivity : dict
+        SI unit per raw count of the native IMU CSV, keys 'acc', 'gyr', 'mag' (empty when no
+        recording is a native CSV).
+    range_counts : dict
+        Saturation limit of the raw counts per sensor.
+    recordings : dict
+        Recording name -> its (first) file, absolute. For a declared recording the other files
+        are in ``readers``; :meth:`recording_files` lists all.
+    ratetable : dict or None
+        ``{'axes': [...], 'rates_dps': [...]}`` when the session has a rate table.
+    segments : list of dict
+        Manual segmentation override (may be empty).
+    readers : dict
+        Recording name -> reader declaration (``file`` paths absolute) for the recordings
+        declared as a mapping in ``dataset.yaml``; native recordings are absent.
+    field_norm_t : float or None
+        Local field norm in tesla (``field_norm_t``), for magnetometers in physical units.
+    sections : dict or None
+        The ``sections`` declaration (``file`` absolute), or None.
+    yaml_path : Path or None
+        The ``dataset.yaml`` file (for messages).
+    """
+
+    name: str
+    folder: Path
+    gravity_m_s2: float
+    field_norm: float
+    sensitivity: dict
+    range_counts: dict
+    recordings: dict
+    ratetable: dict | None
+    segments: list
+    readers: dict = field(default_factory=dict)
+    field_norm_t: float | None = None
+    sections: dict | None = None
+    yaml_path: Path | None = None
+
+    def has(self, recording: str) -> bool:
+        return recording in self.recordings
+
+    def recording_files(self, recording: str) -> list[Path]:
+        """Every file a recording reads (the Snakemake inputs of its ingest), in order.
+
+        Includes the section list file when ``sections`` names this recording.
+
+        Raises
+        ------
+        KeyError
+            If the dataset has no such recording (the message lists the ones it has).
+        """
+        from imucal.io.readers import declared_files  # readers import io, which is heavier
+
+        if recording not in self.recordings:
+            raise KeyError(
+                f"dataset {self.name!r} has no recording {recording!r}; it has "
+                f"{sorted(self.recordings)}"
+            )
+        if recording in self.readers:
+            files = declared_files(self.readers[recording])
+        else:
+            files = [self.recordings[recording]]
+        if self.sections and self.sections["recording"] == recording and "file" in self.sections:
+            files.append(Path(self.sections["file"]))
+        return files
+
+
+def read_dataset(folder: str | Path) -> Dataset:
+    """Read and validate ``folder/dataset.yaml``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the folder or its ``dataset.yaml`` does not exist.
+    ValueError
+        If the file is not valid YAML or breaks the schema; the message names the key path.
+    """
+    folder = Path(folder).resolve()
+    path = folder / "dataset.yaml"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: dataset description not found")
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not valid YAML: {err}") from None
+    if not isinstance(raw, dict):
+        raise ValueError(f"{path}: expected a mapping at the top level, got {type(raw).__name__}")
+    schema = _schema()
+    errors = sorted(
+        jsonschema.Draft202012Validator(schema).iter_errors(raw), key=lambda e: list(e.path)
+    )
+    if errors:
+        err = errors[0]
+        where = "/".join(str(p) for p in err.path) or "(top level)"
+        raise ValueError(f"{path}: key '{where}': {err.message}")
+    cfg = _with_defaults(schema, raw)
+    if "ratetable" in cfg["recordings"] and "ratetable" not in cfg:
+        raise ValueError(f"{path}: key 'ratetable': required when recordings/ratetable is given")
+    recordings: dict[str, Path] = {}
+    readers: dict[str, dict] = {}
+    for name, value in cfg["recordings"].items():
+        if isinstance(value, str):
+            recordings[name] = _resolve(folder, value)
+            continue
+        readers[name] = _declaration(value, folder, f"{path}: recordings.{name}", top=True)
+        recordings[name] = Path(_first_file(readers[name]))
+    native = [n for n in recordings if n not in readers and n != REFERENCE]
+    if native and "sensitivity" not in cfg:
+        raise ValueError(
+            f"{path}: key 'sensitivity': required because recordings.{native[0]} is a native "
+            "IMU CSV in raw counts"
+        )
+    sections = cfg.get("sections")
+    if sections is not None:
+        sections = _sections(dict(sections), folder, recordings, f"{path}: sections")
+    manual = list(cfg.get("segments", []))
+    unknown = sorted({e["recording"] for e in manual} - set(recordings))
+    if unknown:
+        raise ValueError(
+            f"{path}: key 'segments': recording(s) {unknown} not in recordings {sorted(recordings)}"
+        )
+    return Dataset(
+        name=cfg["name"],
+        folder=folder,
+        gravity_m_s2=float(cfg["gravity_m_s2"]),
+        field_norm=float(cfg["field_norm"]),
+        sensitivity={k: float(v) for k, v in cfg.get("sensitivity", {}).items()},
+        range_counts={k: int(cfg["range_counts"].get(k, 32767)) for k in ("acc", "gyr", "mag")},
+        recordings=recordings,
+        ratetable=cfg.get("ratetable"),
+        segments=manual,
+        readers=readers,
+        field_norm_t=float(cfg["field_norm_t"]) if "field_norm_t" in cfg else None,
+        sections=sections,
+        yaml_path=path,
+    )
+
+
+def _resolve(folder: Path, file: str) -> Path:
+    """A path of dataset.yaml, relative to the dataset folder, normalised (``..`` collapsed)."""
+    return Path(os.path.normpath(folder / file))
+
+
+def _first_file(declaration: dict) -> str:
+    if "parts" in declaration:
+        return _first_file(declaration["parts"][0])
+    if "streams" in declaration:
+        return declaration["streams"][0]["file"]
+    return declaration["file"]
+
+
+_ONE_FILE_KEYS = ("reader", "file")
+
+
+def _declaration(value: dict, folder: Path, where: str, top: bool) -> dict:
+    """Check the structure of a reader declaration; make its file paths absolute.
+
+    A one-file entry has ``reader`` and ``file``; ``streams`` holds one-file entries; ``parts``
+    (top level only) holds one-file or ``streams`` entries. Exactly one of the three per level.
+    """
+    kinds = [k for k in ("file", "streams", "parts") if k in value]
+    allowed = ("file", "streams", "parts") if top else ("file", "streams")
+    if len(kinds) != 1 or kinds[0] not in allowed:
+        raise ValueError(
+            f"{where}: has {kinds or 'none'} of {list(allowed)}; expected exactly one of them"
+        )
+    out = dict(value)
+    if "file" in value:
+        if "reader" not in value:
+            raise ValueError(f"{where}.reader: missing; expected table, matlab or hdf5")
+        out["file"] = str(_resolve(folder, value["file"]))
+        return out
+    others = sorted(set(value) - {kinds[0], "description"})
+    if others:
+        raise ValueError(
+            f"{where}: keys {others} beside {kinds[0]}; expected them inside each entry of "
+            f"{kinds[0]}"
+        )
+    if "streams" in value:
+        out["streams"] = []
+        for i, s in enumerate(value["streams"]):
+            if "file" not in s:
+                raise ValueError(f"{where}.streams[{i}]: no file; expected a one-file entry")
+            out["streams"].append(_declaration(s, folder, f"{where}.streams[{i}]", top=False))
+    else:
+        out["parts"] = [
+            _declaration(p, folder, f"{where}.parts[{i}]", top=False)
+            for i, p in enumerate(value["parts"])
+        ]
+    return out
+
+
+def _sections(sections: dict, folder: Path, recordings: dict, where: str) -> dict:
+    if sections["recording"] not in recordings:
+        raise ValueError(
+            f"{where}.recording: {sections['recording']!r} is not in recordings "
+            f"{sorted(recordings)}; expected one of them"
+        )
+    has_file, has_column = "file" in sections, "from_column" in sections
+    if has_file == has_column:
+        raise ValueError(f"{where}: expected exactly one of file and from_column")
+    if has_file:
+        sections["file"] = str(_resolve(folder, sections["file"]))
+    return sections

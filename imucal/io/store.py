@@ -1,0 +1,242 @@
+"""Files the pipeline writes and reads back: parquet with metadata, JSON, CSV tables, calibration.
+
+Writers are atomic: the data go to a temporary file beside the target, which is renamed over
+the target only when complete, so no partial file is ever left under the target's name.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from imucal.calibration import ImuCalibration
+from imucal.columns import SEGMENT_COLUMNS
+from imucal.io.raw import _existing
+
+#: Key of the parquet key-value metadata that holds the JSON description of a recording.
+METADATA_KEY = b"imucal"
+
+
+# --------------------------------------------------------------------------------------------
+# Checksums
+
+
+def sha256_file(path: str | Path) -> str:
+    """Return the hex SHA-256 of a file's bytes (records which raw file a result came from)."""
+    digest = hashlib.sha256()
+    with _existing(path, "file").open("rb") as f:
+        for block in iter(lambda: f.read(1 << 22), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+# --------------------------------------------------------------------------------------------
+# Parquet with metadata
+
+
+def write_recording(table: pd.DataFrame, path: str | Path, metadata: Mapping[str, Any]) -> None:
+    """Write an ingested recording to parquet, atomically, with its JSON metadata.
+
+    Parameters
+    ----------
+    table : DataFrame, shape (n, k)
+        Ingested columns (see ``docs/architecture.md``).
+    path : str or Path
+        Target ``.parquet`` file; its folder is created.
+    metadata : mapping
+        JSON-serialisable description, stored as parquet key-value metadata ``imucal``.
+    """
+    arrow = pa.Table.from_pandas(table, preserve_index=False)
+    blob = json.dumps(_jsonable(metadata), sort_keys=True).encode()
+    arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}), METADATA_KEY: blob})
+    _write_atomic(path, lambda tmp: pq.write_table(arrow, tmp))
+
+
+def read_recording(path: str | Path) -> tuple[pd.DataFrame, dict]:
+    """Read an ingested recording.
+
+    Returns
+    -------
+    table : DataFrame, shape (n, k)
+    metadata : dict
+        The ``imucal`` metadata (dataset, recording, source, sha256, sensitivity, units, ...).
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file carries no ``imucal`` metadata (not written by :func:`write_recording`).
+    """
+    path = _existing(path, "ingested recording (parquet)")
+    arrow = pq.read_table(path)
+    blob = (arrow.schema.metadata or {}).get(METADATA_KEY)
+    if blob is None:
+        raise ValueError(
+            f"{path}: no 'imucal' parquet metadata; expected a recording written "
+            "by imucal.io.write_recording"
+        )
+    return arrow.to_pandas(), json.loads(blob)
+
+
+def read_segments(path: str | Path) -> pd.DataFrame:
+    """Read the segments table (``results/{dataset}/segments.parquet``).
+
+    Returns
+    -------
+    DataFrame, shape (m, 11)
+        The columns of :data:`imucal.columns.SEGMENT_COLUMNS` (``docs/architecture.md``);
+        ``attrs`` ``notes`` and ``held_by_hand`` as :func:`imucal.segments.segmentation.segment_dataset`
+        gave them (empty for a table written without them).
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If it lacks ``imucal`` metadata or a segments column.
+    """
+    table, metadata = read_recording(path)
+    missing = [c for c in SEGMENT_COLUMNS if c not in table.columns]
+    if missing:
+        raise ValueError(
+            f"{path}: segments table lacks the columns {missing}; expected {SEGMENT_COLUMNS}"
+        )
+    table.attrs["notes"] = dict(metadata.get("notes", {}))
+    table.attrs["held_by_hand"] = list(metadata.get("held_by_hand", []))
+    return table
+
+
+def write_table(table: pd.DataFrame, path: str | Path) -> None:
+    """Write a small result table (e.g. the paper's Tables I and II) as CSV, atomically.
+
+    Parameters
+    ----------
+    table : DataFrame, shape (m, k)
+        Written without its index, comma-separated, floats in round-trip precision.
+    path : str or Path
+        Target ``.csv`` file; its folder is created.
+    """
+    _write_atomic(path, lambda tmp: table.to_csv(tmp, index=False, lineterminator="\n"))
+
+
+def read_benchmark_seconds(paths: list[str | Path]) -> dict:
+    """Wall-clock time of the jobs of Snakemake benchmark files (column ``s``, seconds).
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Benchmark TSV files, one job each (the first row is read).
+
+    Returns
+    -------
+    dict
+        ``median`` and ``max`` over the files, s.
+
+    Raises
+    ------
+    ValueError
+        If ``paths`` is empty.
+    """
+    if not paths:
+        raise ValueError("no benchmark files; expected at least one")
+    seconds = [float(pd.read_csv(_existing(p, "benchmark"), sep="\t")["s"].iloc[0]) for p in paths]
+    return {"median": float(np.median(seconds)), "max": max(seconds)}
+
+
+# --------------------------------------------------------------------------------------------
+# JSON and calibration files
+
+
+def write_json(obj: Any, path: str | Path) -> None:
+    """Write ``obj`` as indented JSON, atomically (numpy values become plain numbers)."""
+    text = json.dumps(_jsonable(obj), indent=2, sort_keys=False, allow_nan=False) + "\n"
+    _write_atomic(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def read_json(path: str | Path) -> Any:
+    """Read a JSON file.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If it is not valid JSON; the message names the line.
+    """
+    path = _existing(path, "JSON file")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise ValueError(
+            f"{path}, line {err.lineno}: not valid JSON ({err.msg}); expected a JSON document"
+        ) from None
+
+
+def write_calibration(calibration: ImuCalibration, path: str | Path) -> None:
+    """Write ``calibration.to_dict()`` (versioned, with units) as JSON, atomically."""
+    write_json(calibration.to_dict(), path)
+
+
+def read_calibration(path: str | Path) -> ImuCalibration:
+    """Read a calibration file written by :func:`write_calibration`.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file is newer than this package (``format_version``), is for another unit, or
+        lacks a key; the message names the file.
+    """
+    data = read_json(path)
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: top level is {type(data).__name__}; expected a JSON object")  # noqa: TRY004
+    try:
+        return ImuCalibration.from_dict(data)
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
+
+
+# --------------------------------------------------------------------------------------------
+# Helpers
+
+
+def _write_atomic(path: str | Path, write: Callable[[str], object]) -> None:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _jsonable(obj: Any) -> Any:
+    """Plain JSON types: numpy scalars and arrays to numbers and lists, NaN to None."""
+    if isinstance(obj, Mapping):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, np.ndarray)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (np.integer, np.bool_)):
+        return obj.item()
+    if isinstance(obj, (float, np.floating)):
+        value = float(obj)
+        return value if np.isfinite(value) else None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj

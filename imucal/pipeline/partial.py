@@ -1,0 +1,735 @@
+"""Calibration of a partial session: run every stage the recordings allow, say why not the rest.
+
+Public recordings rarely follow the paper's whole protocol (3-D platform, 12-position cube, rate
+table, reference). This module decides, from the recordings, the sensors they hold and their
+segments, which methods can run, runs them in dependency order and records every stage as
+``run`` or ``skipped`` with the reason. A stage that applies but cannot be fitted from these data
+(too few poses, a direction not excited, ...) is skipped with the fit's own message, so a partial
+session never fails as a whole; errors that are not about the data (bugs) still propagate.
+
+Methods per sensor, best first (the first that runs gives the final calibration):
+
+- magnetometer: ellipsoid fit (step 1) + ``T_R,mag`` from the rotation3d phases (step 2); step 1
+  alone leaves the field in the magnetometer's own (ellipsoid) frame;
+- accelerometer: known orientations (six faces, Ferraris) in frame B of the positions; cube fit
+  (eq. 32) on many static poses + ``T_R,acc`` from the rotation3d phases; the cube fit alone;
+- gyroscope: rate table (eq. 33) + ``T_R,gyr``; known-angle rotations (Ferraris); pose to pose
+  (Tedaldi et al. 2014) in the accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
+  the bias alone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from imucal import errormodel
+
+from imucal.fits import accelerometer, gyroscope
+
+from imucal.pipeline import stages
+from imucal.calibration import SensorCalibration
+from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
+from imucal.pipeline.outcome import not_run_reason
+
+#: Stage names in run order, with what each does (the report lists them in this order).
+STAGES = {
+    "mag_step1": "magnetometer ellipsoid fit (eqs. 17-24)",
+    "mag_step2": "magnetometer alignment T_R from the rotation3d phases (eqs. 25-27)",
+    "acc_known_orientation": "accelerometer from static faces of known orientation (Ferraris)",
+    "acc_cube": "accelerometer multi-position fit |a| = g (eq. 32)",
+    "acc_align": "accelerometer alignment T_R from the rotation3d phases (eqs. 25-27)",
+    "gyr_bias": "gyroscope bias from static data (eqs. 34-35)",
+    "gyr_table": "gyroscope rate-table fit (eq. 33)",
+    "gyr_align": "gyroscope alignment T_R from the rotation3d phases (eqs. 28-31)",
+    "gyr_known_rotation": "gyroscope from rotations of known angle (Ferraris; hand turns)",
+    "gyr_pose_to_pose": "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
+    "gyr_scale": "gyroscope scale from acc/mag angles, tool-free (eq. 36)",
+}
+#: Recordings whose static segments are static poses of the module.
+POSE_RECORDINGS = ("cube", "poses", "ferraris")
+#: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
+MAG_RECORDINGS = ("tumble", "rotation3d", "cube", "poses", "ferraris", "static")
+#: The cube fit has 9 parameters and one equation per position.
+MIN_CUBE_POSITIONS = 9
+
+
+class NotApplicable(Exception):
+    """A stage's requirements are not met by the dataset (the message says which)."""
+
+
+@dataclasses.dataclass
+class Outcome:
+    """What happened to one stage.
+
+    Attributes
+    ----------
+    name : str
+    status : {'run', 'skipped'}
+    reason : str
+        Why it was skipped, or what it used.
+    artifact : dict or None
+        The stage's JSON-ready result when it ran.
+    """
+
+    name: str
+    status: str
+    reason: str
+    artifact: dict | None = None
+
+    def summary(self) -> dict:
+        return {
+            "stage": self.name,
+            "what": STAGES[self.name],
+            "status": self.status,
+            "reason": self.reason,
+        }
+
+
+def declared_sensors(dataset, recording: str) -> tuple[str, ...]:
+    """Sensors a recording of a dataset holds, from ``dataset.yaml`` alone (before ingest).
+
+    A native raw CSV holds all three; a declared reader the sensors its column maps name.
+    """
+    declaration = dataset.readers.get(recording)
+    if declaration is None:
+        return SENSORS
+
+    from imucal.io.readers import declared_entries
+
+    names = {c for entry in declared_entries(declaration) for c in entry.get("columns", {})}
+    return tuple(s for s in SENSORS if any(c.startswith(f"{s}_") for c in names))
+
+
+def is_full_protocol(dataset) -> bool:
+    """The paper's protocol: native-format rotation3d and cube with all three sensors.
+
+    Such a session runs the stage-per-rule workflow; any other runs :func:`run_stages`.
+    """
+    return all(
+        dataset.has(r) and declared_sensors(dataset, r) == SENSORS for r in ("rotation3d", "cube")
+    )
+
+
+def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
+    """Sensors with at least one finite sample in an ingested table."""
+    present = []
+    for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
+        if (
+            all(c in table.columns for c in columns)
+            and np.isfinite(table[list(columns)].to_numpy(dtype=float)).all(axis=1).any()
+        ):
+            present.append(sensor)
+    return tuple(present)
+
+
+def _cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(t_s, values) per segment row, rows with a NaN in ``columns`` dropped."""
+    out = []
+    for r in rows.itertuples(index=False):
+        part = table.iloc[int(r.start_index) : int(r.end_index)]
+        values = part[list(columns)].to_numpy(dtype=float)
+        keep = np.isfinite(values).all(axis=1)
+        out.append((part[TIME].to_numpy(dtype=float)[keep], values[keep]))
+    return out
+
+
+def _need(condition: bool, reason: str) -> None:
+    if not condition:
+        raise NotApplicable(reason)
+
+
+class _Session:
+    """The ingested tables, segments and the results so far of one partial session."""
+
+    def __init__(
+        self,
+        tables: Mapping[str, pd.DataFrame],
+        segments: pd.DataFrame,
+        gravity_m_s2: float,
+        field_norm: float,
+        ratetable: Mapping | None,
+        saturation_m_s2: float | None,
+        saturation_rad_s: float | None,
+        notes: Mapping[str, str],
+        lowpass: Mapping[str, float],
+    ):
+        self.tables = {k: v for k, v in tables.items() if k != "reference"}
+        self.segments = segments
+        self.gravity_m_s2 = gravity_m_s2
+        self.field_norm = field_norm
+        self.ratetable = ratetable
+        self.saturation_m_s2 = saturation_m_s2
+        self.saturation_rad_s = saturation_rad_s
+        self.sensors = {name: sensors_of(t) for name, t in self.tables.items()}
+        self.notes = dict(notes)
+        self.lowpass = dict(lowpass)
+        self.done: dict[str, dict] = {}
+
+    @functools.cached_property
+    def rotation3d_lowpass(self) -> pd.DataFrame:
+        """The low-pass filtered rotation3d recording (both alignment stages use it)."""
+        from imucal.segments.filtering import lowpass_recording
+
+        return lowpass_recording(self.tables["rotation3d"], **self.lowpass)
+
+    def with_sensor(self, recording: str, sensor: str) -> bool:
+        return recording in self.tables and sensor in self.sensors[recording]
+
+    def has_phases(self, recording: str = "rotation3d") -> bool:
+        return (
+            recording in self.tables
+            and not stages.segments_of(self.segments, recording, "phase").empty
+        )
+
+    def need_phases(self, sensor: str) -> None:
+        """Raise NotApplicable unless rotation3d has phases and ``sensor`` samples."""
+        if self.has_phases() and self.with_sensor("rotation3d", sensor):
+            return
+        why = f"needs rotation3d phases about x, y, z with {sensor} samples"
+        if "rotation3d" in self.notes:
+            why += f" ({self.notes['rotation3d']})"
+        elif "rotation3d" not in self.tables:
+            why += " (no rotation3d recording)"
+        raise NotApplicable(why)
+
+    def poses(self, recording: str) -> pd.DataFrame:
+        return stages.segments_of(self.segments, recording, "position", "static")
+
+
+# -- magnetometer --------------------------------------------------------------------------
+
+
+def _mag_step1(s: _Session) -> dict:
+    from imucal.fits import magnetometer
+
+    sources = [r for r in MAG_RECORDINGS if s.with_sensor(r, "mag")]
+    _need(bool(sources), "no recording has magnetometer samples")
+    primary, extra = sources[0], sources[1:]
+    _, samples = magnetometer.field_samples(s.tables[primary])
+    fit = magnetometer.fit_ellipsoid(
+        samples,
+        field_norm=s.field_norm,
+        extra_samples={r: magnetometer.field_samples(s.tables[r])[1] for r in extra} or None,
+    )
+    return {**fit.to_dict(), "source": primary, "offered": extra}
+
+
+def _mag_step2(s: _Session) -> dict:
+    _need("mag_step1" in s.done, "needs the ellipsoid fit (mag_step1)")
+    s.need_phases("mag")
+    return stages.align_mag(s.tables["rotation3d"], s.segments, s.done["mag_step1"])
+
+
+# -- accelerometer -------------------------------------------------------------------------
+
+
+def _acc_known_orientation(s: _Session) -> dict:
+    from imucal.fits import ferraris
+
+    _need(s.with_sensor("ferraris", "acc"), "needs a ferraris recording with accelerometer data")
+    rows = s.poses("ferraris")
+    _need("up" in rows.columns, "the ferraris segments carry no 'up' direction")
+    rows = rows[rows["up"].notna() & (rows["up"].astype(str) != "")]
+    _need(len(rows) >= 4, f"{len(rows)} static faces with a known up direction, expected >= 4")
+    positions = [v for _, v in _cut(s.tables["ferraris"], rows, ACC)]
+    directions = np.array([_axis_vector(str(u)) for u in rows["up"]])
+    fit = ferraris.fit_known_orientations(
+        positions, directions, s.gravity_m_s2, labels=[str(x) for x in rows["label"]]
+    )
+    artifact = stages.plain(fit)
+    artifact.update(calibration=fit.calibration.to_dict(), gravity_m_s2=s.gravity_m_s2)
+    return artifact
+
+
+def _axis_vector(up: str) -> np.ndarray:
+    """'+x', '-z', 'x' ... -> unit vector in B."""
+    sign = -1.0 if up.startswith("-") else 1.0
+    axis = up.lstrip("+-")
+    if axis not in ("x", "y", "z"):
+        raise ValueError(f"up direction {up!r}: expected '+x', '-x', ..., '-z'")
+    v = np.zeros(3)
+    v["xyz".index(axis)] = sign
+    return v
+
+
+def _pose_recording(s: _Session) -> str:
+    for r in ("cube", "poses"):
+        if s.with_sensor(r, "acc") and len(s.poses(r)) >= MIN_CUBE_POSITIONS:
+            return r
+    counts = {r: len(s.poses(r)) for r in ("cube", "poses") if r in s.tables}
+    raise NotApplicable(
+        f"needs >= {MIN_CUBE_POSITIONS} static poses in a cube or poses recording with "
+        f"accelerometer data (static poses found: {counts or 'no such recording'})"
+    )
+
+
+def _acc_cube(s: _Session) -> dict:
+    recording = _pose_recording(s)
+    rows = s.poses(recording)
+    positions = [v for _, v in _cut(s.tables[recording], rows, ACC)]
+    fit = accelerometer.fit_cube(
+        positions,
+        s.gravity_m_s2,
+        labels=[str(x) for x in rows["label"]],
+        saturation_limit_m_s2=s.saturation_m_s2,
+    )
+    artifact = stages.plain(fit)
+    artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
+    if len(positions) > MIN_CUBE_POSITIONS:
+        before, after = accelerometer.heldout_errors(positions, s.gravity_m_s2)
+        artifact.update(
+            heldout_error_before_m_s2=before.tolist(), heldout_error_after_m_s2=after.tolist()
+        )
+    if recording in s.notes:  # how the poses were found (e.g. the tremor-adaptive detector)
+        artifact["segmentation"] = s.notes[recording]
+    artifact["calibration"] = accelerometer.make_calibration(
+        fit, np.eye(3), "cube fit (eq. 32), sensor frame (no T_R)"
+    ).to_dict()
+    return artifact
+
+
+def _acc_align(s: _Session) -> dict:
+    _need("acc_cube" in s.done, "needs the cube fit (acc_cube)")
+    s.need_phases("acc")
+    return stages.align_acc(s.rotation3d_lowpass, s.segments, s.done["acc_cube"])
+
+
+# -- gyroscope -----------------------------------------------------------------------------
+
+
+def _static_gyr(s: _Session) -> list[np.ndarray]:
+    names = (
+        ["static"]
+        if s.with_sensor("static", "gyr")
+        else [r for r in s.tables if s.with_sensor(r, "gyr")]
+    )
+    pieces = []
+    for name in names:
+        rows = stages.segments_of(s.segments, name, "static", "position")
+        pieces += [v for _, v in _cut(s.tables[name], rows, GYR) if len(v) >= 2]
+    return pieces
+
+
+def _gyr_bias(s: _Session) -> dict:
+    pieces = _static_gyr(s)
+    _need(bool(pieces), "no static segment with gyroscope samples")
+    return stages.plain(gyroscope.estimate_bias(pieces))
+
+
+def _bias(s: _Session) -> np.ndarray:
+    return np.asarray(s.done["gyr_bias"]["bias_ls_rad_s"], dtype=float)
+
+
+def _gyr_table(s: _Session) -> dict:
+    _need(
+        s.with_sensor("ratetable", "gyr") and s.ratetable is not None, "needs a ratetable recording"
+    )
+    artifact, _ = stages.fit_gyr_table(
+        s.tables["ratetable"],
+        s.segments,
+        saturation_limit_rad_s=np.inf if s.saturation_rad_s is None else s.saturation_rad_s,
+    )
+    return artifact
+
+
+def _gyr_align(s: _Session) -> dict:
+    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+    s.need_phases("gyr")
+    return stages.align_gyr(s.rotation3d_lowpass, s.segments, _bias(s))
+
+
+def _gyr_known_rotation(s: _Session) -> dict:
+    from imucal.fits import ferraris
+
+    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+    recording, rows = None, None
+    for name in ("ferraris", "rotation3d"):
+        if s.with_sensor(name, "gyr"):
+            rows = stages.segments_of(s.segments, name, "phase")
+            if "angle_deg" in rows.columns:
+                rows = rows[np.isfinite(rows["angle_deg"].astype(float))]
+            if "angle_deg" in rows.columns and len(rows):
+                recording = name
+                break
+    _need(
+        recording is not None,
+        "needs rotation sections of known angle (a ferraris recording, "
+        "or rotation3d phases with angle_deg) with gyroscope data",
+    )
+    _need(len(rows) >= 3, f"{len(rows)} rotation sections with a known angle, expected >= 3")
+    known = np.array(
+        [np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()]
+    )
+    fit = ferraris.fit_known_rotations(
+        _cut(s.tables[recording], rows, GYR),
+        known,
+        _bias(s),
+        labels=[str(x) for x in rows["label"]],
+    )
+    artifact = stages.plain(fit)
+    artifact.update(recording=recording, calibration=fit.calibration.to_dict())
+    return artifact
+
+
+def _acc_final(s: _Session) -> SensorCalibration | None:
+    for stage in ("acc_known_orientation", "acc_align", "acc_cube"):
+        if stage in s.done:
+            return SensorCalibration.from_dict("acc", s.done[stage]["calibration"])
+    return None
+
+
+def pose_intervals(
+    table: pd.DataFrame, rows: pd.DataFrame, acc: SensorCalibration
+) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """Calibrated gravity direction per pose and the raw gyro (t, w) between consecutive poses.
+
+    Returns
+    -------
+    directions : ndarray, shape (n_pose, 3)
+        Unit up direction at each pose in frame B (mean of the calibrated accelerometer).
+    intervals : list of (ndarray (m,), ndarray (m, 3))
+        From the last sample of pose k to the first of pose k + 1, rad/s readings.
+    """
+    directions = []
+    for _, v in _cut(table, rows, ACC):
+        mean = errormodel.apply(acc.matrix, acc.bias, v).mean(axis=0)
+        directions.append(mean / np.linalg.norm(mean))
+    t = table[TIME].to_numpy(dtype=float)
+    w = table[list(GYR)].to_numpy(dtype=float)
+    intervals = []
+    starts, ends = rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int)
+    for end, start in zip(ends[:-1], starts[1:]):
+        sl = slice(end - 1, start + 1)
+        keep = np.isfinite(w[sl]).all(axis=1)
+        intervals.append((t[sl][keep], w[sl][keep]))
+    return np.array(directions), intervals
+
+
+def _gyr_pose_to_pose(s: _Session) -> dict:
+    from imucal.fits import posetopose
+
+    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+    acc = _acc_final(s)
+    _need(acc is not None, "needs an accelerometer calibration for the gravity directions")
+    recording = next(
+        (
+            r
+            for r in ("poses", "cube")
+            if s.with_sensor(r, "gyr") and s.with_sensor(r, "acc") and len(s.poses(r)) >= 6
+        ),
+        None,
+    )
+    _need(
+        recording is not None,
+        "needs >= 6 static poses in a poses or cube recording with "
+        "accelerometer and gyroscope data",
+    )
+    directions, intervals = pose_intervals(s.tables[recording], s.poses(recording), acc)
+    fit = posetopose.fit_pose_to_pose(directions[:-1], directions[1:], intervals, _bias(s))
+    artifact = stages.plain(fit)
+    artifact.update(recording=recording, calibration=fit.calibration.to_dict())
+    return artifact
+
+
+def _gyr_scale(s: _Session) -> dict:
+    _need("gyr_align" in s.done, "needs the gyroscope alignment (gyr_align)")
+    _need(
+        "mag_step2" in s.done or "acc_align" in s.done,
+        "needs a calibrated magnetometer (mag_step2) or accelerometer (acc_align) to measure "
+        "the phase angles",
+    )
+    return stages.estimate_gyr_scale(
+        s.tables["rotation3d"],
+        s.segments,
+        s.done["gyr_bias"],
+        s.done["gyr_align"],
+        s.done.get("acc_align"),
+        s.done.get("mag_step2"),
+    )
+
+
+RUNNERS: dict[str, Callable[[_Session], dict]] = {
+    "mag_step1": _mag_step1,
+    "mag_step2": _mag_step2,
+    "acc_known_orientation": _acc_known_orientation,
+    "acc_cube": _acc_cube,
+    "acc_align": _acc_align,
+    "gyr_bias": _gyr_bias,
+    "gyr_table": _gyr_table,
+    "gyr_align": _gyr_align,
+    "gyr_known_rotation": _gyr_known_rotation,
+    "gyr_pose_to_pose": _gyr_pose_to_pose,
+    "gyr_scale": _gyr_scale,
+}
+
+
+def run_stages(
+    tables: Mapping[str, pd.DataFrame],
+    segments: pd.DataFrame,
+    *,
+    gravity_m_s2: float,
+    field_norm: float = 1.0,
+    ratetable: Mapping | None = None,
+    saturation_m_s2: float | None = None,
+    saturation_rad_s: float | None = None,
+    notes: Mapping[str, str] | None = None,
+    lowpass_order: int = 4,
+    lowpass_cutoff_hz: float = 5.0,
+) -> list[Outcome]:
+    """Run every stage the session allows, in :data:`STAGES` order.
+
+    Parameters
+    ----------
+    tables : mapping of str to DataFrame
+        Ingested recordings by name (SI units; absent sensors have no columns).
+    segments : DataFrame
+        Segments table of the session (automatic or from a section list).
+    gravity_m_s2, field_norm : float
+    ratetable : mapping, optional
+        ``dataset.ratetable``.
+    saturation_m_s2, saturation_rad_s : float, optional
+        Sensor ranges; samples at them are left out of the fits that check it. None: the
+        recordings' ranges are unknown (readers of SI data), nothing is left out.
+    notes : mapping of str to str, optional
+        Segmentation notes per recording (why its protocol was not found); they join the
+        reasons of the stages that needed it.
+    lowpass_order, lowpass_cutoff_hz : int, float
+        Zero-phase Butterworth low-pass of rotation3d before the alignment stages (the
+        workflow's ``lowpass`` config), cutoff in Hz.
+
+    Returns
+    -------
+    list of Outcome
+        One per stage of :data:`STAGES`.
+    """
+    session = _Session(
+        tables,
+        segments,
+        gravity_m_s2,
+        field_norm,
+        ratetable,
+        saturation_m_s2,
+        saturation_rad_s,
+        notes or {},
+        {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz},
+    )
+    outcomes = []
+    for name, runner in RUNNERS.items():
+        try:
+            artifact = runner(session)
+        except NotApplicable as why:
+            outcomes.append(Outcome(name, "skipped", f"not applicable: {why}"))
+            continue
+        except ValueError as err:  # the fit's own message: too little or degenerate data
+            outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
+            continue
+        session.done[name] = artifact
+        outcomes.append(Outcome(name, "run", STAGES[name], artifact))
+    return outcomes
+
+
+#: Stages whose result is a sensor's final calibration, best first.
+FINAL = {
+    "mag": ("mag_step2", "mag_step1"),
+    "acc": ("acc_known_orientation", "acc_align", "acc_cube"),
+    "gyr": ("gyr_table", "gyr_known_rotation", "gyr_pose_to_pose", "gyr_scale", "gyr_bias"),
+}
+
+
+def final_calibration(outcomes: list[Outcome]) -> dict[str, Any]:
+    """The best calibration per sensor from the stages that ran, and why a sensor has none.
+
+    Returns
+    -------
+    dict
+        ``sensors``: sensor -> {'stage', 'calibration' (SensorCalibration dict)};
+        ``missing``: sensor -> reason.
+    """
+    done = {o.name: o.artifact for o in outcomes if o.status == "run"}
+    sensors, missing = {}, {}
+    for sensor in SENSORS:
+        stage = next((s for s in FINAL[sensor] if s in done), None)
+        if stage is None:
+            missing[sensor] = "no stage of this sensor could run: " + "; ".join(
+                f"{o.name}: {o.reason}" for o in outcomes if o.name in FINAL[sensor]
+            )
+            continue
+        sensors[sensor] = {"stage": stage, "calibration": _calibration_of(stage, done)}
+    return {"sensors": sensors, "missing": missing}
+
+
+def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
+    artifact = done[stage]
+    if stage == "mag_step1":
+        from imucal.fits import magnetometer
+
+        fit = magnetometer.EllipsoidFit.from_dict(dict(artifact))
+        return SensorCalibration(
+            "mag", fit.bias, fit.upper, "normalised", {}, "ellipsoid fit only (step 1, no T_R)"
+        ).to_dict()
+    if stage == "gyr_table":
+        return SensorCalibration(
+            "gyr",
+            artifact["bias"],
+            artifact["upper"],
+            "rad/s",
+            {"bias": np.asarray(artifact["std_bias"])},
+            "rate table (eq. 33), no T_R",
+        ).to_dict()
+    if stage == "gyr_scale":
+        align = done["gyr_align"]
+        alpha = np.asarray(align[align["used"]]["alpha_rad"], dtype=float)
+        bias = done["gyr_bias"]
+        return SensorCalibration(
+            "gyr",
+            bias["bias_ls_rad_s"],
+            errormodel.compose(artifact["scale"], np.zeros(3), alpha),
+            "rad/s",
+            {"bias": np.asarray(bias["std_ls_rad_s"]), "scale": np.asarray(artifact["std_scale"])},
+            "tool-free: T_R,gyr (eqs. 28-31) and eq. 36 scale",
+        ).to_dict()
+    if stage == "gyr_bias":
+        return SensorCalibration(
+            "gyr",
+            artifact["bias_ls_rad_s"],
+            np.eye(3),
+            "rad/s",
+            {"bias": np.asarray(artifact["std_ls_rad_s"])},
+            "bias only (nominal scale, sensor frame)",
+        ).to_dict()
+    return dict(artifact["calibration"])
+
+
+def full_protocol_stages(
+    recordings: Mapping | set,
+    *,
+    has_reference: bool,
+    artifacts: Mapping[str, Mapping] | None = None,
+    notes: Mapping[str, str] | None = None,
+) -> list[dict]:
+    """The stage listing (``stages.json``) of a session run by the stage-per-rule workflow.
+
+    Parameters
+    ----------
+    recordings : collection of str
+        The dataset's recording names (it has rotation3d and cube with all sensors).
+    has_reference : bool
+    artifacts : mapping, optional
+        Stage name (and 'validate') -> its artifact; a not-run record
+        (:mod:`imucal.pipeline.outcome`) makes the stage 'skipped' with the reason the data gave.
+    notes : mapping, optional
+        Segmentation notes per recording; those of recordings whose protocol was not found
+        join the reasons of the stages that did not run.
+
+    Returns
+    -------
+    list of dict
+        {stage, what, status, reason} per stage of :data:`STAGES` plus the validation.
+    """
+
+    skipped = {
+        "acc_known_orientation": "not applicable: the cube fit and T_R,acc of the full protocol "
+        "are used (no ferraris recording)",
+        "gyr_known_rotation": "not applicable: no ferraris recording",
+        "gyr_pose_to_pose": "not applicable: the full protocol calibrates the gyroscope with the "
+        "platform (and rate table)",
+    }
+    if "ratetable" not in recordings:
+        skipped["gyr_table"] = "not applicable: needs a ratetable recording"
+    failed = [n for n in (notes or {}).values() if "automatic segmentation failed" in n]
+    context = f" (segmentation: {'; '.join(failed)})" if failed else ""
+    for name, artifact in (artifacts or {}).items():
+        if not_run_reason(artifact):
+            skipped[name] = (
+                f"could not run on these data: {artifact['not_run']['reason']}{context}"
+            )
+    rows = [
+        {
+            "stage": name,
+            "what": what,
+            "status": "skipped" if name in skipped else "run",
+            "reason": skipped.get(name, what),
+        }
+        for name, what in STAGES.items()
+    ]
+    rows.append({
+        "stage": "validate", "what": "validation against the reference",
+        "status": "skipped" if "validate" in skipped else "run",
+        "reason": skipped.get("validate") or ("against the reference" if has_reference
+        else "reference-free checks only: the dataset has no reference recording"),
+    })  # fmt: skip
+    return rows
+
+
+def stage_results(outcomes: list[Outcome]) -> dict[str, dict]:
+    """Per sensor, the artifacts of its stages that ran (the report's stage results)."""
+    out: dict[str, dict] = {s: {} for s in SENSORS}
+    for o in outcomes:
+        if o.status == "run":
+            out[o.name.split("_", 1)[0]][o.name] = o.artifact
+    return out
+
+
+def figures(outcomes: list[Outcome], tables: Mapping[str, pd.DataFrame]) -> dict:
+    """Figures of the stages that ran (file stem -> matplotlib Figure).
+
+    ``mag_raw`` / ``mag_step1`` (the ellipsoid fit's samples before and after), ``acc_cube`` or
+    ``acc_known_orientation`` (|a| - g per pose before and after), ``gyr_pose_to_pose``
+    (gravity-direction error per interval before and after).
+    """
+    from imucal.fits import magnetometer
+    from imucal.plots import inertial as plots
+    from imucal.plots.magnetometer import plot_field
+
+    done = {o.name: o.artifact for o in outcomes if o.status == "run"}
+    out = {}
+    if "mag_step1" in done:
+        fit = magnetometer.EllipsoidFit.from_dict(dict(done["mag_step1"]))
+        t, raw = magnetometer.field_samples(tables[done["mag_step1"]["source"]])
+        source = done["mag_step1"]["source"]
+        out["mag_raw"] = plot_field(t, raw, f"Magnetometer, raw ({source})")
+        out["mag_step1"] = plot_field(
+            t,
+            fit.apply(raw),
+            f"After step 1, the ellipsoid fit ({fit.used}; {source})",
+            fit.field_norm,
+        )
+    if "acc_cube" in done:
+        a = done["acc_cube"]
+        out["acc_cube"] = plots.plot_before_after_errors(
+            a["labels"],
+            a["magnitude_error_before_m_s2"],
+            a["magnitude_error_after_m_s2"],
+            "m/s^2",
+            f"Accelerometer fit (eq. 32) on {a['recording']} (in-sample)",
+            quantity="|a| - g",
+        )
+    if "acc_known_orientation" in done:
+        a = done["acc_known_orientation"]
+        raw_norm = np.linalg.norm(np.asarray(a["position_means"], dtype=float), axis=1)
+        out["acc_known_orientation"] = plots.plot_before_after_errors(
+            a["labels"],
+            raw_norm - a["gravity_m_s2"],
+            a["magnitude_error_m_s2"],
+            "m/s^2",
+            "Accelerometer from faces of known orientation (in-sample)",
+            quantity="|a| - g",
+        )
+    if "gyr_pose_to_pose" in done:
+        g = done["gyr_pose_to_pose"]
+        n = len(g["angle_errors_deg"])
+        out["gyr_pose_to_pose"] = plots.plot_before_after_errors(
+            [f"{k + 1}" for k in range(n)],
+            g["angle_errors_before_deg"],
+            g["angle_errors_deg"],
+            "deg",
+            "Gyroscope pose to pose (in-sample; before: nominal scale)",
+            quantity="gravity-direction error",
+        )
+    return out

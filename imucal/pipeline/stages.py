@@ -1,0 +1,739 @@
+"""The accelerometer and gyroscope stages of the workflow, as functions of their input tables.
+
+Each function is what one rule runs: it cuts the segments it needs out of the ingested (or
+low-pass filtered) tables, calls the fits of :mod:`imucal.fits.accelerometer`,
+:mod:`imucal.fits.gyroscope` and :mod:`imucal.fits.alignment`, and returns a JSON-ready artifact (and
+figures, never saved here). Stages exchange their results through these artifacts, so one stage
+can be rerun on new data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from imucal import errormodel
+
+from imucal.fits import accelerometer, gyroscope
+from imucal.fits.alignment import align_constant_component, align_rotation_axis, phase_samples
+from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
+from imucal.columns import ACC, AXES, GYR, MAG, TIME
+from imucal.pipeline.outcome import not_run_reason
+from imucal.plots import inertial as inertial_plots
+from imucal.segments.segmentation import is_clipped
+
+#: The paper's Tables I and II (gyroscope bias in rad/s, scale), reference rows of tables.csv.
+PAPER_TABLE_I = {"paper w. tools": (0.0027, 0.1605, 0.0660), "paper LS": (-0.0022, 0.1608, 0.0679)}
+PAPER_TABLE_II = {
+    "paper w. tools": (1.1526, 1.1327, 1.1425),
+    "paper w/o tools": (1.1526, 1.1327, 1.1411),
+}
+ALIGNMENT_METHODS = ("full", "paper")
+
+
+def plain(obj):
+    """JSON-ready copy of a dataclass / dict / array tree."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, Mapping):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def segments_of(segments: pd.DataFrame, recording: str, *kinds: str) -> pd.DataFrame:
+    """Rows of ``segments`` of ``recording`` whose kind is one of ``kinds``, in time order."""
+    rows = segments[(segments["recording"] == recording) & segments["kind"].isin(kinds)]
+    return rows.sort_values("start_index")
+
+
+def _cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[np.ndarray]:
+    return [
+        table.iloc[int(r.start_index) : int(r.end_index)][list(columns)].to_numpy(dtype=float)
+        for r in rows.itertuples(index=False)
+    ]
+
+
+def _saturated(values: np.ndarray, limit: float) -> np.ndarray:
+    """Rows of ``values`` (n, 3) with any axis at or beyond the sensor range ``limit``."""
+    return np.any(np.abs(values) >= limit, axis=1)
+
+
+def _phases(table: pd.DataFrame, segments: pd.DataFrame, sensor: str) -> dict[str, np.ndarray]:
+    """Phase label -> the sensor's samples (n, 3) in that rotation3d phase."""
+    return {label: values for label, (_, values) in phase_samples(table, segments, sensor).items()}
+
+
+def fit_acc_cube(
+    cube: pd.DataFrame,
+    segments: pd.DataFrame,
+    *,
+    gravity_m_s2: float,
+    saturation_limit_m_s2: float,
+    method: str = "means",
+) -> tuple[dict, dict[str, Figure]]:
+    """Accelerometer step 1 (eq. 32) on the static cube positions.
+
+    Parameters
+    ----------
+    cube : DataFrame
+        Ingested cube recording (m/s^2).
+    segments : DataFrame
+        Segments table; rows of kind 'position' of 'cube'.
+    gravity_m_s2 : float
+    saturation_limit_m_s2 : float
+        ``range_counts * sensitivity`` of the accelerometer; samples at it are excluded.
+    method : {'means', 'samples'}
+        See :func:`imucal.fits.accelerometer.fit_cube`.
+
+    Returns
+    -------
+    artifact : dict
+        The fit (``upper`` = S'_acc, ``bias``, std, per-position residuals before/after, warnings).
+    figures : dict of str to Figure
+        'acc_cube': |a| - g per position before/after (paper Fig. 10).
+    """
+    rows = segments_of(segments, "cube", "position")
+    positions = _cut(cube, rows, ACC)
+    fit = accelerometer.fit_cube(
+        positions,
+        gravity_m_s2,
+        labels=[str(label) for label in rows["label"]],
+        saturation_limit_m_s2=saturation_limit_m_s2,
+        method=method,
+    )
+    artifact = plain(fit)
+    artifact["gravity_m_s2"] = gravity_m_s2
+    return artifact, {"acc_cube": inertial_plots.plot_cube_magnitude_errors(fit)}
+
+
+def align_acc(
+    rotation3d_lowpass: pd.DataFrame,
+    segments: pd.DataFrame,
+    cube_fit: Mapping,
+    *,
+    method: str = "full",
+    exact: bool = True,
+) -> dict:
+    """Accelerometer step 2: ``T_R,acc`` from the low-pass filtered rotation3d phases.
+
+    Only phases whose axis is horizontal sweep gravity; :func:`align_constant_component` skips
+    the others (the z phase) and says why. Both methods are computed; ``method`` is used.
+
+    Returns
+    -------
+    dict
+        ``calibration`` (SensorCalibration dict, ``matrix = T_R S'``), ``step2`` (both methods and
+        which was used), ``step1`` (the cube fit it builds on).
+    """
+    upper = np.asarray(cube_fit["upper"], dtype=float)
+    bias = np.asarray(cube_fit["bias"], dtype=float)
+    phases = {
+        label: errormodel.apply(upper, bias, values)
+        for label, values in _phases(rotation3d_lowpass, segments, "acc").items()
+    }
+    alignments = {
+        name: align_constant_component(phases, method=name, exact=exact)
+        for name in ALIGNMENT_METHODS
+    }
+    fit_std_bias = np.asarray(cube_fit["std_bias"], dtype=float)
+    calibration = SensorCalibration(
+        "acc",
+        bias,
+        alignments[method].matrix @ upper,
+        "m/s^2",
+        {"bias": fit_std_bias},
+        f"step 1: cube fit ({cube_fit['method']}); step 2: {method} "
+        f"({'exact rotation' if exact else 'small-angle eq. 5'})",
+    )
+    return {
+        "calibration": calibration.to_dict(),
+        "step1": dict(cube_fit),
+        "step2": {"used": method, **{k: a.to_dict() for k, a in alignments.items()}},
+        "warnings": list(cube_fit.get("warnings", [])),
+    }
+
+
+def estimate_gyr_bias(
+    static_tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame
+) -> tuple[dict, dict[str, Figure]]:
+    """Gyroscope bias (eqs. 34-35 and the plain mean) from the static recording.
+
+    Without a static recording, the static pauses of the other recordings are used.
+
+    Parameters
+    ----------
+    static_tables : dict of str to DataFrame
+        Ingested recordings by name; 'static' is used when present, else 'rotation3d' and 'cube'.
+    segments : DataFrame
+
+    Returns
+    -------
+    artifact : dict
+    figures : dict of str to Figure
+        'gyr_bias': the static rates before and after bias removal (Figs. 16-17).
+    """
+    names = ["static"] if "static" in static_tables else [n for n in ("rotation3d", "cube") if n in static_tables]
+    pieces, times = [], []
+    for name in names:
+        rows = segments_of(segments, name, "static")
+        if name == "cube":
+            rows = pd.concat([rows, segments_of(segments, name, "position")])
+        pieces += _cut(static_tables[name], rows, GYR)
+        times += _cut(static_tables[name], rows, (TIME,))
+    if not pieces:
+        raise ValueError(
+            f"no static segment found in the recordings {names}; the gyroscope bias needs a "
+            "static recording or static pauses"
+        )
+    bias = gyroscope.estimate_bias(pieces)
+    artifact = plain(bias)
+    artifact["source"] = names
+    t = np.concatenate([x[:, 0] for x in times])
+    rates = np.vstack(pieces)
+    figure = inertial_plots.plot_gyro_bias(t, rates, bias.bias_ls_rad_s)
+    return artifact, {"gyr_bias": figure}
+
+
+def gyr_bias_value(bias: Mapping, estimator: str) -> tuple[np.ndarray, np.ndarray]:
+    if estimator not in ("ls", "mean"):
+        raise ValueError(f"gyroscope bias estimator {estimator!r}: expected 'ls' or 'mean'")
+    return (
+        np.asarray(bias[f"bias_{estimator}_rad_s"], dtype=float),
+        np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float),
+    )
+
+
+def align_gyr(
+    rotation3d_lowpass: pd.DataFrame,
+    segments: pd.DataFrame,
+    bias: np.ndarray,
+    upper: np.ndarray | None = None,
+    *,
+    method: str = "full",
+    exact: bool = True,
+) -> dict:
+    """``T_R,gyr`` from the low-pass filtered rotation3d phases (eqs. 28-31), both methods.
+
+    Parameters
+    ----------
+    bias : ndarray, shape (3,)
+        Gyroscope bias, rad/s.
+    upper : ndarray, shape (3, 3), optional
+        ``S'_gyr`` from the rate table; the identity (unit scale) without one.
+    """
+    s = np.eye(3) if upper is None else np.asarray(upper, dtype=float)
+    phases = {
+        label: errormodel.apply(s, bias, values)
+        for label, values in _phases(rotation3d_lowpass, segments, "gyr").items()
+    }
+    alignments = {
+        name: align_rotation_axis(phases, method=name, exact=exact) for name in ALIGNMENT_METHODS
+    }
+    return {"used": method, **{k: a.to_dict() for k, a in alignments.items()}}
+
+
+def _adjacent_static(segments: pd.DataFrame, phase: pd.Series) -> tuple[pd.Series, pd.Series]:
+    static = segments_of(segments, "rotation3d", "static")
+    before = static[static["end_index"] <= phase.start_index]
+    after = static[static["start_index"] >= phase.end_index]
+    if before.empty or after.empty:
+        raise ValueError(
+            f"phase {phase.label!r} of rotation3d ({phase.start_s:.2f}-{phase.end_s:.2f} s) needs "
+            "a static pause before and after it for the angle of eq. 36; found "
+            f"{len(before)} before and {len(after)} after"
+        )
+    return before.iloc[-1], after.iloc[0]
+
+
+def integration_times(table: pd.DataFrame) -> np.ndarray:
+    """Strictly increasing sample times of a table's rows, for integrating a rate, s.
+
+    Receive timestamps come in bursts (equal or near-equal stamps, then a pause), which would
+    weight samples by the receiver's latency rather than by their sampling interval. With a
+    packet counter the times are :func:`imucal.validation.packet_times` (a line through the
+    timestamps against the unwrapped counter: jitter averages out, lost packets leave exact
+    gaps); without one, strictly increasing timestamps are kept and bursty ones are replaced by
+    the least-squares line against the row index (every row a sample, none lost: the only
+    assumption left when the logger records no counter).
+
+    Parameters
+    ----------
+    table : DataFrame
+        Rows of one sensor's samples, columns ``t_s`` and optionally ``seq``.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    from imucal import validation
+
+    t = table[TIME].to_numpy(dtype=float)
+    if "seq" in table.columns:
+        return validation.packet_times(t, table["seq"].to_numpy())
+    if t.size < 2 or np.all(np.diff(t) > 0):
+        return t
+    period, t0 = np.polyfit(np.arange(t.size, dtype=float), t, 1)
+    return t0 + period * np.arange(t.size)
+
+
+def estimate_gyr_scale(
+    rotation3d: pd.DataFrame,
+    segments: pd.DataFrame,
+    bias: Mapping,
+    alignment: Mapping,
+    acc: Mapping | None,
+    mag: Mapping | None,
+    *,
+    bias_estimator: str = "ls",
+) -> dict:
+    """Gyroscope scale without tools (eq. 36), after the alignment (the paper's order).
+
+    The rotation angle of each phase is measured from the calibrated magnetometer (all phases)
+    and accelerometer (phases with a horizontal axis) between the static pauses before and
+    after the phase, unwrapped through the phase; where both measure it, their mean is used.
+    The gyroscope rate, bias-free and aligned with ``T_R,gyr``, is integrated on the timestamps
+    over the same window.
+
+    Parameters
+    ----------
+    rotation3d : DataFrame
+        Ingested rotation3d recording.
+    bias, alignment : dict
+        Artifacts of the bias and alignment stages.
+    acc, mag : dict or None
+        Artifacts of the accelerometer and magnetometer stages (``calibration`` key); None (or a
+        recording without the sensor's columns) leaves that sensor out of the angle measurement.
+
+    Returns
+    -------
+    dict
+        Per phase the angles, integrated angle and scale; ``scale`` (3,), ``std_scale`` (3,).
+    """
+    o, _ = gyr_bias_value(bias, bias_estimator)
+    rotation = np.asarray(alignment[alignment["used"]]["matrix"], dtype=float)
+    measuring = [
+        (name, SensorCalibration.from_dict(name, artifact["calibration"]), cols)
+        for name, artifact, cols in (("mag", mag, MAG), ("acc", acc, ACC))
+        if artifact is not None and all(c in rotation3d.columns for c in cols)
+    ]
+    if not measuring:
+        raise ValueError("eq. 36 needs a calibrated magnetometer or accelerometer; got neither")
+    noise = np.asarray(bias["noise_std_rad_s"], dtype=float)
+    phases = segments_of(segments, "rotation3d", "phase")
+    gyr = rotation3d[list(GYR)].to_numpy(dtype=float)
+    clipped = [
+        r.label for r in phases.itertuples() if is_clipped(gyr, int(r.start_index), int(r.end_index))
+    ]
+    if clipped:
+        raise ValueError(
+            f"eq. 36 needs the whole rotation of each phase in the gyroscope; phase(s) {clipped} "
+            "are clipped at its range (the integrated angle is only a lower bound)"
+        )
+    per_phase = {}
+    for phase in phases.itertuples(index=False):
+        before, after = _adjacent_static(segments, phase)
+        window = rotation3d.iloc[int(before.start_index) : int(after.end_index)]
+        parts = [
+            rotation3d.iloc[int(s.start_index) : int(s.end_index)]
+            for s in (before, phase, after)
+        ]
+        angles = {}
+        for name, cal, cols in measuring:
+            vectors = [
+                errormodel.apply(cal.matrix, cal.bias, p[list(cols)].to_numpy(dtype=float))
+                for p in parts
+            ]
+            try:
+                angles[name] = gyroscope.measure_angle_change(*vectors, phase.label)
+            except ValueError as err:
+                angles[name] = str(err)
+        measured = [a for a in angles.values() if isinstance(a, float)]
+        if not measured:
+            raise ValueError(f"phase {phase.label!r}: no sensor could measure its angle: {angles}")
+        raw = window[list(GYR)].to_numpy(dtype=float)
+        fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
+        rate = errormodel.apply(rotation, o, raw[fresh])
+        k = AXES.index(phase.label)
+        spread = float(np.std(measured)) if len(measured) > 1 else 0.0
+        result = gyroscope.estimate_scale(
+            integration_times(window[fresh]),
+            rate,
+            phase.label,
+            float(np.mean(measured)),
+            noise_std_rad_s=float(noise[k]),
+            angle_std_rad=spread,
+        )
+        per_phase[phase.label] = {"angles_rad": angles, **plain(result)}
+    missing = [a for a in AXES if a not in per_phase]
+    if missing:
+        raise ValueError(f"eq. 36 needs the phases x, y, z of rotation3d; missing {missing}")
+    return {
+        "per_phase": per_phase,
+        "scale": [per_phase[a]["scale"] for a in AXES],
+        "std_scale": [per_phase[a]["std"] for a in AXES],
+    }
+
+
+def fit_gyr_table(
+    ratetable: pd.DataFrame,
+    segments: pd.DataFrame,
+    *,
+    saturation_limit_rad_s: float,
+) -> tuple[dict, dict[str, Figure]]:
+    """Rate-table step 1 (eq. 33, vector form): full matrix and bias from the run means.
+
+    Runs with saturated samples are left out with a warning; the fit is refused (by
+    :func:`imucal.fits.gyroscope.fit_rate_table`) only when too few runs remain.
+
+    Returns
+    -------
+    artifact : dict
+        The fit (``matrix`` K, ``bias``, ``upper`` = S'_gyr, std, per-run errors, warnings).
+    figures : dict of str to Figure
+        'gyr_table': magnitude errors per run before/after (paper Fig. 15).
+    """
+    rows = segments_of(segments, "ratetable", "run")
+    if rows.empty:
+        raise ValueError("no rate-table run was segmented (the segmentation notes say why)")
+    runs = _cut(ratetable, rows, GYR)
+    keep, warnings = [], []
+    for label, run in zip(rows["label"], runs, strict=True):
+        n_sat = int(_saturated(run, saturation_limit_rad_s).sum())
+        if n_sat:
+            warnings.append(f"rate-table run {label}: {n_sat} saturated samples, run left out")
+        keep.append(n_sat == 0)
+    keep = np.array(keep, dtype=bool)
+    rows = rows[keep]
+    runs = [r for r, k in zip(runs, keep, strict=True) if k]
+    unit = {a: np.eye(3)[i] for i, a in enumerate(AXES)}
+    rates = np.array(
+        [np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)]
+    )
+    fit = gyroscope.fit_rate_table(
+        np.array([r.mean(axis=0) for r in runs]), rates, np.array([len(r) for r in runs])
+    )
+    artifact = plain(fit)
+    artifact.update(labels=list(rows["label"]), rates_rad_s=rates.tolist(), warnings=warnings)
+    figure = inertial_plots.plot_rate_table_errors(fit, list(rows["label"]))
+    return artifact, {"gyr_table": figure}
+
+
+def _truth_rows(truth: Mapping | None) -> tuple[dict, dict]:
+    if not truth or "gyr" not in truth:
+        return {}, {}
+    scale = errormodel.decompose(np.asarray(truth["gyr"]["matrix"], dtype=float)).scale
+    return {"truth": tuple(truth["gyr"]["bias"])}, {"truth": tuple(scale)}
+
+
+def combine_gyr(
+    bias: Mapping,
+    alignment: Mapping,
+    scale: Mapping | None,
+    table: Mapping | None,
+    table_alignment: Mapping | None,
+    *,
+    bias_estimator: str = "ls",
+    exact: bool = True,
+    truth: Mapping | None = None,
+) -> tuple[dict, pd.DataFrame]:
+    """The gyroscope calibration with and without tools, and the paper's Tables I and II.
+
+    Without tools the matrix is ``T_R,gyr diag(scale)`` (``T_N,gyr`` is not observable); with a
+    rate table it is ``T_R,gyr S'_gyr``. The final calibration uses the rate table when there is
+    one (it observes the non-orthogonality), otherwise the tool-free result. ``scale`` is None
+    when eq. 36 could not run (e.g. phases clipped at the range): then only the rate table
+    calibrates, and ``tool_free`` is None.
+
+    Returns
+    -------
+    artifact : dict
+        ``calibration`` (the final one), ``tool_free`` and ``ratetable`` (None without one) as
+        SensorCalibration dicts, ``used``.
+    tables : DataFrame
+        Columns ``table, row, x, y, z``: Table I (bias, rad/s) and Table II (scale).
+    """
+    o, o_std = gyr_bias_value(bias, bias_estimator)
+    alpha = np.asarray(alignment[alignment["used"]]["alpha_rad"], dtype=float)
+    has_table = table is not None and table_alignment is not None
+    if scale is None and not has_table:
+        raise ValueError(
+            "the gyroscope scale is known neither from a rate table nor from eq. 36 (tool-free)"
+        )
+    tool_free = None
+    if scale is not None:
+        tool_free = SensorCalibration(
+            "gyr",
+            o,
+            errormodel.compose(scale["scale"], np.zeros(3), alpha, exact=exact),
+            "rad/s",
+            {"bias": o_std, "scale": np.asarray(scale["std_scale"], dtype=float)},
+            f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31); "
+            "scale: eq. 36 from acc/mag angles",
+        )
+    with_table = None
+    table_i = {"LS (this run)": tuple(bias["bias_ls_rad_s"]), **PAPER_TABLE_I}
+    table_ii = {"w/o tools (this run)": tuple(scale["scale"])} if scale is not None else {}
+    table_ii.update(PAPER_TABLE_II)
+    if has_table:
+        rotation = np.asarray(table_alignment[table_alignment["used"]]["matrix"], dtype=float)
+        upper = np.asarray(table["upper"], dtype=float)
+        with_table = SensorCalibration(
+            "gyr",
+            table["bias"],
+            rotation @ upper,
+            "rad/s",
+            {"bias": np.asarray(table["std_bias"], dtype=float)},
+            f"rate table: vector fit (eq. 33), S' = upper-triangular factor; alignment: "
+            f"{table_alignment['used']} (eqs. 28-31)",
+        )
+        table_i = {"w. tools (this run)": tuple(table["bias"]), **table_i}
+        table_ii = {"w. tools (this run)": tuple(np.diag(upper)), **table_ii}
+    truth_i, truth_ii = _truth_rows(truth)
+    rows = [
+        {"table": "I", "row": name, "x": v[0], "y": v[1], "z": v[2]}
+        for name, v in {**table_i, **truth_i}.items()
+    ] + [
+        {"table": "II", "row": name, "x": v[0], "y": v[1], "z": v[2]}
+        for name, v in {**table_ii, **truth_ii}.items()
+    ]
+    final = with_table or tool_free
+    artifact = {
+        "calibration": final.to_dict(),
+        "used": "ratetable" if with_table else "tool_free",
+        "tool_free": tool_free.to_dict() if tool_free else None,
+        "ratetable": with_table.to_dict() if with_table else None,
+        "warnings": list(table.get("warnings", [])) if table else [],
+    }
+    return artifact, pd.DataFrame(rows, columns=["table", "row", "x", "y", "z"])
+
+
+def plot_phases(
+    rotation3d_lowpass: pd.DataFrame, segments: pd.DataFrame, sensor: str, calibration: Mapping
+) -> Figure:
+    """The filtered rotation3d phases of ``sensor`` before and after alignment.
+
+    Paper Figs. 11-13 (accelerometer) and 18-19 (gyroscope). "Before" applies the calibration
+    without its rotation ``T_R`` (the upper-triangular factor ``S'`` of ``matrix = T_R S'``, and
+    the bias), "after" the whole calibration.
+
+    Parameters
+    ----------
+    rotation3d_lowpass : DataFrame
+        The low-pass filtered rotation3d recording, SI units.
+    segments : DataFrame
+    sensor : str
+        'acc' or 'gyr'.
+    calibration : mapping
+        A SensorCalibration dict of ``sensor`` (e.g. ``acc.json['calibration']``).
+    """
+    if sensor not in ("acc", "gyr"):
+        raise ValueError(f"phase figures are drawn for 'acc' or 'gyr', got {sensor!r}")
+    cal = SensorCalibration.from_dict(sensor, dict(calibration))
+    _, upper = errormodel.upper_triangular_factor(cal.matrix)
+    phases = {
+        label: (t, errormodel.apply(upper, cal.bias, v), errormodel.apply(cal.matrix, cal.bias, v))
+        for label, (t, v) in phase_samples(rotation3d_lowpass, segments, sensor).items()
+    }
+    if sensor == "acc":
+        return inertial_plots.plot_phases_before_after(
+            phases, unit="m/s^2", quantity="specific force",
+            title="Accelerometer, filtered rotation3d phases (paper Figs. 11-13)",
+        )
+    return inertial_plots.plot_phases_before_after(
+        phases, unit="deg/s", factor=np.degrees(1.0), quantity="rate",
+        title="Gyroscope, filtered rotation3d phases (paper Figs. 18-19)",
+    )
+
+
+def combine_calibration(acc: Mapping, gyr: Mapping, mag: Mapping) -> ImuCalibration:
+    """The calibration of all three sensors in frame B from the stage artifacts."""
+    return ImuCalibration(
+        SensorCalibration.from_dict("acc", acc["calibration"]),
+        SensorCalibration.from_dict("gyr", gyr["calibration"]),
+        SensorCalibration.from_dict("mag", mag["calibration"]),
+    )
+
+
+def calibration_of_what_ran(artifacts: Mapping[str, Mapping]) -> dict:
+    """calibration.json from the sensors' final artifacts, some of which may not have run.
+
+    Parameters
+    ----------
+    artifacts : mapping
+        ``acc``, ``gyr``, ``mag`` -> the sensor's final artifact (``acc.json``, ...) or its
+        not-run record (:mod:`imucal.pipeline.outcome`).
+
+    Returns
+    -------
+    dict
+        :meth:`ImuCalibration.to_dict` when every sensor ran; otherwise the sensors that ran
+        and ``missing`` (sensor -> the reason), the form of a partial session.
+    """
+    missing = {s: not_run_reason(a) for s, a in artifacts.items() if not_run_reason(a)}
+    if not missing:
+        return combine_calibration(artifacts["acc"], artifacts["gyr"], artifacts["mag"]).to_dict()
+    ran = {
+        s: SensorCalibration.from_dict(s, a["calibration"]).to_dict()
+        for s, a in artifacts.items()
+        if s not in missing
+    }
+    return {
+        "format_version": FORMAT_VERSION, "frame": FRAME, "convention": CONVENTION,
+        **ran, "missing": missing,
+    }  # fmt: skip
+
+
+def apply_calibration(
+    table: pd.DataFrame, metadata: Mapping, calibration: ImuCalibration
+) -> tuple[pd.DataFrame, dict]:
+    """Calibrate the three sensors of an ingested recording to frame B.
+
+    Parameters
+    ----------
+    table : DataFrame
+        Ingested recording (docs/architecture.md).
+    metadata : dict
+        Its metadata; ``units`` names the unit of each sensor and must match the calibration.
+    calibration : ImuCalibration
+
+    Returns
+    -------
+    table : DataFrame
+        Same rows and columns, sensor values calibrated (NaN magnetometer rows stay NaN).
+    metadata : dict
+        With ``calibrated`` = True.
+
+    Raises
+    ------
+    ValueError
+        If the recording is already calibrated or a sensor is in another unit than the
+        calibration expects.
+    """
+    if metadata.get("calibrated"):
+        raise ValueError(f"recording {metadata.get('source', '?')!r} is already calibrated")
+    units = metadata.get("units", {})
+    out = table.copy()
+    for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
+        found = {units.get(c) for c in columns}
+        if len(found) != 1 or None in found:
+            raise ValueError(
+                f"recording {metadata.get('source', '?')!r} states the units {sorted(map(str, found))} "
+                f"for {list(columns)}; expected one unit per sensor in the ingest metadata"
+            )
+        values = table[list(columns)].to_numpy(dtype=float)
+        out[list(columns)] = calibration.sensor(sensor).apply(values, unit=found.pop())
+    return out, {**metadata, "calibrated": True}
+
+
+def validate_session(
+    rotation3d: pd.DataFrame,
+    metadata: Mapping,
+    reference: pd.DataFrame | None,
+    segments: pd.DataFrame,
+    calibration: ImuCalibration,
+    *,
+    min_rate_rad_s: float = 0.2,
+    n_windows: int = 6,
+) -> dict:
+    """Validate the calibration on the rotation3d recording (against the reference if any).
+
+    Returns
+    -------
+    dict
+        :func:`imucal.validation.validate` (time offset, mounting, metrics before/after, dip);
+        without a reference only the reference-free checks, and it says so.
+    """
+    from imucal import validation
+
+    calibrated, _ = apply_calibration(rotation3d, metadata, calibration)
+    static_mask = np.zeros(len(rotation3d), dtype=bool)
+    for r in segments_of(segments, "rotation3d", "static").itertuples(index=False):
+        static_mask[int(r.start_index) : int(r.end_index)] = True
+    result = validation.validate(
+        calibrated, rotation3d, reference, static_mask, min_rate_rad_s, n_windows
+    )
+    return result
+
+
+def plot_validation(
+    rotation3d: pd.DataFrame,
+    metadata: Mapping,
+    reference: pd.DataFrame,
+    calibration: ImuCalibration,
+    validation_result: Mapping,
+    *,
+    n_windows: int = 6,
+) -> dict[str, Figure]:
+    """Figures of the validation: magnitudes (paper Fig. 20) and the cross-correlation."""
+    from imucal import validation
+    from imucal.plots import validation as validation_plots
+
+    calibrated, _ = apply_calibration(rotation3d, metadata, calibration)
+    # the same alignment and mounting as inside validate(), for the figures
+    t_mod = validation.packet_times(rotation3d[TIME].to_numpy(), rotation3d["seq"].to_numpy())
+    t_ref = validation.packet_times(reference[TIME].to_numpy(), reference["seq"].to_numpy())
+    gyr_mod = calibrated[list(GYR)].to_numpy(dtype=float)
+    gyr_ref = reference[list(GYR)].to_numpy(dtype=float)
+    alignment = validation.estimate_time_alignment(t_mod, gyr_mod, t_ref, gyr_ref, n_windows)
+    mounting = np.asarray(validation_result["mounting"]["matrix"], dtype=float)
+    aligned = validation.align_reference(reference, t_mod, alignment, mounting)
+    return {
+        "validation_magnitudes": validation_plots.plot_magnitudes(rotation3d, calibrated, aligned),
+        "validation_xcorr": validation_plots.plot_cross_correlation(
+            t_mod, gyr_mod, t_ref, gyr_ref, alignment
+        ),
+    }
+
+
+def fit_mag_step1(
+    rotation3d: pd.DataFrame,
+    cube: pd.DataFrame | None = None,
+    *,
+    field_norm: float = 1.0,
+    refine_lm: bool = True,
+) -> dict:
+    """Magnetometer step 1 (eqs. 17-24): ellipsoid fit to the rotation3d magnetometer samples.
+
+    The cube's samples, when given, are offered for coverage and join only if they were
+    recorded in the same field (see :func:`imucal.fits.magnetometer.fit_ellipsoid`).
+    """
+    from imucal.fits import magnetometer
+
+    _, samples = magnetometer.field_samples(rotation3d)
+    extra = None if cube is None else {"cube": magnetometer.field_samples(cube)[1]}
+    fit = magnetometer.fit_ellipsoid(
+        samples, refine_lm=refine_lm, field_norm=field_norm, extra_samples=extra
+    )
+    return fit.to_dict()
+
+
+def align_mag(
+    rotation3d: pd.DataFrame,
+    segments: pd.DataFrame,
+    step1: Mapping,
+    *,
+    method: str = "full",
+    exact: bool = True,
+) -> dict:
+    """Magnetometer step 2 (eqs. 25-27): ``T_R,mag`` from the rotation3d phases, both methods."""
+    from imucal.fits import magnetometer
+
+    fit = magnetometer.EllipsoidFit.from_dict(dict(step1))
+    phases = {
+        label: values[np.all(np.isfinite(values), axis=1)]
+        for label, values in _phases(rotation3d, segments, "mag").items()
+    }
+    result = magnetometer.calibrate_alignment(fit, phases, method=method, exact=exact)
+    artifact = result.to_dict()
+    artifact["warnings"] = list(step1.get("warnings", []))
+    return artifact

@@ -1,0 +1,135 @@
+"""Partial sessions: which stages run, why the others are skipped, and the results vs truth."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imucal import errormodel
+
+from imucal.pipeline import partial
+from imucal.io.dataset import read_dataset
+from imucal.ingest import ingest_recording
+from imucal.segments.segmentation import segment_dataset
+from imucal.sim import simulate
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    """A simulated paper session (seed 3), ingested and segmented like the workflow does."""
+    folder = tmp_path_factory.mktemp("partial") / "s"
+    simulate(folder, preset="paper", seed=3, static_s=30)
+    dataset = read_dataset(folder)
+    tables = {
+        name: ingest_recording(path, recording=name, dataset=dataset, imucal_version="test")[0]
+        for name, path in dataset.recordings.items()
+        if name != "reference"
+    }
+    segments = segment_dataset(tables, ratetable=dataset.ratetable)
+    truth = json.loads((folder / "truth.json").read_text())
+    return dataset, tables, segments, truth
+
+
+def statuses(outcomes):
+    return {o.name: o.status for o in outcomes}
+
+
+def test_platform_without_tools_runs_the_tool_free_path(session):
+    dataset, tables, segments, truth = session
+    outcomes = partial.run_stages(
+        {k: tables[k] for k in ("rotation3d", "static")}, segments,
+        gravity_m_s2=dataset.gravity_m_s2,
+    )
+    ran = {name for name, status in statuses(outcomes).items() if status == "run"}
+    assert ran == {"mag_step1", "mag_step2", "gyr_bias", "gyr_align", "gyr_scale"}
+    reasons = {o.name: o.reason for o in outcomes}
+    assert "static poses" in reasons["acc_cube"] and "ratetable" in reasons["gyr_table"]
+    final = partial.final_calibration(outcomes)
+    assert set(final["sensors"]) == {"mag", "gyr"}
+    assert "acc_cube" in final["missing"]["acc"]
+    mag = np.array(final["sensors"]["mag"]["calibration"]["matrix"])
+    assert np.abs(mag - truth["mag"]["matrix"]).max() < 5e-3  # the issue's mag limit
+    # eq. 36 scale: noise std ~1e-4 here; the unobservable non-orthogonality (~1e-2 rad) adds a
+    # systematic part of order xi^2 .. xi * alpha, so 1e-3 relative is the honest bound
+    scale = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
+    true_scale = errormodel.decompose(np.array(truth["gyr"]["matrix"])).scale
+    estimated = errormodel.decompose(scale).scale
+    assert np.all(np.abs(estimated / true_scale - 1) < 1e-3)
+
+
+def test_hand_placed_poses_give_cube_fit_and_pose_to_pose_gyro(session):
+    dataset, tables, segments, truth = session
+    poses = segments.copy()
+    poses.loc[poses["recording"] == "cube", "recording"] = "poses"
+    outcomes = partial.run_stages(
+        {"poses": tables["cube"], "static": tables["static"]}, poses,
+        gravity_m_s2=dataset.gravity_m_s2,
+    )
+    status = statuses(outcomes)
+    assert status["acc_cube"] == "run" and status["gyr_pose_to_pose"] == "run"
+    assert status["acc_align"] == "skipped" and status["gyr_align"] == "skipped"
+    final = partial.final_calibration(outcomes)
+    # without T_R the accelerometer is in the frame F of its upper-triangular factor:
+    # truth matrix = Q U, so the cube fit recovers U and the pose-to-pose gyro Q^T M_gyr
+    q, upper = errormodel.upper_triangular_factor(np.array(truth["acc"]["matrix"]))
+    acc = np.array(final["sensors"]["acc"]["calibration"]["matrix"])
+    gyr = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
+    assert np.abs(acc - upper).max() < 2e-3  # the issue's acc limit (measured 2.6e-4)
+    assert np.abs(gyr - q.T @ np.array(truth["gyr"]["matrix"])).max() < 2e-3  # measured 4.7e-4
+    figures = partial.figures(outcomes, {"poses": tables["cube"], "static": tables["static"]})
+    assert set(figures) == {"mag_raw", "mag_step1", "acc_cube", "gyr_pose_to_pose"}
+    bars = figures["gyr_pose_to_pose"].axes[1].patches
+    assert len(bars) == len(poses[(poses["recording"] == "poses")]) - 1  # one per interval
+
+
+def test_a_fit_that_fails_on_the_data_is_skipped_with_its_message(session):
+    dataset, tables, segments, _ = session
+    # only the first 4 cube positions: too few for the 9 parameters of eq. 32
+    rows = segments[(segments["recording"] == "cube") & (segments["kind"] == "position")]
+    few = segments.drop(rows.index[4:])
+    outcomes = partial.run_stages({"cube": tables["cube"]}, few, gravity_m_s2=dataset.gravity_m_s2)
+    reason = {o.name: o.reason for o in outcomes}["acc_cube"]
+    assert reason.startswith("not applicable: needs >= 9 static poses")
+    assert all(o.status == "skipped" for o in outcomes if o.name.startswith("acc"))
+
+
+def test_declared_sensors_decide_the_workflow_path(tmp_path):
+    demo = read_dataset(REPO / "data" / "demo")
+    assert partial.is_full_protocol(demo)
+    assert partial.declared_sensors(demo, "cube") == ("acc", "gyr", "mag")
+    folder = tmp_path / "acc_only"
+    folder.mkdir()
+    (folder / "log.csv").write_text("ax,ay,az\n0,0,1\n0,0,1\n")
+    (folder / "dataset.yaml").write_text(
+        "name: acc_only\ngravity_m_s2: 9.81\nrecordings:\n  poses:\n    reader: table\n"
+        "    file: log.csv\n    columns: {acc_x: ax, acc_y: ay, acc_z: az}\n    rate_hz: 100\n"
+        "    units: {acc: g}\n"
+    )
+    dataset = read_dataset(folder)
+    assert partial.declared_sensors(dataset, "poses") == ("acc",)
+    assert not partial.is_full_protocol(dataset)
+
+
+def test_known_angle_hand_turns_on_rotation3d_phases(session):
+    """Phases with angle_deg (hand turns of a stated angle) feed the known-rotation gyro fit."""
+    dataset, tables, segments, truth = session
+    seg = segments.copy()
+    phases = (seg["recording"] == "rotation3d") & (seg["kind"] == "phase")
+    # the simulated phases turn (2, -2, 2) turns about x, y, z of B (ProtocolConfig)
+    seg.loc[phases, "angle_deg"] = seg.loc[phases, "label"].map({"x": 720, "y": -720, "z": 720})
+    outcomes = partial.run_stages(
+        {k: tables[k] for k in ("rotation3d", "static")}, seg, gravity_m_s2=dataset.gravity_m_s2
+    )
+    known = next(o for o in outcomes if o.name == "gyr_known_rotation")
+    assert known.status == "run", known.reason
+    final = partial.final_calibration(outcomes)
+    assert final["sensors"]["gyr"]["stage"] == "gyr_known_rotation"
+    gyr = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
+    # three 720-degree sections, noise-limited angles (~1e-4 rad) -> matrix error ~1e-5; the
+    # phases also include their ramps, so the issue's 2e-3 limit is a loose, honest bound
+    assert np.abs(gyr - truth["gyr"]["matrix"]).max() < 2e-3
