@@ -46,7 +46,7 @@ def characterise_noise(
         ``read_column(name) -> ndarray, shape (n,)``: one column of the recording (SI units).
     columns : sequence of str
         The recording's column names; the sensors whose three columns are all present are
-        analysed.
+        analysed, each on the rows where it was sampled (its first column finite).
     recording : str
         Name of the recording (for the record).
     window_s : (start, end) or None
@@ -60,9 +60,10 @@ def characterise_noise(
     -------
     dict
         The ``noise.json`` content: ``format_version``, ``recording``, ``rate_hz``,
-        ``duration_s``, ``n_samples``, ``timing``, ``level``, ``model`` and ``sensors``
-        (per sensor ``unit``, per axis the :meth:`imucal.noise.fit.NoiseFit.to_dict`), plus
-        ``skipped`` (sensor -> reason).
+        ``duration_s``, ``n_samples``, ``level``, ``model`` and ``sensors`` (per sensor
+        ``unit``, ``rate_hz``, ``n_samples``, ``timing`` and per axis the
+        :meth:`imucal.noise.fit.NoiseFit.to_dict`), plus ``skipped`` (sensor -> reason).
+        ``rate_hz`` is the gyroscope's (else the first analysed sensor's).
 
     Raises
     ------
@@ -73,15 +74,71 @@ def characterise_noise(
     t = read_column(TIME)
     start, stop = _window(t, window_s)
     t = t[start:stop]
-    if len(t) < 2 or t[-1] - t[0] < min_duration_s:
-        span = t[-1] - t[0] if len(t) > 1 else 0.0
+    span_s = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+    if span_s < min_duration_s:
         raise ValueError(
-            f"recording {recording!r} spans {span:.1f} s in the window {window_s}; "
+            f"recording {recording!r} spans {span_s:.1f} s in the window {window_s}; "
             f"the noise stage needs at least {min_duration_s} s"
         )
-    dt = np.diff(t)
-    if not np.all(dt > 0):
+    if not np.all(np.diff(t) > 0):
         raise ValueError(f"recording {recording!r}: t_s is not strictly increasing")
+
+    sensors, skipped = {}, {}
+    for sensor, names in SENSOR_COLUMNS.items():
+        if not set(names) <= set(columns):
+            continue
+        try:
+            sensors[sensor] = _sensor_noise(read_column, names, t, start, stop, level)
+        except _Skip as why:
+            skipped[sensor] = str(why)
+            logger.info("noise: %s skipped: %s", sensor, why)
+    if not sensors:
+        raise ValueError(
+            f"recording {recording!r}: no sensor with three complete columns to analyse"
+            + (f" ({skipped})" if skipped else "")
+        )
+    # the rate the tools are told: the gyroscope's (the IMU's packet rate)
+    rate_hz = sensors.get("gyr", next(iter(sensors.values())))["rate_hz"]
+    return {
+        "format_version": FORMAT_VERSION,
+        "recording": recording,
+        "window_s": None if window_s is None else [float(w) for w in window_s],
+        "rate_hz": rate_hz,
+        "duration_s": span_s,
+        "n_samples": int(stop - start),
+        "level": level,
+        "model": MODEL,
+        "terms": list(TERMS),
+        "sensors": sensors,
+        "skipped": skipped,
+    }
+
+
+class _Skip(Exception):
+    """A sensor that cannot be analysed (the reason goes into ``skipped``)."""
+
+
+def _sensor_noise(
+    read_column: Callable[[str], np.ndarray],
+    names: Sequence[str],
+    t: np.ndarray,
+    start: int,
+    stop: int,
+    level: float,
+) -> dict:
+    """Allan deviation and fits of one sensor's axes, on the rows where it was sampled.
+
+    A sensor merged from its own stream (another rate, its own receive stamps) is sampled on
+    some rows only: its samples are the rows where its first column is finite, with their
+    own time stamps and rate.
+    """
+    first = read_column(names[0])[start:stop]
+    rows = np.isfinite(first)
+    del first
+    ts = t[rows]
+    if len(ts) < 2:
+        raise _Skip(f"{names[0]} has fewer than 2 samples")
+    dt = np.diff(ts)
     # Equal spacing is assumed. Regular stamps with lost packets: the rate of the median step
     # (the samples that remain are that far apart); irregular receive stamps (bursts): the
     # mean rate. Which one, and the spread of the stamps, go on record.
@@ -90,47 +147,22 @@ def characterise_noise(
     rate_hz = 1.0 / median_dt if regular else 1.0 / mean_dt
     timing = {"median_dt_s": median_dt, "mean_dt_s": mean_dt, "max_dt_s": float(np.max(dt)),
               "rate_from": "median step" if regular else "mean step (irregular stamps)"}  # fmt: skip
-    span_s = float(t[-1] - t[0])
-    del t, dt
-
-    sensors, skipped = {}, {}
-    for sensor, names in SENSOR_COLUMNS.items():
-        if not set(names) <= set(columns):
-            continue
-        axes = {}
-        for axis, name in zip(AXES, names):
-            y = read_column(name)[start:stop]
-            if not np.all(np.isfinite(y)):
-                skipped[sensor] = f"{name} has missing samples (not sampled on every row)"
-                break
-            if np.ptp(y) == 0:
-                skipped[sensor] = f"{name} is constant"
-                break
-            axes[axis] = fit_noise_terms(overlapping_adev(y, rate_hz), level=level)
-            del y
-        if sensor in skipped:
-            logger.info("noise: %s skipped: %s", sensor, skipped[sensor])
-            continue
-        unit = SI_UNITS[sensor]
-        sensors[sensor] = {"unit": unit, "axes": {a: f.to_dict(unit) for a, f in axes.items()}}
-    if not sensors:
-        raise ValueError(
-            f"recording {recording!r}: no sensor with three complete columns to analyse"
-            + (f" ({skipped})" if skipped else "")
-        )
+    axes = {}
+    for axis, name in zip(AXES, names):
+        y = read_column(name)[start:stop][rows]
+        if not np.all(np.isfinite(y)):
+            raise _Skip(f"{name} lacks samples on rows where {names[0]} has them")
+        if np.ptp(y) == 0:
+            raise _Skip(f"{name} is constant")
+        axes[axis] = fit_noise_terms(overlapping_adev(y, rate_hz), level=level)
+    sensor = next(s for s, cols in SENSOR_COLUMNS.items() if tuple(cols) == tuple(names))
+    unit = SI_UNITS[sensor]
     return {
-        "format_version": FORMAT_VERSION,
-        "recording": recording,
-        "window_s": None if window_s is None else [float(w) for w in window_s],
+        "unit": unit,
         "rate_hz": float(rate_hz),
-        "duration_s": span_s,
-        "n_samples": int(stop - start),
+        "n_samples": int(rows.sum()),
         "timing": timing,
-        "level": level,
-        "model": MODEL,
-        "terms": list(TERMS),
-        "sensors": sensors,
-        "skipped": skipped,
+        "axes": {a: f.to_dict(unit) for a, f in axes.items()},
     }
 
 

@@ -110,15 +110,24 @@ def test_a_too_short_recording_is_refused_with_its_span():
                            min_duration_s=30.0, level=LEVEL)  # fmt: skip
 
 
-def test_window_and_missing_samples():
-    """The window selects its span; a sensor with missing samples is skipped with the reason."""
+def test_window_missing_samples_and_a_slower_sensor():
+    """The window selects its span; a sensor sampled on every 10th row is analysed at its own
+    rate; one with a hole in one axis only is skipped with the reason."""
     cols = _columns(20_000)
-    cols["acc_y"][5000] = np.nan
+    cols["gyr_y"][5000] = np.nan
+    for name in ACC:
+        slow = np.full(20_000, np.nan)
+        slow[::10] = cols[name][::10]
+        cols[name] = slow
     noise = characterise_noise(cols.__getitem__, list(cols), recording="static",
                                window_s=(10.0, 110.0), min_duration_s=30.0, level=LEVEL)  # fmt: skip
-    assert noise["n_samples"] == 10_001 and noise["rate_hz"] == pytest.approx(RATE)
-    assert list(noise["sensors"]) == ["gyr"] and "acc_y" in noise["skipped"]["acc"]
-    window_after_nan = characterise_noise(cols.__getitem__, list(cols), recording="static",
-                                          window_s=(60.0, 190.0), min_duration_s=30.0,
-                                          level=LEVEL)  # fmt: skip
-    assert set(window_after_nan["sensors"]) == {"acc", "gyr"}
+    assert noise["n_samples"] == 10_001
+    assert list(noise["sensors"]) == ["acc"] and "gyr_y" in noise["skipped"]["gyr"]
+    assert noise["sensors"]["acc"]["rate_hz"] == pytest.approx(RATE / 10)
+    assert noise["rate_hz"] == pytest.approx(RATE / 10)
+    # unit white noise at 10 Hz: N = 1 / sqrt(10 Hz)
+    n_x = noise["sensors"]["acc"]["axes"]["x"]["terms"]["N"]["value"]
+    assert abs(n_x * np.sqrt(RATE / 10) - 1) < 0.10
+    both = characterise_noise(cols.__getitem__, list(cols), recording="static",
+                              window_s=(60.0, 190.0), min_duration_s=30.0, level=LEVEL)  # fmt: skip
+    assert set(both["sensors"]) == {"acc", "gyr"} and both["rate_hz"] == pytest.approx(RATE)
