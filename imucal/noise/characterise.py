@@ -132,13 +132,13 @@ def _sensor_noise(
     some rows only: its samples are the rows where its first column is finite, with their
     own time stamps and rate.
     """
-    first = read_column(names[0])[start:stop]
-    rows = np.isfinite(first)
-    del first
-    ts = t[rows]
-    if len(ts) < 2:
+    rows = np.isfinite(read_column(names[0])[start:stop])
+    # on every row (the usual case) slices, not copies, keep the memory at one column
+    every_row = bool(rows.all())
+    pick = slice(None) if every_row else rows
+    if int(rows.sum()) < 2:
         raise _Skip(f"{names[0]} has fewer than 2 samples")
-    dt = np.diff(ts)
+    dt = np.diff(t[pick])
     # Equal spacing is assumed. Regular stamps with lost packets: the rate of the median step
     # (the samples that remain are that far apart); irregular receive stamps (bursts): the
     # mean rate. Which one, and the spread of the stamps, go on record.
@@ -147,9 +147,10 @@ def _sensor_noise(
     rate_hz = 1.0 / median_dt if regular else 1.0 / mean_dt
     timing = {"median_dt_s": median_dt, "mean_dt_s": mean_dt, "max_dt_s": float(np.max(dt)),
               "rate_from": "median step" if regular else "mean step (irregular stamps)"}  # fmt: skip
+    del dt
     axes = {}
     for axis, name in zip(AXES, names):
-        y = read_column(name)[start:stop][rows]
+        y = read_column(name)[start:stop][pick]
         if not np.all(np.isfinite(y)):
             raise _Skip(f"{name} lacks samples on rows where {names[0]} has them")
         if np.ptp(y) == 0:
