@@ -19,9 +19,22 @@ FORMATS = {
 }
 
 
+class _Dumper(yaml.SafeDumper):
+    """Block mappings as in the tools' own files; rows of numbers as flow lists ``[a, b, c]``."""
+
+
+def _represent_list(dumper: yaml.SafeDumper, data: list) -> yaml.Node:
+    flat = all(not isinstance(v, (list, dict)) for v in data)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flat)
+
+
+_Dumper.add_representer(list, _represent_list)
+
+
 def _yaml(data: Mapping, header: list[str], directive: str = "") -> str:
     comments = "".join(f"# {line}\n" if line else "#\n" for line in header)
-    body = yaml.safe_dump(dict(data), sort_keys=False, default_flow_style=None, width=200)
+    body = yaml.dump(dict(data), Dumper=_Dumper, sort_keys=False, default_flow_style=False,
+                     width=200)  # fmt: skip
     return directive + comments + body
 
 

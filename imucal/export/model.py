@@ -45,7 +45,7 @@ def lower_times_rotation(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     q, r = np.linalg.qr(m.T)  # m.T = q r, so m = r.T q.T
     lower, rot = r.T, q.T
     s = np.sign(np.diag(lower))
-    return lower * s, s[:, None] * rot
+    return np.tril(lower * s) + 0.0, s[:, None] * rot  # + 0.0: no -0.0 above the diagonal
 
 
 def rotation_times_lower(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -60,7 +60,7 @@ def rotation_times_lower(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     q, r = np.linalg.qr(m @ _REVERSE)  # m P = q r, so m = (q P)(P r P), P r P lower
     rot, lower = q @ _REVERSE, _REVERSE @ r @ _REVERSE
     s = np.sign(np.diag(lower))
-    return rot * s, s[:, None] * lower
+    return rot * s, np.tril(s[:, None] * lower) + 0.0
 
 
 def inertial_calibration(calibration: Mapping) -> dict[str, SensorCalibration]:

@@ -39,7 +39,8 @@ def sample_covariance(
 ) -> np.ndarray:
     """Covariance of one calibrated sample, ``K diag(N^2 f_s) K^T``, shape (3, 3)."""
     k = calibration.matrix
-    return k @ np.diag(np.asarray(density) ** 2 * rate_hz) @ k.T
+    cov = k @ np.diag(np.asarray(density) ** 2 * rate_hz) @ k.T
+    return (cov + cov.T) / 2.0  # symmetric to the last digit
 
 
 def ros_imu_covariances(calibration: Mapping[str, SensorCalibration], noise: Mapping) -> dict:

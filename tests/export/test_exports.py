@@ -172,7 +172,9 @@ def test_ros_calibration_block_and_covariance(files, calibration, noise, raw):
         k = np.array(calibration[sensor]["matrix"])
         dens = [noise["sensors"][sensor]["axes"][a]["terms"]["N"]["value"] for a in "xyz"]
         expected = k @ np.diag(np.square(dens) * noise["rate_hz"]) @ k.T
-        np.testing.assert_allclose(np.reshape(ros[key], (3, 3)), expected, rtol=1e-12)
+        cov = np.reshape(ros[key], (3, 3))
+        np.testing.assert_allclose(cov, expected, rtol=1e-12)
+        np.testing.assert_array_equal(cov, cov.T)
     assert ros["orientation_covariance"][0] == -1.0
 
 
