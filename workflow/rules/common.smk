@@ -244,7 +244,8 @@ def noise_input(wildcards):
 def calibration_of(wildcards):
     """calibration.json of the path the session takes (full protocol or partial)."""
     d = wildcards.dataset
-    return f"results/{d}/calibration.json" if full_protocol(d) else f"results/{d}/partial/calibration.json"
+    path = "calibration.json" if full_protocol(d) else "partial/calibration.json"
+    return f"results/{d}/{path}"
 
 
 #: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/.
@@ -257,7 +258,8 @@ def noise_targets(name):
     """noise.json, its figure and the exports of a dataset with a static recording."""
     if not has_noise_recording(name):
         return []
-    return [f"results/{name}/noise.json"] + [f"results/{name}/export/{f}" for f in EXPORT_FILES]
+    exports = [f"results/{name}/export/{f}" for f in EXPORT_FILES]
+    return [f"results/{name}/noise.json", *exports]
 
 
 def dataset_targets(name):

@@ -4,8 +4,6 @@
 
 
 rule noise:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(noise_input),
     output:
@@ -15,6 +13,8 @@ rule noise:
         "results/{dataset}/logs/noise.log",
     benchmark:
         "results/{dataset}/benchmarks/noise.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         recording=noise_setting("recording"),
         window_s=noise_setting("window_s"),
@@ -26,8 +26,6 @@ rule noise:
 
 
 rule export:
-    conda:
-        "../envs/imucal.yaml"
     input:
         calibration=calibration_of,
         noise="results/{dataset}/noise.json",
@@ -38,6 +36,8 @@ rule export:
         ros="results/{dataset}/export/ros_imu_covariance.yaml",
     log:
         "results/{dataset}/logs/export.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
