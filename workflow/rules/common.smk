@@ -327,7 +327,8 @@ def noise_report_inputs(name):
     """The noise section's inputs (noise.json, then its figure) when the dataset has one."""
     if not has_noise_recording(name):
         return {}
-    return {"noise": [f"results/{name}/noise.json", f"results/{name}/figures/noise_allan.png"]}
+    figure = f"results/{name}/figures/noise_allan.png"
+    return {"noise": [f"results/{name}/noise.json", figure]}
 
 
 def report_inputs(wildcards):
@@ -343,8 +344,8 @@ def report_inputs(wildcards):
         inputs["figure_dir"] = f"results/{d}/partial/figures"
         benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
-        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap,
-                **noise_report_inputs(d)}
+        noise = noise_report_inputs(d)
+        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
     figures += [
@@ -366,8 +367,8 @@ def report_inputs(wildcards):
             f"results/{d}/figures/validation_xcorr.png",
         ]
     gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
-    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap,
-            **noise_report_inputs(d)}
+    noise = noise_report_inputs(d)
+    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
 
 
 #: The blind check's hidden plan (imucal.gap.blind); rules see only names and exclusions.
