@@ -20,10 +20,9 @@ def test_synthetic_three_hours_recover_n_b_k():
     The terms are chosen so that each dominates several octaves of a 3 h record (N up to 3 s,
     B from 3 s to 100 s, K beyond): N = 2e-4 rad/s/sqrt(Hz), B = 1.74e-4 rad/s (36 deg/h),
     K = 2e-5 rad/s^2/sqrt(Hz). Over 20 seeds of this design the relative spread was 0.1 % (N),
-    2 % (B) and 13 % (K): 25 % is twice the spread of K, and the fit's own error estimate must
-    put the truth within 4 of its standard errors (it underestimates the spread of K about
-    twofold, the neighbouring overlapping estimates being correlated; docs/exports.md).
-    """
+    2 % (B) and 13 % (K): 25 % is twice the spread of K. The fit's own standard errors
+    underestimate that spread about twofold (neighbouring overlapping estimates are correlated;
+    docs/exports.md), so the truth must lie within 4 doubled standard errors."""
     truth = {"N": 2e-4, "B": 1.74e-4, "K": 2e-5}
     y = synthetic_rate(N_3H, RATE, white=truth["N"], flicker=truth["B"],
                        random_walk=truth["K"], seed=3)  # fmt: skip
