@@ -1,4 +1,4 @@
-"""The ``imucal`` command: subcommands ``simulate`` (and, later, ``apply``)."""
+"""The ``imucal`` command: subcommands ``simulate``, ``apply`` and ``export``."""
 
 from __future__ import annotations
 
@@ -92,6 +92,42 @@ def _run_apply(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_export(sub: argparse._SubParsersAction) -> None:
+    from imucal.export import FORMATS
+    from imucal.export.model import ROSTOPIC
+
+    p = sub.add_parser(
+        "export",
+        help="write a calibration and its noise for Kalibr, OpenVINS or ROS",
+        description="Write the files one tool reads (docs/exports.md): kalibr (imu.yaml and the "
+        "scale-misalignment intrinsics), openvins (kalibr_imu_chain.yaml with Tw, R_IMUtoGYRO, "
+        "Ta, R_IMUtoACC, Tg), ros (sensor_msgs/Imu covariances).",
+    )
+    p.add_argument("--format", required=True, choices=sorted(FORMATS), dest="fmt")
+    p.add_argument("calibration", help="calibration.json (full or partial)")
+    p.add_argument("noise", help="noise.json of the noise stage")
+    p.add_argument("-o", "--out", default=".", help="output folder (default: the current one)")
+    p.add_argument("--rostopic", default=ROSTOPIC, help=f"IMU topic (default {ROSTOPIC})")
+    p.set_defaults(func=_run_export)
+
+
+def _run_export(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from imucal.export import export_files
+    from imucal.io import read_json
+
+    files = export_files(
+        args.fmt, read_json(args.calibration), read_json(args.noise), rostopic=args.rostopic
+    )
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, text in files.items():
+        (out / name).write_text(text, encoding="utf-8")
+        print(f"wrote {out / name}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with all subcommands."""
     parser = argparse.ArgumentParser(
@@ -100,6 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     _add_simulate(sub)
     _add_apply(sub)
+    _add_export(sub)
     return parser
 
 

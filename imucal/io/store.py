@@ -89,6 +89,27 @@ def read_recording(path: str | Path) -> tuple[pd.DataFrame, dict]:
     return arrow.to_pandas(), json.loads(blob)
 
 
+def recording_column_names(path: str | Path) -> list[str]:
+    """Column names of an ingested recording, read from the parquet schema alone."""
+    return list(pq.read_schema(_existing(path, "ingested recording (parquet)")).names)
+
+
+def read_recording_column(path: str | Path, column: str) -> np.ndarray:
+    """One column of an ingested recording as float64, shape (n,) (the others stay on disk).
+
+    Raises
+    ------
+    ValueError
+        If the recording has no column ``column``.
+    """
+    path = _existing(path, "ingested recording (parquet)")
+    names = pq.read_schema(path).names
+    if column not in names:
+        raise ValueError(f"{path}: no column {column!r}; it has {names}")
+    values = pq.read_table(path, columns=[column]).column(0)
+    return values.to_numpy().astype(float, copy=False)
+
+
 def read_segments(path: str | Path) -> pd.DataFrame:
     """Read the segments table (``results/{dataset}/segments.parquet``).
 

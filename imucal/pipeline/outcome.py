@@ -79,7 +79,7 @@ def write_not_run(stage: str, reason: str, outputs: Mapping[str, str | Path]) ->
     """Write every output of a stage as its not-run form (JSON, PNG figure, CSV header)."""
     for path in map(Path, outputs.values()):
         path.parent.mkdir(parents=True, exist_ok=True)
-        if path.suffix == ".json":
+        if path.suffix in (".json", ".yaml"):  # a JSON object is a YAML mapping too
             write_json(not_run_record(stage, reason), path)
         elif path.suffix == ".png":
             _not_run_figure(stage, reason, path)

@@ -553,6 +553,7 @@ def build_report_context(
     imucal_version: str | None = None,
     generated: str | None = None,
     gap: Sequence[str | Path] | None = None,
+    noise: Sequence[str | Path] | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -732,6 +733,7 @@ def build_report_context(
         ],
         "benchmarks_total_s": format_number(float(bench["s"].sum()), 4) if len(bench) else None,
         "gap": _gap_section(gap),
+        "noise": _noise_section(noise),
     }
 
 
@@ -749,6 +751,44 @@ def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
     if scope["scope"] == "none":
         return {**observations_context(d), **scope}
     return {**report_context(d, {f.stem: embed_figure(f) for f in figures}), **scope}
+
+
+def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
+    """Context of the noise partial (``_noise.html.j2``): noise.json, then its figure."""
+    if not paths:
+        return None
+    from imucal.pipeline.outcome import not_run_reason
+
+    path, *figures = [Path(p) for p in paths]
+    d = _load_json(path, "noise")
+    reason = not_run_reason(d)
+    if reason:
+        return {"reason": reason, "rows": [], "figure": None}
+    rows = []
+    for sensor, data in d["sensors"].items():
+        for axis, fit in data["axes"].items():
+            cells = {}
+            for term, t in fit["terms"].items():
+                if t["resolved"]:
+                    cells[term] = f"{format_number(t['value'], 3)} ± {format_number(t['std'], 2)}"
+                else:
+                    cells[term] = f"< {format_number(t['upper_bound'], 3)}"
+            rows.append({"sensor": sensor, "axis": axis, "cells": cells,
+                         "chi2": format_number(fit["reduced_chi2"], 2)})  # fmt: skip
+    units = {s: {t: next(iter(v["axes"].values()))["terms"][t]["unit"] for t in d["terms"]}
+             for s, v in d["sensors"].items()}  # fmt: skip
+    return {
+        "reason": None,
+        "recording": d["recording"],
+        "duration_s": format_number(d["duration_s"], 4),
+        "rate_hz": format_number(d["rate_hz"], 4),
+        "level": format_number(d["level"], 3),
+        "terms": d["terms"],
+        "units": units,
+        "rows": rows,
+        "skipped": d.get("skipped", {}),
+        "figure": embed_figure(figures[0]) if figures else None,
+    }
 
 
 def _plain(obj: Any) -> Any:

@@ -213,6 +213,55 @@ def gravity(wildcards):
     return dataset_info(wildcards).gravity_m_s2
 
 
+def noise_settings(name):
+    """The `noise` config of a dataset: global, updated by its config/real file."""
+    settings = dict(config["noise"])
+    for real in REAL_CONFIGS.values():
+        if name in real.get("datasets", {}):
+            settings.update(real.get("noise", {}))
+    return settings
+
+
+def noise_setting(key):
+    """Input function of one `noise` setting of the dataset (a rule param)."""
+
+    def setting(wildcards):
+        return noise_settings(wildcards.dataset)[key]
+
+    return setting
+
+
+def has_noise_recording(name):
+    """The dataset has the recording the noise stage analyses (static by default)."""
+    return noise_settings(name)["recording"] in dataset_of(name).recordings
+
+
+def noise_input(wildcards):
+    recording = noise_settings(wildcards.dataset)["recording"]
+    return {"recording": f"results/{wildcards.dataset}/ingest/{recording}.parquet"}
+
+
+def calibration_of(wildcards):
+    """calibration.json of the path the session takes (full protocol or partial)."""
+    d = wildcards.dataset
+    path = "calibration.json" if full_protocol(d) else "partial/calibration.json"
+    return f"results/{d}/{path}"
+
+
+#: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/.
+from imucal.export import FORMATS as EXPORT_FORMATS
+
+EXPORT_FILES = [name for names in EXPORT_FORMATS.values() for name in names]
+
+
+def noise_targets(name):
+    """noise.json, its figure and the exports of a dataset with a static recording."""
+    if not has_noise_recording(name):
+        return []
+    exports = [f"results/{name}/export/{f}" for f in EXPORT_FILES]
+    return [f"results/{name}/noise.json", *exports]
+
+
 def dataset_targets(name):
     """Final outputs of one dataset: its report, calibration, stage listing and plots."""
     recordings = dataset_of(name).recordings
@@ -225,6 +274,7 @@ def dataset_targets(name):
         targets += [f"results/{name}/partial/calibration.json"]
         targets += [f"results/{name}/gap/diagnosis.json"]
     targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
+    targets += noise_targets(name)
     return targets
 
 
@@ -273,6 +323,14 @@ def reference_input(wildcards):
     return {"reference": f"results/{wildcards.dataset}/ingest/reference.parquet"}
 
 
+def noise_report_inputs(name):
+    """The noise section's inputs (noise.json, then its figure) when the dataset has one."""
+    if not has_noise_recording(name):
+        return {}
+    figure = f"results/{name}/figures/noise_allan.png"
+    return {"noise": [f"results/{name}/noise.json", figure]}
+
+
 def report_inputs(wildcards):
     """Artifacts, figures and run-time benchmarks of a dataset's report, by the path it took."""
     d = wildcards.dataset
@@ -286,7 +344,8 @@ def report_inputs(wildcards):
         inputs["figure_dir"] = f"results/{d}/partial/figures"
         benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
-        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap}
+        noise = noise_report_inputs(d)
+        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
     figures += [
@@ -308,7 +367,8 @@ def report_inputs(wildcards):
             f"results/{d}/figures/validation_xcorr.png",
         ]
     gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
-    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap}
+    noise = noise_report_inputs(d)
+    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
 
 
 #: The blind check's hidden plan (imucal.gap.blind); rules see only names and exclusions.

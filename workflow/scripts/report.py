@@ -27,5 +27,6 @@ context = build_report_context(
     git_commit=snakemake.params.git_commit,
     imucal_version=snakemake.params.imucal_version,
     gap=list(snakemake.input.gap) if "gap" in snakemake.input.keys() else None,  # noqa: SIM118
+    noise=list(snakemake.input.noise) if "noise" in snakemake.input.keys() else None,  # noqa: SIM118
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")

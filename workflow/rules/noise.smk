@@ -1,0 +1,44 @@
+# Noise characterisation of the static recording (overlapping Allan deviation, IEEE 952 terms;
+# imucal.noise) and the exports of the calibration with its noise to Kalibr, OpenVINS and ROS
+# (imucal.export, docs/exports.md).
+
+
+rule noise:
+    input:
+        unpack(noise_input),
+    output:
+        noise="results/{dataset}/noise.json",
+        figure="results/{dataset}/figures/noise_allan.png",
+    log:
+        "results/{dataset}/logs/noise.log",
+    benchmark:
+        "results/{dataset}/benchmarks/noise.tsv"
+    conda:
+        "../envs/imucal.yaml"
+    params:
+        recording=noise_setting("recording"),
+        window_s=noise_setting("window_s"),
+        min_duration_s=noise_setting("min_duration_s"),
+        level=noise_setting("level"),
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/noise.py"
+
+
+rule export:
+    input:
+        calibration=calibration_of,
+        noise="results/{dataset}/noise.json",
+    output:
+        kalibr_imu="results/{dataset}/export/kalibr_imu.yaml",
+        kalibr_chain="results/{dataset}/export/kalibr_imu_chain.yaml",
+        openvins="results/{dataset}/export/openvins_kalibr_imu_chain.yaml",
+        ros="results/{dataset}/export/ros_imu_covariance.yaml",
+    log:
+        "results/{dataset}/logs/export.log",
+    conda:
+        "../envs/imucal.yaml"
+    params:
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/export.py"

@@ -1,0 +1,26 @@
+"""Rule noise: Allan deviation and IEEE 952 noise terms of the static recording."""
+
+import logging
+from functools import partial
+from typing import TYPE_CHECKING
+
+from imucal.io import read_recording_column, recording_column_names, write_json
+from imucal.noise import characterise_noise
+from imucal.pipeline.outcome import stage_guard
+from imucal.plots.noise import plot_allan
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+p = snakemake.params
+
+with stage_guard("noise", snakemake.output):
+    path = snakemake.input.recording
+    noise = characterise_noise(
+        partial(read_recording_column, path), recording_column_names(path),
+        recording=p.recording, window_s=p.window_s, min_duration_s=p.min_duration_s,
+        level=p.level,
+    )  # fmt: skip
+    write_json(noise, snakemake.output.noise)
+    plot_allan(noise).savefig(snakemake.output.figure, dpi=110)
