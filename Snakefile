@@ -26,9 +26,9 @@ include: "workflow/rules/gap.smk"
 
 
 rule all:
+    default_target: True
     input:
         all_targets,
-    default_target: True
 
 
 rule real:

@@ -54,4 +54,3 @@ SEGMENT_COLUMNS = (
 )  # fmt: skip
 #: Kinds of segment.
 KINDS = ("static", "phase", "transition", "position", "run")
-

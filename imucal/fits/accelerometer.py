@@ -548,9 +548,9 @@ def cube_crlb(
     for j in range(n_pos):
         jac = np.zeros((3, 9 + 2 * n_pos))
         x = u_inv @ (gravity_m_s2 * d[j])
-        # d(U^-1 g d)/dU_kl = -U^-1 E_kl U^-1 g d = -U^-1[:, k] x_l
-        for col, (k, l) in enumerate(zip(*_UPPER_INDEX)):
-            jac[:, col] = -u_inv[:, k] * x[l]
+        # d(U^-1 g d)/dU_km = -U^-1 E_km U^-1 g d = -U^-1[:, k] x_m
+        for col, (k, m) in enumerate(zip(*_UPPER_INDEX)):
+            jac[:, col] = -u_inv[:, k] * x[m]
         jac[:, 6:9] = np.eye(3)
         # two tangent directions of d_j on the unit sphere
         tangent = np.linalg.svd(d[j][None, :])[2][1:]

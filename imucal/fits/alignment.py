@@ -178,8 +178,17 @@ def _solve(residuals, alpha0: np.ndarray, n_nuisance: int, what: str, sigma2=Non
     return res.x, sigma2 * np.linalg.inv(jtj)
 
 
-def _fit_angles(residuals, normals, axes, weights, n_nuisance, what, exact, spread_of,
-                paper_variance_factor=None):
+def _fit_angles(
+    residuals,
+    normals,
+    axes,
+    weights,
+    n_nuisance,
+    what,
+    exact,
+    spread_of,
+    paper_variance_factor=None,
+):
     """Solve the alignment angles from the Wahba start; return alpha, covariance, T_R, spread.
 
     With ``paper_variance_factor`` (the paper's few points per phase), the few degrees of
@@ -189,8 +198,11 @@ def _fit_angles(residuals, normals, axes, weights, n_nuisance, what, exact, spre
     """
     labels = list(normals)
     start = _rotvec(
-        _wahba([normals[lb] for lb in labels], [axes[lb] for lb in labels],
-               [weights[lb] for lb in labels])
+        _wahba(
+            [normals[lb] for lb in labels],
+            [axes[lb] for lb in labels],
+            [weights[lb] for lb in labels],
+        )
     )
     alpha, cov = _solve(residuals, start, n_nuisance, what)
     t = rotation_matrix(alpha, exact)
@@ -306,9 +318,15 @@ def align_constant_component(
 
     # 'paper': one equation is a difference of two samples, twice the variance of one sample
     alpha, cov, t, spread = _fit_angles(
-        residuals, {lb: normals[lb] / np.linalg.norm(normals[lb]) for lb in used}, axes, weights,
-        n_nuisance, f"constant-component alignment ({method}, phases {sorted(used)})", exact,
-        spread_of, paper_variance_factor=2.0 if method == "paper" else None,
+        residuals,
+        {lb: normals[lb] / np.linalg.norm(normals[lb]) for lb in used},
+        axes,
+        weights,
+        n_nuisance,
+        f"constant-component alignment ({method}, phases {sorted(used)})",
+        exact,
+        spread_of,
+        paper_variance_factor=2.0 if method == "paper" else None,
     )
     own = {lb: float(np.sqrt(np.mean((centred[lb] @ t[axes[lb]]) ** 2))) for lb in used}
     return _result(alpha, cov, exact, own, spread, points, skipped, method, "constant_component")
@@ -390,8 +408,14 @@ def align_rotation_axis(
         return {lb: float(np.sqrt(np.mean((w @ t[off[lb]].T) ** 2))) for lb, w in used.items()}
 
     alpha, cov, t, spread = _fit_angles(
-        residuals, normals, axes, weights, 0,
-        f"rotation-axis alignment ({method}, phases {sorted(used)})", exact, spread_of,
+        residuals,
+        normals,
+        axes,
+        weights,
+        0,
+        f"rotation-axis alignment ({method}, phases {sorted(used)})",
+        exact,
+        spread_of,
         paper_variance_factor=1.0 if method == "paper" else None,
     )
     own = {lb: float(np.sqrt(np.mean((chosen[lb] @ t[off[lb]].T) ** 2))) for lb in used}

@@ -180,7 +180,9 @@ def _tilt_weighted(
             info += x.T @ w @ x
             rhs += x.T @ w @ m
         new = np.linalg.solve(info, rhs)
-        chi2 = sum(float((m - x @ new) @ w @ (m - x @ new)) for x, m, w in zip(rows, means, weights))
+        chi2 = sum(
+            float((m - x @ new) @ w @ (m - x @ new)) for x, m, w in zip(rows, means, weights)
+        )
         return new, np.linalg.inv(info), chi2
 
     tau = 0.0
@@ -313,7 +315,12 @@ def fit_known_orientations(
     else:
         std = {}
     calibration = SensorCalibration(
-        "acc", bias, matrix, "m/s^2", std, f"known orientations ({n_pos} positions, {weighting} weights)"
+        "acc",
+        bias,
+        matrix,
+        "m/s^2",
+        std,
+        f"known orientations ({n_pos} positions, {weighting} weights)",
     )
     calibrated = errormodel.apply(matrix, bias, means)
     return KnownOrientationFit(
@@ -487,9 +494,11 @@ def fit_known_rotations(
     std: dict[str, np.ndarray] = {}
     if noise_std_rad_s is not None:
         noise = np.asarray(noise_std_rad_s, dtype=float).reshape(3)
-        cov_b = np.diag(np.asarray(bias_std_rad_s, dtype=float).reshape(3) ** 2) if (
-            bias_std_rad_s is not None
-        ) else np.zeros((3, 3))
+        cov_b = (
+            np.diag(np.asarray(bias_std_rad_s, dtype=float).reshape(3) ** 2)
+            if (bias_std_rad_s is not None)
+            else np.zeros((3, 3))
+        )
         cov_raw = np.kron(np.outer(durations, durations), cov_b)
         cov_raw += np.kron(np.diag(weights2), np.diag(noise**2))
         cov_m = _propagate(solve, raw.ravel(), cov_raw)

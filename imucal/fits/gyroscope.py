@@ -22,10 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imucal.fits.accelerometer import MagnitudeModelFit, fit_magnitude_model
 from imucal.calibration import SensorCalibration
 from imucal.columns import AXES
 from imucal.errormodel import upper_triangular_factor
+from imucal.fits.accelerometer import MagnitudeModelFit, fit_magnitude_model
 
 #: Fewest samples per static segment for a slope and a noise estimate.
 MIN_STATIC_SAMPLES = 10

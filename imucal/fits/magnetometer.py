@@ -22,9 +22,9 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from imucal import errormodel
-from imucal.fits.alignment import AlignmentResult, align_constant_component
 from imucal.calibration import SensorCalibration
 from imucal.columns import MAG, SI_UNITS, TIME
+from imucal.fits.alignment import AlignmentResult, align_constant_component
 
 #: Equal-area partition of the unit sphere for the coverage: bands of equal height in z
 #: (equal area by Archimedes' hat-box theorem) times sectors of equal longitude.

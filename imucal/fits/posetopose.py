@@ -37,9 +37,7 @@ MIN_INTERVALS = 5
 MIN_EXCITATION_RATIO = 0.05
 #: Smallest accepted ratio of the smallest to the largest Jacobian singular value.
 MIN_JACOBIAN_RATIO = 1e-6
-PARAMETER_NAMES = tuple(
-    f"{p}_{a}" for p in ("scale", "xi", "alpha") for a in AXES
-)
+PARAMETER_NAMES = tuple(f"{p}_{a}" for p in ("scale", "xi", "alpha") for a in AXES)
 
 
 def _quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -118,9 +116,7 @@ def _carry(increments: np.ndarray, matrix: np.ndarray, start: np.ndarray) -> np.
 
 def _angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     # atan2 of |cross| and dot: accurate for small and large angles alike
-    return np.degrees(
-        np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1))
-    )
+    return np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1)))
 
 
 def gravity_direction_errors(

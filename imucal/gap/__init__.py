@@ -1,4 +1,4 @@
-"""Sim-to-real gap diagnosis (issue 6): where a recorded session departs from its twin, which
+"""Sim-to-real gap diagnosis: where a recorded session departs from its twin, which
 unmodelled effect causes it, and how far adding the effect to the twin closes it.
 
 Modules: :mod:`.pipeline` (the calibration stages in process), :mod:`.twin` (the session's twin

@@ -162,6 +162,7 @@ def attribute(
             cand.blocked = model.gate(est, null_detect, detect_z)
         cand.note = cand.blocked
         cands.append(cand)
+
     def shifts_of(c: Candidate) -> tuple[dict, dict]:
         model = models[c.name]
         return (_shift(twin, model.simulator_effect(c.params), replicas, None, n_seeds),
@@ -247,8 +248,12 @@ def select_forward(
                     c.evaluated = False
                     continue
             c.evaluated = True
-            c.note = "" if gap_b_now > 0 else (
-                "half B shows no gap beyond noise: the held-out check cannot confirm an effect"
+            c.note = (
+                ""
+                if gap_b_now > 0
+                else (
+                    "half B shows no gap beyond noise: the held-out check cannot confirm an effect"
+                )
             )
             c.gap_after = null_full.gap(stats[None], add_shifts(shift, c.shift))
             c.heldout_after = null_b.gap(stats["B"], add_shifts(shift_b, c.shift_b))

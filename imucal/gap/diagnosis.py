@@ -1,9 +1,9 @@
 """The diagnosis of one session: localise, attribute, measure the shrinkage (diagnosis.json).
 
 ``diagnose`` runs the session through the in-process pipeline, builds its twin, renders the
-null replicas, scores every location, attributes the gap forward and assembles the JSON of
-issue 6 (``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``, ``explained``,
-``remaining``) plus the detail the report needs, and ``noted``: effects present that open no gap
+null replicas, scores every location, attributes the gap forward and assembles
+``diagnosis.json`` (``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``,
+``explained``, ``remaining``) plus the detail the report needs, and ``noted``: effects present that open no gap
 with this pipeline (large misalignment under the exact rotation), with ``misalignment``.
 
 A session whose calibration chain stops on its data (too few positions, a fit the samples do not
@@ -99,7 +99,9 @@ def diagnose(
     except ValueError as err:
         from imucal.gap.partial import diagnose_partial_session
 
-        where = "the session's twin cannot be replicated" if fit else "the calibration chain stopped"
+        where = (
+            "the session's twin cannot be replicated" if fit else "the calibration chain stopped"
+        )
         result = diagnose_partial_session(
             imu.get("static"), dataset=dataset,
             calibration=fit.calibration.to_dict() if fit else None,
@@ -174,7 +176,9 @@ def diagnose(
         "misalignment": misalignment,
         "all_locations": _locations(null_full.keys, t_real, reject, False),
         "null": {
-            "replicas": replicas, "alpha": alpha, "n_locations": len(null_full.keys),
+            "replicas": replicas,
+            "alpha": alpha,
+            "n_locations": len(null_full.keys),
             "loo_gap_median": float(np.median(loo)),
             "loo_false_alarm": float(np.mean(null_full.leave_one_out_flags(alpha))),
         },  # fmt: skip
@@ -182,11 +186,15 @@ def diagnose(
         "pipeline_notes": list(fit.extra.get("notes", [])),
         "held_by_hand": list(fit.extra["options"].held_by_hand),
         "settings": {
-            "seed": seed, "min_heldout_shrink": min_heldout_shrink, "crn_seeds": crn_seeds,
-            "detect_z": detect_z, "exclude": list(exclude),
+            "seed": seed,
+            "min_heldout_shrink": min_heldout_shrink,
+            "crn_seeds": crn_seeds,
+            "detect_z": detect_z,
+            "exclude": list(exclude),
             "statistics": {k: v.unit for k, v in CATALOGUE.items()},
         },  # fmt: skip
         "timing_s": {
-            "null": t_null - t0, "total": time.perf_counter() - t0,
+            "null": t_null - t0,
+            "total": time.perf_counter() - t0,
         },
     }

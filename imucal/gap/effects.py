@@ -17,14 +17,10 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.constants import EARTH_RATE_RAD_S, SESSION_GAP_S
 from imucal.gap import statistics as st
 from imucal.gap.pipeline import SessionFit, calibrated
 from imucal.sim.effects import EFFECTS, make_effect
-
-#: Earth's rotation rate (rad/s), sidereal.
-EARTH_RATE_RAD_S = 7.2921150e-5
-#: Session clock gap the simulator leaves between recordings (s); the twin's clock.
-SESSION_GAP_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -126,7 +122,9 @@ def estimate_lever_arm(fit: SessionFit, half) -> Estimate | None:
         return None
     r = -st.centripetal_slopes(fit, half)
     r = np.nan_to_num(r)
-    return Estimate({"x_m": float(r[0]), "y_m": float(r[1]), "z_m": float(r[2])}, float(np.linalg.norm(r)))
+    return Estimate(
+        {"x_m": float(r[0]), "y_m": float(r[1]), "z_m": float(r[2])}, float(np.linalg.norm(r))
+    )
 
 
 def estimate_g_sensitivity(fit: SessionFit, half) -> Estimate:
@@ -136,7 +134,9 @@ def estimate_g_sensitivity(fit: SessionFit, half) -> Estimate:
     g_b = coef[1:].T  # rows: gyro axis, columns: specific-force axis
     k_mat = fit.calibration.sensor("gyr").matrix
     k = np.diag(np.linalg.solve(k_mat, g_b))
-    return Estimate({"kx": float(k[0]), "ky": float(k[1]), "kz": float(k[2])}, float(np.linalg.norm(k)))
+    return Estimate(
+        {"kx": float(k[0]), "ky": float(k[1]), "kz": float(k[2])}, float(np.linalg.norm(k))
+    )
 
 
 def estimate_earth_rotation(fit: SessionFit, half) -> Estimate | None:
@@ -298,7 +298,11 @@ def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
     along_ones = (acc / norm[:, None]) @ (fit.calibration.sensor("acc").matrix @ np.ones(3))
     # the accelerometer is calibrated on the cube: exact at the cube's mean temperature
     t_cal = temp.mean()
-    t_cube = st.mean_temperature(fit, "cube", st._rows(fit, "cube", "position")) if "cube" in fit.imu else None
+    t_cube = (
+        st.mean_temperature(fit, "cube", st._rows(fit, "cube", "position"))
+        if "cube" in fit.imu
+        else None
+    )
     if t_cube is not None and np.any(np.isfinite(t_cube)):
         t_cal = float(np.nanmean(t_cube))
     d_cal = temp - t_cal
@@ -381,10 +385,16 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
         return None
     clock = _session_clock(fit)
     t = np.array([clock[rec] for rec in rest.recording]) + rest.mid_s
-    d_t = np.nan_to_num(rest.temp - np.nanmean(rest.temp)) if np.any(np.isfinite(rest.temp)) else np.zeros(n)
+    d_t = (
+        np.nan_to_num(rest.temp - np.nanmean(rest.temp))
+        if np.any(np.isfinite(rest.temp))
+        else np.zeros(n)
+    )
     base = np.column_stack([np.ones(n), d_t]) if np.ptp(d_t) > 0 else np.ones((n, 1))
     g = fit.extra["options"].gravity_m_s2
-    gm2_acc = _wander_variance(t, np.linalg.norm(rest.acc, axis=1) - g, rest.acc_var, base, BIAS_TAU_S)
+    gm2_acc = _wander_variance(
+        t, np.linalg.norm(rest.acc, axis=1) - g, rest.acc_var, base, BIAS_TAU_S
+    )
     gm2_gyr = []
     for k in range(3):
         design = base
@@ -420,7 +430,14 @@ def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
     if not k2:
         return None
     g2, g3 = float(np.mean(k2)), float(np.mean(k3))
-    params = {"gyr_k2": g2, "gyr_k3": g3, "acc_k2": 0.0, "acc_k3": 0.0, "mag_k2": 0.0, "mag_k3": 0.0}
+    params = {
+        "gyr_k2": g2,
+        "gyr_k3": g3,
+        "acc_k2": 0.0,
+        "acc_k3": 0.0,
+        "mag_k2": 0.0,
+        "mag_k3": 0.0,
+    }
     return Estimate(params, float(np.hypot(g2, g3)))
 
 

@@ -145,7 +145,9 @@ class NullModel:
         return np.array(out)
 
 
-def build_null(replicas: Sequence[Replica], half: str | None, keys: Sequence[Key] | None = None) -> NullModel:
+def build_null(
+    replicas: Sequence[Replica], half: str | None, keys: Sequence[Key] | None = None
+) -> NullModel:
     """The null model of one half from replicas (keys: those every replica has, or given)."""
     if keys is None:
         keys = sorted(set.intersection(*(set(r.stats[half]) for r in replicas)), key=str)
@@ -190,4 +192,3 @@ def holm(p: np.ndarray, alpha: float) -> np.ndarray:
             break
         reject[i] = True
     return reject
-

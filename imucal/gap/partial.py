@@ -47,10 +47,23 @@ from scipy.optimize import brentq, curve_fit
 
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import AXES, SENSOR_COLUMNS, SENSORS, TIME
-from imucal.gap.attribution import Candidate, confusable, detection_z, select_forward, statistic_shift
+from imucal.constants import STANDARD_GRAVITY_M_S2
+from imucal.gap.attribution import (
+    Candidate,
+    confusable,
+    detection_z,
+    select_forward,
+    statistic_shift,
+)
 from imucal.gap.diagnosis import FORMAT_VERSION, LOCATION_FIELDS
 from imucal.gap.null import NullModel, holm, transform
-from imucal.gap.statistics import CATALOGUE, HALVES, StatisticInfo, allan_deviation, temperature_column
+from imucal.gap.statistics import (
+    CATALOGUE,
+    HALVES,
+    StatisticInfo,
+    allan_deviation,
+    temperature_column,
+)
 from imucal.sim.effects import RecordingContext, make_effect, stream_rng
 from imucal.sim.motion import evaluate_motion
 from imucal.sim.packets import build_packet_log
@@ -315,7 +328,9 @@ class StaticTwin:
         return {
             "noise": {k: float(v) for k, v in self.truth.noise.items()},
             "sensitivity": {k: float(v) for k, v in self.sensitivity.items()},
-            "streams": {k: {"samples": int(n), "rate_hz": float(r)} for k, (n, r) in self.streams.items()},
+            "streams": {
+                k: {"samples": int(n), "rate_hz": float(r)} for k, (n, r) in self.streams.items()
+            },
             "duration_s": self.duration_s,
             "temperature_channel": self.temperature is not None,
             "notes": list(self.notes),
@@ -433,12 +448,16 @@ def render_static(twin: StaticTwin, seed: int, effects: tuple = ()) -> dict[str,
     out = {}
     for name, (n, rate) in twin.streams.items():
         rec = f"static/{name}"
-        ctx = RecordingContext(rec, rate, 0.0, twin.sensitivity, seed, plan.motion, truth.calibration, {})
+        ctx = RecordingContext(
+            rec, rate, 0.0, twin.sensitivity, seed, plan.motion, truth.calibration, {}
+        )
         state = evaluate_motion(plan.motion, np.arange(n) / rate)
         true = true_signals(state, truth.world)
         for effect in effects:
             true = effect.on_true_signals(true, state, ctx)
-        readings = sensor_readings(truth.calibration, true, truth.noise, stream_rng(seed, f"noise/{rec}"))
+        readings = sensor_readings(
+            truth.calibration, true, truth.noise, stream_rng(seed, f"noise/{rec}")
+        )
         for effect in effects:
             readings = effect.on_readings(readings, true, state, ctx)
         counts = {s: quantise(readings.sensor(s), twin.sensitivity[s])[0] for s in SENSORS}
@@ -560,7 +579,9 @@ def estimate_temperature_drift(streams: Mapping[str, Stream]) -> tuple[dict, flo
         return start + rise * (1 - np.exp(-tt / tau))
 
     try:
-        (start, rise, tau), _ = curve_fit(warm, t, temp, p0=(temp[0], temp[-1] - temp[0], t[-1] / 3), maxfev=4000)
+        (start, rise, tau), _ = curve_fit(
+            warm, t, temp, p0=(temp[0], temp[-1] - temp[0], t[-1] / 3), maxfev=4000
+        )
         if not (tau > 0 and np.isfinite(rise)):
             raise RuntimeError("warm-up fit diverged")
     except RuntimeError:
@@ -610,7 +631,9 @@ def run_static_replica(twin: StaticTwin, seed: int, effects: tuple = ()) -> Stat
 
 
 def _null(replicas, half, keys) -> NullModel:
-    values = np.array([[transform(k, r.stats[half].get(k, np.nan)) for k in keys] for r in replicas])
+    values = np.array(
+        [[transform(k, r.stats[half].get(k, np.nan)) for k in keys] for r in replicas]
+    )
     return NullModel.from_values(keys, values)
 
 
@@ -656,7 +679,7 @@ def diagnose_static(
     dataset: str,
     calibration: Mapping | None = None,
     sensitivity: Mapping[str, float] | None = None,
-    gravity_m_s2: float = 9.80665,
+    gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
     replicas: int = 30,
     alpha: float = 0.05,
     seed: int = 1000,
@@ -692,7 +715,7 @@ def diagnose_static(
     Returns
     -------
     dict
-        diagnosis.json (keys of issue 6) plus ``scope``, ``not_observable``, ``twin``,
+        diagnosis.json (the keys of the full diagnosis) plus ``scope``, ``not_observable``, ``twin``,
         ``null``, ``all_locations``, ``confusable``, ``settings``, ``timing_s``.
 
     Raises
@@ -705,7 +728,9 @@ def diagnose_static(
     t0 = time.perf_counter()
     streams = split_streams(table)
     if not streams:
-        raise ValueError("the static recording has no acc/gyro or magnetometer stream of >= 100 rows")
+        raise ValueError(
+            "the static recording has no acc/gyro or magnetometer stream of >= 100 rows"
+        )
     stats = {h: static_statistics(streams, h) for h in HALVES}
     twin = build_static_twin(streams, calibration, dict(sensitivity or {}), gravity_m_s2)
     reps = [run_static_replica(twin, seed + i) for i in range(replicas)]
@@ -719,12 +744,17 @@ def diagnose_static(
 
     cands = []
     for name, model in STATIC_LIBRARY.items():
-        est, est_a = model.estimate(streams), model.estimate({k: s.half("A") for k, s in streams.items()})
+        est, est_a = (
+            model.estimate(streams),
+            model.estimate({k: s.half("A") for k, s in streams.items()}),
+        )
         if est is None:
             cands.append(Candidate(name, None, None, float("nan"), float("nan"),
                                    note="the session cannot show this effect (no such stream or channel)"))  # fmt: skip
             continue
-        z = detection_z(est[1], [e[1] for e in (model.estimate(r.streams) for r in reps) if e is not None])
+        z = detection_z(
+            est[1], [e[1] for e in (model.estimate(r.streams) for r in reps) if e is not None]
+        )
         cands.append(Candidate(name, est[0], (est_a or est)[0], float(est[1]), z))
 
     def shifts_of(c: Candidate) -> tuple[dict, dict]:
@@ -739,7 +769,11 @@ def diagnose_static(
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
     effects = []
-    order = lambda c: (not c.accepted, -(c.heldout_shrink if c.heldout_shrink is not None else -np.inf))  # noqa: E731
+
+    def order(c):
+        shrink = c.heldout_shrink if c.heldout_shrink is not None else -np.inf
+        return (not c.accepted, -shrink)
+
     for c in sorted(cands, key=order):
         effects.append({
             "name": c.name, "params": c.params, "gap_before": c.gap_before,
@@ -756,8 +790,11 @@ def diagnose_static(
     return {
         "format_version": FORMAT_VERSION,
         "dataset": dataset,
-        "gap": {"total": null_full.gap(stats[None]), "null_p95": float(np.percentile(loo, 95)),
-                "significant": bool(reject.any())},  # fmt: skip
+        "gap": {
+            "total": null_full.gap(stats[None]),
+            "null_p95": float(np.percentile(loo, 95)),
+            "significant": bool(reject.any()),
+        },  # fmt: skip
         "locations": _locations(keys, t_real, reject, True),
         "effects": effects,
         "explained": explained,
@@ -771,13 +808,19 @@ def diagnose_static(
         "confusable": confusable(rounds, explained, min_heldout_shrink),
         "all_locations": _locations(keys, t_real, reject, False),
         "null": {
-            "replicas": replicas, "alpha": alpha, "n_locations": len(keys),
+            "replicas": replicas,
+            "alpha": alpha,
+            "n_locations": len(keys),
             "loo_gap_median": float(np.median(loo)),
             "loo_false_alarm": float(np.mean(null_full.leave_one_out_flags(alpha))),
         },  # fmt: skip
         "twin": twin.describe(),
-        "settings": {"seed": seed, "min_heldout_shrink": min_heldout_shrink,
-                     "crn_seeds": crn_seeds, "detect_z": detect_z},  # fmt: skip
+        "settings": {
+            "seed": seed,
+            "min_heldout_shrink": min_heldout_shrink,
+            "crn_seeds": crn_seeds,
+            "detect_z": detect_z,
+        },  # fmt: skip
         "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
     }
 

@@ -15,10 +15,9 @@ import numpy as np
 import pandas as pd
 
 from imucal import validation
-
-from imucal.pipeline import stages
 from imucal.calibration import ImuCalibration
 from imucal.columns import GYR, SEQ, TIME
+from imucal.pipeline import stages
 from imucal.segments.filtering import lowpass_recording
 from imucal.segments.segmentation import segment_dataset
 
@@ -183,7 +182,14 @@ def calibrate_session(
         "table": table, "gyr": gyr,
     }  # fmt: skip
     return SessionFit(
-        imu, reference, segments, low, calibration, artifacts, alignment, start,
+        imu,
+        reference,
+        segments,
+        low,
+        calibration,
+        artifacts,
+        alignment,
+        start,
         {"options": options, "notes": notes},
     )
 
@@ -214,7 +220,9 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     align = stages.align_gyr(low, seg, o, exact=exact)
     table_align = None
     if a["table"] is not None:
-        table_align = stages.align_gyr(low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact)
+        table_align = stages.align_gyr(
+            low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact
+        )
     gyr, _ = stages.combine_gyr(a["bias"], align, a["scale"], a["table"], table_align, exact=exact)
     return stages.combine_calibration(acc, gyr, mag)
 

@@ -100,9 +100,7 @@ CATALOGUE = {
 }
 
 #: Unit "up" directions a cube or V-block can hold (faces, edges, corners), shape (26, 3).
-NOMINAL_DIRECTIONS = np.array(
-    [v for v in product((-1, 0, 1), repeat=3) if any(v)], dtype=float
-)
+NOMINAL_DIRECTIONS = np.array([v for v in product((-1, 0, 1), repeat=3) if any(v)], dtype=float)
 NOMINAL_DIRECTIONS /= np.linalg.norm(NOMINAL_DIRECTIONS, axis=1, keepdims=True)
 #: Largest angle (deg) between a measured gravity direction and its nearest nominal one for a
 #: pose to count as nominal (the 26 directions are >= 35 deg apart).
@@ -411,7 +409,9 @@ def table_mount_tilts(fit: SessionFit) -> np.ndarray:
 def resting_gyro(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray]:
     """Calibrated gyro and accelerometer means at the cube positions, each shape (p, 3)."""
     rows = _alternate(_rows(fit, "cube", "position"), half)
-    return _means(calibrated(fit, "cube", "gyr"), rows), _means(calibrated(fit, "cube", "acc"), rows)
+    return _means(calibrated(fit, "cube", "gyr"), rows), _means(
+        calibrated(fit, "cube", "acc"), rows
+    )
 
 
 def _gyr_rest(fit: SessionFit, half) -> dict:
@@ -422,10 +422,14 @@ def _gyr_rest(fit: SessionFit, half) -> dict:
     up = f / np.linalg.norm(f, axis=1, keepdims=True)
     for j, a in enumerate(AXES):
         out[("gyr_static", "gyr", a, "position", "spread")] = float(np.sqrt(np.mean(w[:, j] ** 2)))
-        out[("gyr_static", "gyr", a, "position", "g_slope")] = float(np.polyfit(f[:, j], w[:, j], 1)[0])
+        out[("gyr_static", "gyr", a, "position", "g_slope")] = float(
+            np.polyfit(f[:, j], w[:, j], 1)[0]
+        )
     design = np.column_stack([np.ones(len(w)), up[:, 0], up[:, 1], up[:, 2]])
     # isotropic vertical component: w_p = c + v * up_p (c a constant offset, per axis)
-    a_mat = np.vstack([np.column_stack([np.eye(3)[j][None].repeat(len(w), 0), up[:, j]]) for j in range(3)])
+    a_mat = np.vstack(
+        [np.column_stack([np.eye(3)[j][None].repeat(len(w), 0), up[:, j]]) for j in range(3)]
+    )
     coef, *_ = np.linalg.lstsq(a_mat, w.T.ravel(), rcond=None)
     del design
     out[("gyr_static", "gyr", "up", "position", "vertical")] = float(coef[3])
@@ -852,12 +856,16 @@ def resting_means(fit: SessionFit, half) -> RestingMeans:
             rows_out["gyr"].append(ws.mean(axis=0))
             rows_out["gyr_var"].append(_white_variance(ws, float(sens["gyr"]) ** 2 / 12))
             rows_out["acc"].append(as_.mean(axis=0))
-            rows_out["acc_var"].append(float(np.mean(_white_variance(as_, float(sens["acc"]) ** 2 / 12))))
+            rows_out["acc_var"].append(
+                float(np.mean(_white_variance(as_, float(sens["acc"]) ** 2 / 12)))
+            )
             rows_out["north"].append(north)
             rows_out["east"].append(east)
             rows_out["up"].append(up)
             seg_temp = temp[sl] if temp is not None else np.array([np.nan])
-            rows_out["temp"].append(float(np.nanmean(seg_temp)) if np.any(np.isfinite(seg_temp)) else np.nan)
+            rows_out["temp"].append(
+                float(np.nanmean(seg_temp)) if np.any(np.isfinite(seg_temp)) else np.nan
+            )
     vectors = {k: np.array(rows_out[k], dtype=float).reshape(-1, 3)
                for k in ("gyr", "gyr_var", "acc", "north", "east", "up")}  # fmt: skip
     scalars = {k: np.array(rows_out[k], dtype=float) for k in ("mid_s", "acc_var", "temp")}
@@ -880,7 +888,11 @@ def _temperature(fit: SessionFit, half) -> dict:
     temp, gyr = rest.temp[ok], rest.gyr[ok]
     acc = np.linalg.norm(rest.acc[ok], axis=1) - fit.extra["options"].gravity_m_s2
     x = temp - temp.mean()
-    out = {("temperature", "acc", "norm", "rest", "temp_slope"): float(x @ (acc - acc.mean()) / (x @ x))}
+    out = {
+        ("temperature", "acc", "norm", "rest", "temp_slope"): float(
+            x @ (acc - acc.mean()) / (x @ x)
+        )
+    }
     for j, a in enumerate(AXES):
         out[("temperature", "gyr", a, "rest", "temp_slope")] = float(
             x @ (gyr[:, j] - gyr[:, j].mean()) / (x @ x)

@@ -22,11 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from imucal.columns import SENSORS
-from imucal.io.dataset import IMU_RECORDINGS, read_dataset
+from imucal.constants import IMU_RECORDINGS
 from imucal.gap.blind import failed_diagnosis
 from imucal.gap.diagnosis import diagnose
 from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.ingest import ingest_recording
+from imucal.io.dataset import read_dataset
 from imucal.sim.effects import CANONICAL, stream_rng
 
 #: Conditions: truth preset, protocol settings and protocol effects the diagnosis does not model.

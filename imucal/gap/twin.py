@@ -75,8 +75,7 @@ class Twin:
             "range_counts": dict(replica_options(self).range_counts),
             "has_reference": self.has_reference,
             "protocol": {
-                k: (list(v) if isinstance(v, tuple) else v)
-                for k, v in self.config.__dict__.items()
+                k: (list(v) if isinstance(v, tuple) else v) for k, v in self.config.__dict__.items()
             },
             "notes": list(self.notes),
         }
@@ -285,7 +284,11 @@ def build_twin(fit: SessionFit, options: PipelineOptions) -> Twin:
     config, notes = protocol_config(fit)
     extra = {}
     for name, table in fit.imu.items():
-        cols = [c for c in table.columns if c not in (TIME, SEQ) and not c.startswith(("acc_", "gyr_", "mag_"))]
+        cols = [
+            c
+            for c in table.columns
+            if c not in (TIME, SEQ) and not c.startswith(("acc_", "gyr_", "mag_"))
+        ]
         if cols:
             t = table[TIME].to_numpy(dtype=float)
             extra[name] = {c: (t - t[0], table[c].to_numpy(dtype=float)) for c in cols}
@@ -338,7 +341,12 @@ def _replica_tables(session, twin: Twin) -> tuple[dict, pd.DataFrame | None]:
     reference = None
     if twin.has_reference:
         from imucal.columns import (
-            REF_ACC, REF_COUNTER, REF_GYR, REF_MAG, REF_TICKS_PER_S, REF_TIME_FINE,
+            REF_ACC,
+            REF_COUNTER,
+            REF_GYR,
+            REF_MAG,
+            REF_TICKS_PER_S,
+            REF_TIME_FINE,
         )  # fmt: skip
 
         src = session.reference

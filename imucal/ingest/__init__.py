@@ -7,10 +7,10 @@ from imucal.ingest.recording import (
     REF_TICK_MODULUS,
     check_log,
     counts_to_si,
-    reference_to_table,
     ingest_recording,
-    summarize_recording,
+    reference_to_table,
     summarize_dataset,
+    summarize_recording,
 )
 
 __all__ = [

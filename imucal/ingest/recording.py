@@ -16,8 +16,6 @@ import numpy as np
 import pandas as pd
 
 from imucal import io
-
-from imucal.io import readers
 from imucal.columns import (
     ACC,
     GYR,
@@ -35,8 +33,10 @@ from imucal.columns import (
     SI_UNITS,
     TIME,
 )
-from imucal.io.dataset import REFERENCE, Dataset
+from imucal.constants import REFERENCE
 from imucal.ingest.timebase import describe_timestamps, resolve_packet_steps, unwrap_counter
+from imucal.io import readers
+from imucal.io.dataset import Dataset
 
 __all__ = [
     "check_log",

@@ -8,25 +8,26 @@ what the pipeline writes and reads back. Only this layer touches files.
 from imucal.io.raw import (
     IMU_CSV_FORMAT,
     MT_MANAGER_FORMAT,
-    RawDataError,
     MtManagerExport,
+    RawDataError,
     read_imu_csv,
     read_mt_manager_export,
 )
 from imucal.io.store import (
     METADATA_KEY,
-    sha256_file,
-    write_recording,
+    read_benchmark_seconds,
+    read_calibration,
+    read_json,
     read_recording,
     read_recording_column,
-    recording_column_names,
     read_segments,
-    write_table,
-    read_benchmark_seconds,
-    write_json,
-    read_json,
+    recording_column_names,
+    sha256_file,
+    to_jsonable,
     write_calibration,
-    read_calibration,
+    write_json,
+    write_recording,
+    write_table,
 )
 
 __all__ = [
@@ -44,6 +45,7 @@ __all__ = [
     "read_recording_column",
     "recording_column_names",
     "read_segments",
+    "to_jsonable",
     "sha256_file",
     "write_calibration",
     "write_json",

@@ -10,15 +10,7 @@ from pathlib import Path
 import jsonschema
 import yaml
 
-#: Recording roles of the paper's protocol (the automatic segmentation knows them).
-IMU_RECORDINGS = ("rotation3d", "cube", "ratetable", "static")
-#: Roles of other protocols found in public recordings: Ferraris (1995) six faces and three
-#: 360-degree rotations, Tedaldi (2014) hand-placed poses, free tumbling for ellipsoid fits.
-OTHER_RECORDINGS = ("ferraris", "poses", "tumble")
-#: The reference IMU (Xsens MT Manager export).
-REFERENCE = "reference"
-#: Every recording role, in protocol order.
-RECORDING_NAMES = (*IMU_RECORDINGS, REFERENCE, *OTHER_RECORDINGS)
+from imucal.constants import REFERENCE
 
 
 def _schema() -> dict:

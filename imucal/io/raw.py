@@ -415,4 +415,3 @@ def _to_frame(table: pa.Table, float_columns: tuple[str, ...]) -> pd.DataFrame:
             column = column.cast(pa.float64())
         data[name] = column.to_numpy()
     return pd.DataFrame(data, copy=False)
-

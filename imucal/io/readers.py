@@ -32,9 +32,8 @@ import pandas as pd
 
 from imucal import io
 from imucal.columns import AXES, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.constants import STANDARD_GRAVITY_M_S2
 
-#: Standard gravity (CGPM 1901), m/s^2: the factor from g to m/s^2.
-STANDARD_GRAVITY_M_S2 = 9.80665
 #: Reader names of a one-file entry.
 READERS = ("table", "matlab", "hdf5")
 #: Delimiters of the table reader; ``whitespace`` is any run of blanks and tabs.
@@ -250,7 +249,7 @@ def read_entry(
         data[name] = raw[name]
     frame = pd.DataFrame(data, copy=False)
     info = {
-        "reader": _jsonable_entry(entry),
+        "reader": io.to_jsonable(entry),
         "files": [{"path": str(path), "sha256": io.sha256_file(path)}],
         "source_units": units,
         "sensors": sensors,
@@ -807,10 +806,6 @@ def _concatenate_parts(parts: Sequence[DeclaredRecording], where: str) -> Declar
         parts[0].primary_t_s,
         info,
     )
-
-
-def _jsonable_entry(entry: Mapping[str, Any]) -> dict:
-    return {k: (str(v) if isinstance(v, Path) else v) for k, v in entry.items()}
 
 
 # --------------------------------------------------------------------------------------------

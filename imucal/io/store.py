@@ -57,7 +57,7 @@ def write_recording(table: pd.DataFrame, path: str | Path, metadata: Mapping[str
         JSON-serialisable description, stored as parquet key-value metadata ``imucal``.
     """
     arrow = pa.Table.from_pandas(table, preserve_index=False)
-    blob = json.dumps(_jsonable(metadata), sort_keys=True).encode()
+    blob = json.dumps(to_jsonable(metadata), sort_keys=True).encode()
     arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}), METADATA_KEY: blob})
     _write_atomic(path, lambda tmp: pq.write_table(arrow, tmp))
 
@@ -181,7 +181,7 @@ def read_benchmark_seconds(paths: list[str | Path]) -> dict:
 
 def write_json(obj: Any, path: str | Path) -> None:
     """Write ``obj`` as indented JSON, atomically (numpy values become plain numbers)."""
-    text = json.dumps(_jsonable(obj), indent=2, sort_keys=False, allow_nan=False) + "\n"
+    text = json.dumps(to_jsonable(obj), indent=2, sort_keys=False, allow_nan=False) + "\n"
     _write_atomic(path, lambda tmp: Path(tmp).write_text(text))
 
 
@@ -230,7 +230,7 @@ def read_calibration(path: str | Path) -> ImuCalibration:
 
 
 # --------------------------------------------------------------------------------------------
-# Helpers
+# Helpers and the JSON converter
 
 
 def _write_atomic(path: str | Path, write: Callable[[str], object]) -> None:
@@ -247,12 +247,15 @@ def _write_atomic(path: str | Path, write: Callable[[str], object]) -> None:
         raise
 
 
-def _jsonable(obj: Any) -> Any:
-    """Plain JSON types: numpy scalars and arrays to numbers and lists, NaN to None."""
+def to_jsonable(obj: Any) -> Any:
+    """Plain JSON types: numpy scalars and arrays to numbers and lists, NaN and inf to None.
+
+    The package's one converter: every JSON file and parquet metadata blob goes through it.
+    """
     if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple, np.ndarray)):
-        return [_jsonable(v) for v in obj]
+        return [to_jsonable(v) for v in obj]
     if isinstance(obj, (np.integer, np.bool_)):
         return obj.item()
     if isinstance(obj, (float, np.floating)):

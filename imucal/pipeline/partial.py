@@ -29,12 +29,10 @@ import numpy as np
 import pandas as pd
 
 from imucal import errormodel
-
-from imucal.fits import accelerometer, gyroscope
-
-from imucal.pipeline import stages
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
+from imucal.fits import accelerometer, gyroscope
+from imucal.pipeline import stages
 from imucal.pipeline.outcome import not_run_reason
 
 #: Stage names in run order, with what each does (the report lists them in this order).
@@ -51,8 +49,6 @@ STAGES = {
     "gyr_pose_to_pose": "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
     "gyr_scale": "gyroscope scale from acc/mag angles, tool-free (eq. 36)",
 }
-#: Recordings whose static segments are static poses of the module.
-POSE_RECORDINGS = ("cube", "poses", "ferraris")
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
 MAG_RECORDINGS = ("tumble", "rotation3d", "cube", "poses", "ferraris", "static")
 #: The cube fit has 9 parameters and one equation per position.
@@ -646,9 +642,7 @@ def full_protocol_stages(
     context = f" (segmentation: {'; '.join(failed)})" if failed else ""
     for name, artifact in (artifacts or {}).items():
         if not_run_reason(artifact):
-            skipped[name] = (
-                f"could not run on these data: {artifact['not_run']['reason']}{context}"
-            )
+            skipped[name] = f"could not run on these data: {artifact['not_run']['reason']}{context}"
     rows = [
         {
             "stage": name,

@@ -17,11 +17,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from imucal import errormodel
-
-from imucal.fits import accelerometer, gyroscope
-from imucal.fits.alignment import align_constant_component, align_rotation_axis, phase_samples
 from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
 from imucal.columns import ACC, AXES, GYR, MAG, TIME
+from imucal.fits import accelerometer, gyroscope
+from imucal.fits.alignment import align_constant_component, align_rotation_axis, phase_samples
 from imucal.pipeline.outcome import not_run_reason
 from imucal.plots import inertial as inertial_plots
 from imucal.segments.segmentation import is_clipped
@@ -182,7 +181,11 @@ def estimate_gyr_bias(
     figures : dict of str to Figure
         'gyr_bias': the static rates before and after bias removal (Figs. 16-17).
     """
-    names = ["static"] if "static" in static_tables else [n for n in ("rotation3d", "cube") if n in static_tables]
+    names = (
+        ["static"]
+        if "static" in static_tables
+        else [n for n in ("rotation3d", "cube") if n in static_tables]
+    )
     pieces, times = [], []
     for name in names:
         rows = segments_of(segments, name, "static")
@@ -332,7 +335,9 @@ def estimate_gyr_scale(
     phases = segments_of(segments, "rotation3d", "phase")
     gyr = rotation3d[list(GYR)].to_numpy(dtype=float)
     clipped = [
-        r.label for r in phases.itertuples() if is_clipped(gyr, int(r.start_index), int(r.end_index))
+        r.label
+        for r in phases.itertuples()
+        if is_clipped(gyr, int(r.start_index), int(r.end_index))
     ]
     if clipped:
         raise ValueError(
@@ -344,8 +349,7 @@ def estimate_gyr_scale(
         before, after = _adjacent_static(segments, phase)
         window = rotation3d.iloc[int(before.start_index) : int(after.end_index)]
         parts = [
-            rotation3d.iloc[int(s.start_index) : int(s.end_index)]
-            for s in (before, phase, after)
+            rotation3d.iloc[int(s.start_index) : int(s.end_index)] for s in (before, phase, after)
         ]
         angles = {}
         for name, cal, cols in measuring:
@@ -416,9 +420,7 @@ def fit_gyr_table(
     rows = rows[keep]
     runs = [r for r, k in zip(runs, keep, strict=True) if k]
     unit = {a: np.eye(3)[i] for i, a in enumerate(AXES)}
-    rates = np.array(
-        [np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)]
-    )
+    rates = np.array([np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)])
     fit = gyroscope.fit_rate_table(
         np.array([r.mean(axis=0) for r in runs]), rates, np.array([len(r) for r in runs])
     )
@@ -546,11 +548,16 @@ def plot_phases(
     }
     if sensor == "acc":
         return inertial_plots.plot_phases_before_after(
-            phases, unit="m/s^2", quantity="specific force",
+            phases,
+            unit="m/s^2",
+            quantity="specific force",
             title="Accelerometer, filtered rotation3d phases (paper Figs. 11-13)",
         )
     return inertial_plots.plot_phases_before_after(
-        phases, unit="deg/s", factor=np.degrees(1.0), quantity="rate",
+        phases,
+        unit="deg/s",
+        factor=np.degrees(1.0),
+        quantity="rate",
         title="Gyroscope, filtered rotation3d phases (paper Figs. 18-19)",
     )
 

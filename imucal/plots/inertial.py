@@ -7,8 +7,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from imucal.fits.accelerometer import CubeFit
 from imucal.columns import AXES
+from imucal.fits.accelerometer import CubeFit
 from imucal.fits.gyroscope import RateTableFit
 
 #: Okabe-Ito colours (colour-blind safe): before / after, and per axis.
@@ -192,8 +192,13 @@ def plot_phases_before_after(
                     f"phase {label!r}: expected values of shape ({len(t)}, 3), got {values.shape}"
                 )
             for k, axis in enumerate(AXES):
-                ax.plot(t - t[0], values[:, k] * factor, color=AXIS_COLOURS[axis], lw=0.8,
-                        label=f"{axis}_B")
+                ax.plot(
+                    t - t[0],
+                    values[:, k] * factor,
+                    color=AXIS_COLOURS[axis],
+                    lw=0.8,
+                    label=f"{axis}_B",
+                )
             ax.axhline(0, color="0.6", lw=0.6)
             ax.set_title(f"phase {label}: {when} alignment", fontsize="medium")
             ax.set_ylabel(f"{quantity} ({unit})")

@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from imucal.fits.alignment import phase_samples
 from imucal.columns import AXES
+from imucal.fits.alignment import phase_samples
 from imucal.fits.magnetometer import EllipsoidFit, field_samples
 
 COLOURS = {"x": "tab:red", "y": "tab:green", "z": "tab:blue"}

@@ -70,8 +70,9 @@ def plot_segments(
         for k, axis in enumerate(AXES):
             ax.plot(t, values[:, k], lw=0.7, color=AXIS_COLOURS[axis], label=f"{sensor} {axis}")
         if sensor == "gyr":
-            ax.plot(t, np.linalg.norm(values, axis=1), lw=0.7, ls="--", color="#999999",
-                    label="|gyr|")
+            ax.plot(
+                t, np.linalg.norm(values, axis=1), lw=0.7, ls="--", color="#999999", label="|gyr|"
+            )
         ax.set_ylabel(label)
     ax_g, ax_a = axes[0], axes[-1]
     seen = set()

@@ -28,7 +28,7 @@ import yaml
 import imucal
 from imucal import io
 from imucal.columns import AXES, SENSORS
-from imucal.io.dataset import IMU_RECORDINGS, REFERENCE
+from imucal.constants import IMU_RECORDINGS, REFERENCE
 
 #: Significant digits of the numbers in the report.
 DIGITS = 5

@@ -76,15 +76,12 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from imucal.columns import KINDS, SEGMENT_COLUMNS, ACC, AXES, GYR, TIME
+from imucal.columns import ACC, AXES, GYR, KINDS, SEGMENT_COLUMNS, TIME
+from imucal.constants import IMU_RECORDINGS, OTHER_RECORDINGS
 from imucal.segments.filtering import nominal_period
 
 logger = logging.getLogger(__name__)
 
-#: Recordings the segmentation knows, in protocol order.
-RECORDINGS = ("rotation3d", "cube", "ratetable", "static")
-#: Recordings of partial protocols whose automatic segments are their static poses.
-POSE_RECORDINGS = ("poses", "tumble", "ferraris")
 
 #: Half the 45-deg step between cube positions: gravity directions closer than this are one.
 SAME_POSITION_DEG = 22.5
@@ -173,9 +170,7 @@ def _quantisation_step(x: np.ndarray) -> float:
     return float(steps.min()) if steps.size else 0.0
 
 
-def at_extreme(
-    x: np.ndarray, a: int, b: int, sign: float, step: float | None = None
-) -> np.ndarray:
+def at_extreme(x: np.ndarray, a: int, b: int, sign: float, step: float | None = None) -> np.ndarray:
     """Rows ``a .. b - 1`` of one axis ``x`` (n,) that sit on the recording's extreme reading
     of the given sign (within half a quantisation ``step``, found from ``x`` when not given):
     readings clipped at the range."""
@@ -1025,7 +1020,11 @@ def segment_poses(
         ``attrs['notes']`` (recording -> message) says which detector gave the holds, and why,
         when the tremor-adaptive one was tried.
     """
-    from imucal.segments.holds import MIN_HOLDS, find_holds, merge_overlapping  # holds builds on this module
+    from imucal.segments.holds import (  # holds builds on this module
+        MIN_HOLDS,
+        find_holds,
+        merge_overlapping,
+    )
 
     if gyr is not None:
         t, acc, gyr = _check_inputs(t_s, acc, gyr)
@@ -1133,7 +1132,7 @@ def segment_recording(
     Parameters
     ----------
     recording : str
-        One of ``RECORDINGS``.
+        One of ``IMU_RECORDINGS``.
     table : DataFrame
         Ingested recording (``t_s``, ``acc_*``, ``gyr_*`` in SI units).
     ratetable : dict, optional
@@ -1145,9 +1144,11 @@ def segment_recording(
     DataFrame
         Segments table rows of this recording.
     """
-    if recording not in RECORDINGS + POSE_RECORDINGS:
-        raise ValueError(f"recording {recording!r}: expected one of {RECORDINGS + POSE_RECORDINGS}")
-    if recording in POSE_RECORDINGS:
+    if recording not in IMU_RECORDINGS + OTHER_RECORDINGS:
+        raise ValueError(
+            f"recording {recording!r}: expected one of {IMU_RECORDINGS + OTHER_RECORDINGS}"
+        )
+    if recording in OTHER_RECORDINGS:
         return _segment_pose_recording(recording, table, settings)
     missing = [c for c in (*ACC, *GYR) if c not in table.columns]
     if missing:
@@ -1250,7 +1251,9 @@ def segment_dataset(
             f"manual segments name recording(s) {unknown}; the dataset has {sorted(tables)}"
         )
     frames, notes, held_by_hand = [], {}, []
-    for name in [r for r in RECORDINGS if r in tables] + sorted(set(tables) - set(RECORDINGS)):
+    for name in [r for r in IMU_RECORDINGS if r in tables] + sorted(
+        set(tables) - set(IMU_RECORDINGS)
+    ):
         mine = [e for e in manual if e["recording"] == name]
         t = tables[name][TIME].to_numpy(dtype=float)
         if mine:

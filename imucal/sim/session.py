@@ -20,6 +20,7 @@ import yaml
 
 from imucal.calibration import CONVENTION, FRAME
 from imucal.columns import SENSORS, SEQ_MODULUS
+from imucal.constants import SESSION_GAP_S
 from imucal.sim.effects import Effect, RecordingContext, make_effect, stream_rng
 from imucal.sim.motion import evaluate_motion
 from imucal.sim.packets import PacketLog, build_packet_log, to_frame
@@ -34,8 +35,6 @@ RATE_HZ = 100.0
 REFERENCE_RATE_HZ = 100.0
 #: Default SI unit per raw count (the conformance session's values).
 SENSITIVITY = {"acc": 0.00239501953125, "gyr": 0.0002664624812205083, "mag": 0.001}
-#: Time between the end of one recording and the start of the next on the session clock (s).
-SESSION_GAP_S = 60.0
 #: File name of each recording in the dataset folder.
 FILES = {
     "rotation3d": "rotation3d.csv",

@@ -2,26 +2,26 @@
 metrics before and after calibration (``metrics``).
 """
 
-from imucal.validation.timing import (
-    TIME_CONVENTION,
-    unwrap_seq,
-    packet_times,
-    TimeAlignment,
-    estimate_time_alignment,
-    correlate_offsets,
-    align_reference,
-)
-from imucal.validation.mounting import (
-    MOUNTING_CONVENTION,
-    Mounting,
-    estimate_mounting,
-)
 from imucal.validation.metrics import (
     NO_REFERENCE_NOTE,
     angles_deg,
     compare_vectors,
     summarise_dip,
     validate,
+)
+from imucal.validation.mounting import (
+    MOUNTING_CONVENTION,
+    Mounting,
+    estimate_mounting,
+)
+from imucal.validation.timing import (
+    TIME_CONVENTION,
+    TimeAlignment,
+    align_reference,
+    correlate_offsets,
+    estimate_time_alignment,
+    packet_times,
+    unwrap_seq,
 )
 
 __all__ = [

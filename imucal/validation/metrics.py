@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from imucal.columns import ACC, GYR, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.io.store import to_jsonable
 from imucal.validation.mounting import estimate_mounting
 from imucal.validation.timing import (
     align_reference,
@@ -151,21 +152,6 @@ def _check_table(table: pd.DataFrame, name: str) -> None:
         raise ValueError(f"{name} lacks the columns {missing}")
 
 
-def _jsonable(x: object) -> object:
-    """Floats as Python floats, NaN/inf as None, recursively."""
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
-
-
 def validate(
     module: pd.DataFrame,
     module_raw: pd.DataFrame,
@@ -235,7 +221,7 @@ def validate(
         "metrics": None,
     }
     if reference is None:
-        return _jsonable(result)
+        return to_jsonable(result)
 
     _check_table(reference, "reference")
     t_mod = packet_times(module[TIME].to_numpy(), module[SEQ].to_numpy())
@@ -268,4 +254,4 @@ def validate(
         mounting=mounting.to_dict(),
         metrics=metrics,
     )
-    return _jsonable(result)
+    return to_jsonable(result)

@@ -4,7 +4,6 @@ Estimated from the time-aligned gyroscope and accelerometer vectors (weighted Wa
 solved with an SVD).
 """
 
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -135,5 +134,3 @@ def estimate_mounting(
         residual_rms=rms,
         n_samples={s: len(b) for s, (b, _) in pairs.items()},
     )
-
-

@@ -16,7 +16,6 @@ Module samples are placed on the time axis by their packet counter (lost packets
 rows are not assumed equally spaced).
 """
 
-
 from __future__ import annotations
 
 import itertools
@@ -512,5 +511,3 @@ def align_reference(
             v = v @ np.asarray(rotation, dtype=float).T
         out.update(dict(zip(cols, v.T)))
     return pd.DataFrame(out)
-
-

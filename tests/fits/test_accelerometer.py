@@ -10,11 +10,12 @@ import pandas as pd
 import pytest
 
 from imucal import errormodel
-from imucal.fits.accelerometer import cube_crlb, fit_cube, heldout_errors, make_calibration
 from imucal.columns import ACC, GYR, TIME
+from imucal.fits.accelerometer import cube_crlb, fit_cube, heldout_errors, make_calibration
 from imucal.io.dataset import read_dataset
 from imucal.plots.inertial import plot_cube_magnitude_errors
 from imucal.segments.segmentation import segment_cube
+from imucal.sim.protocol import CUBE_UP_B
 
 G = 9.81
 NOISE = 0.02  # m/s^2 per axis and sample
@@ -22,7 +23,6 @@ N_SAMPLES = 600
 CONFORMANCE = (
     Path(__file__).resolve().parents[2].parent / "shared" / "data" / "conformance" / "clean"
 )
-from imucal.sim.protocol import CUBE_UP_B
 
 # the simulator's 12 cube positions: 6 faces and 6 at 45 degrees on the V-block (frame B)
 DIRECTIONS = np.array(CUBE_UP_B, dtype=float)

@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 
 from imucal import errormodel
-from imucal.fits.alignment import align_constant_component, align_rotation_axis, phase_samples
 from imucal.columns import MAG, TIME
+from imucal.fits.alignment import align_constant_component, align_rotation_axis, phase_samples
 
 ALPHA = np.radians([3.0, -2.0, 4.0])  # several degrees: the small-angle form must show its error
 NOISE = 0.004  # per axis, as the conformance magnetometer

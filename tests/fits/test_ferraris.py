@@ -54,7 +54,7 @@ def test_six_faces_recover_matrix_and_bias_within_their_std():
     assert fit.dof == 6
     # 6 dof only: the std is itself uncertain by ~30 %, so allow 5 std (t-distribution, 6 dof:
     # P(|t| > 5) ~ 2e-3 per parameter)
-    assert np.all(np.abs(cal.bias - bias) < 5 * cal.std["bias"]), (cal.bias - bias)
+    assert np.all(np.abs(cal.bias - bias) < 5 * cal.std["bias"]), cal.bias - bias
     assert np.all(np.abs(cal.matrix - matrix) < 5 * cal.std["matrix"])
     # the std is that of a placement error of 0.03 m/s^2 on ~2 g lever: ~1e-3 relative
     assert np.all(cal.std["matrix"] < 5e-3)
@@ -121,8 +121,12 @@ def test_known_rotations_recover_gyro_matrix(irregular):
     known = -2 * np.pi * np.eye(3)  # clockwise 360 degrees about x, y, z of B
     sections = rotation_sections(rng, known, irregular)
     fit = fit_known_rotations(
-        sections, known, GYR_BIAS, noise_std_rad_s=np.full(3, GYR_NOISE),
-        bias_std_rad_s=np.full(3, 1e-4), labels=["x_rot", "y_rot", "z_rot"],
+        sections,
+        known,
+        GYR_BIAS,
+        noise_std_rad_s=np.full(3, GYR_NOISE),
+        bias_std_rad_s=np.full(3, 1e-4),
+        labels=["x_rot", "y_rot", "z_rot"],
     )
     cal = fit.calibration
     # integrated noise: 0.005 rad/s * sqrt(4 s * 0.01 s) = 1e-3 rad per axis, plus the bias std

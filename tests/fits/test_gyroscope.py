@@ -11,9 +11,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.fits.accelerometer import fit_cube
 from imucal.columns import ACC, AXES, GYR, TIME
-from imucal.io.dataset import read_dataset
+from imucal.fits.accelerometer import fit_cube
 from imucal.fits.gyroscope import (
     estimate_bias,
     estimate_scale,
@@ -23,6 +22,7 @@ from imucal.fits.gyroscope import (
     measure_angle_change,
     rate_table_crlb,
 )
+from imucal.io.dataset import read_dataset
 from imucal.segments.segmentation import segment_ratetable
 from imucal.sim.protocol import CUBE_UP_B
 

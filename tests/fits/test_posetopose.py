@@ -39,7 +39,11 @@ def make_session(rng, n_poses=25, axes_pool=None, irregular=False, matrix=None):
     for _ in range(n_poses - 1):
         pieces = []
         for _ in range(2):
-            axis = rng.standard_normal(3) if axes_pool is None else axes_pool[rng.integers(len(axes_pool))]
+            axis = (
+                rng.standard_normal(3)
+                if axes_pool is None
+                else axes_pool[rng.integers(len(axes_pool))]
+            )
             axis = axis / np.linalg.norm(axis)
             angle = rng.uniform(0.6, 1.6) * rng.choice([-1, 1])
             pieces.append((axis, angle, rng.uniform(0.8, 1.5)))
@@ -129,9 +133,7 @@ def test_refuses_too_few_intervals():
 
 def test_refuses_rotations_about_one_axis_and_names_missing_axes():
     rng = np.random.default_rng(5)
-    ups, intervals = make_session(
-        rng, axes_pool=np.array([[1.0, 0.0, 0.0]]), matrix=np.eye(3)
-    )
+    ups, intervals = make_session(rng, axes_pool=np.array([[1.0, 0.0, 0.0]]), matrix=np.eye(3))
     with pytest.raises(ValueError, match=r"not observable.*near axis '[yz]'"):
         fit_pose_to_pose(ups[:-1], ups[1:], intervals, BIAS)
 

@@ -23,7 +23,7 @@ RATETABLE = {"axes": list(SHORT.ratetable_axes), "rates_dps": list(SHORT.rates_d
 @pytest.fixture(scope="module")
 def twin():
     """A twin built from a clean simulated session (fit by the same in-process pipeline)."""
-    from imucal.gap.twin import Twin, TWIN_RECORDINGS
+    from imucal.gap.twin import TWIN_RECORDINGS, Twin
 
     truth = make_truth("paper", stream_rng(0, "truth"))
     options = PipelineOptions(9.81, SENSITIVITY, RANGE, RATETABLE)

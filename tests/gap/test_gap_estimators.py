@@ -130,7 +130,9 @@ def test_earth_gate_accepts_the_earth_and_refuses_more(null_fits):
     assert earth_gate(earth, null, 4.0) == ""
     spread = np.std([e.params["rate_rad_s"] for e in null], ddof=1)
     big = EARTH_RATE_RAD_S + 10 * spread
-    assert "exceeds" in earth_gate(Estimate({"rate_rad_s": big, "latitude_deg": 0.0}, 0.0), null, 4.0)
+    assert "exceeds" in earth_gate(
+        Estimate({"rate_rad_s": big, "latitude_deg": 0.0}, 0.0), null, 4.0
+    )
 
 
 def test_large_misalignment_reported_not_a_gap(base, null_fits):

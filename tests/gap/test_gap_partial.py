@@ -92,7 +92,9 @@ def test_temperature_drift_is_found_on_the_temperature_channel():
     )  # fmt: skip
     d = _diagnose(_session(6, (effect,)))
     assert d["gap"]["significant"]
-    assert any(loc["statistic"] == "temp_slope" and loc["sensor"] == "gyr" for loc in d["locations"])
+    assert any(
+        loc["statistic"] == "temp_slope" and loc["sensor"] == "gyr" for loc in d["locations"]
+    )
     assert d["explained"][:1] == ["temperature_drift"]
     drift = next(e for e in d["effects"] if e["name"] == "temperature_drift")
     assert drift["params"]["gyr_per_k"] == pytest.approx(3e-4, rel=0.2)

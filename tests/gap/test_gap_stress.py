@@ -119,7 +119,9 @@ def _key(items, diagnosable, conditions=()):
 
 def test_score_counts_fully_right_sessions_crashes_and_empty_nulls():
     crash = failed_diagnosis("s4", "ValueError: cube: found 11 static (0-1 s, 4-5 s)\nmore")
-    crash.update(failed_in="pipeline", where="imucal/segments/segmentation.py:10 find", calibration=None)
+    crash.update(
+        failed_in="pipeline", where="imucal/segments/segmentation.py:10 find", calibration=None
+    )
     calibration = _truth(gyr_bias=(0.1, 0.002, 0.0))
     calibration["acc"]["matrix"] = (np.eye(3) * 1.01).tolist()
     diagnoses = {

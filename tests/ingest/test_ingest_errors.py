@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 
 from imucal.columns import RAW_COLUMNS
-from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
 from imucal.io import RawDataError, write_recording
+from imucal.io.dataset import read_dataset
 
 REPO = Path(__file__).resolve().parents[2]
 HEADER = ",".join(RAW_COLUMNS)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from imucal.columns import ACC, GYR, MAG, TIME
+from imucal.ingest import ingest_recording, summarize_recording
 from imucal.io.dataset import read_dataset
 from imucal.segments.filtering import lowpass_recording
-from imucal.ingest import ingest_recording, summarize_recording
 
 REPO = Path(__file__).resolve().parents[2]
 REAL = REPO.parent / "shared" / "data" / "real"

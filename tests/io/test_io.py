@@ -14,6 +14,7 @@ import pytest
 from imucal import io
 from imucal.calibration import FORMAT_VERSION, ImuCalibration, SensorCalibration
 from imucal.columns import ACC, GYR, MAG, RAW_COLUMNS, SEQ, SEQ_MODULUS, TIME
+from imucal.constants import IMU_RECORDINGS
 from imucal.ingest import (
     check_log,
     counts_to_si,
@@ -24,7 +25,7 @@ from imucal.ingest import (
 )
 from imucal.ingest.timebase import resolve_packet_steps
 from imucal.io import store
-from imucal.io.dataset import IMU_RECORDINGS, read_dataset
+from imucal.io.dataset import read_dataset
 
 SENSITIVITY = {"acc": 0.00239501953125, "gyr": 0.0002664624812205083, "mag": 0.001}
 

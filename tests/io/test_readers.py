@@ -14,10 +14,10 @@ from scipy import io as sio
 
 from imucal import io
 from imucal.columns import ACC, GYR, MAG, SEQ, TIME
-from imucal.io.dataset import read_dataset
-from imucal.segments.filtering import find_contiguous_blocks, lowpass_recording
 from imucal.ingest import ingest_recording, summarize_recording
+from imucal.io.dataset import read_dataset
 from imucal.io.readers import DeclarationError, axis_matrix
+from imucal.segments.filtering import find_contiguous_blocks, lowpass_recording
 from imucal.segments.segmentation import segment_dataset
 
 G = 9.80665

@@ -46,9 +46,10 @@ def test_guard_writes_every_output_as_not_run_and_the_next_stage_traces_it(tmp_p
     nxt = {"acc": tmp_path / "acc.json"}
     with stage_guard("acc_align", nxt):
         read_artifact(outputs["fit"])
-    assert "acc_cube did not run: cube: found 1" in json.loads(nxt["acc"].read_text())[
-        "not_run"
-    ]["reason"]
+    assert (
+        "acc_cube did not run: cube: found 1"
+        in json.loads(nxt["acc"].read_text())["not_run"]["reason"]
+    )
 
 
 def test_guard_lets_errors_that_are_not_about_the_data_through(tmp_path):
@@ -72,7 +73,9 @@ def test_calibration_names_the_sensor_whose_stages_did_not_run():
     assert set(cal) >= {"acc", "mag", "missing", "format_version"}
     assert "gyr" not in cal
     assert cal["missing"] == {"gyr": "gyr did not run: gyr_scale did not run: phases clipped"}
-    complete = calibration_of_what_ran({**artifacts, "gyr": {"calibration": _sensor("gyr", "rad/s")}})
+    complete = calibration_of_what_ran(
+        {**artifacts, "gyr": {"calibration": _sensor("gyr", "rad/s")}}
+    )
     assert "missing" not in complete and set(complete) >= {"acc", "gyr", "mag"}
 
 
@@ -122,9 +125,10 @@ def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_satura
     """A gyro range of 45 deg/s clips the rotation3d phases and every rate-table run: no gyro
     scale can be fitted and the full twin cannot be built, yet the diagnosis ends, on the
     static recording, with the reason and 'saturation' noted from the readings."""
-    from imucal.io.dataset import IMU_RECORDINGS, read_dataset
+    from imucal.constants import IMU_RECORDINGS
     from imucal.gap import PipelineOptions, diagnose
     from imucal.ingest import ingest_recording
+    from imucal.io.dataset import read_dataset
     from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
     from imucal.sim.effects import make_effect, stream_rng
 

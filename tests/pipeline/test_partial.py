@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 from imucal import errormodel
-
-from imucal.pipeline import partial
-from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
+from imucal.io.dataset import read_dataset
+from imucal.pipeline import partial
 from imucal.segments.segmentation import segment_dataset
 from imucal.sim import simulate
 
@@ -42,7 +41,8 @@ def statuses(outcomes):
 def test_platform_without_tools_runs_the_tool_free_path(session):
     dataset, tables, segments, truth = session
     outcomes = partial.run_stages(
-        {k: tables[k] for k in ("rotation3d", "static")}, segments,
+        {k: tables[k] for k in ("rotation3d", "static")},
+        segments,
         gravity_m_s2=dataset.gravity_m_s2,
     )
     ran = {name for name, status in statuses(outcomes).items() if status == "run"}
@@ -67,7 +67,8 @@ def test_hand_placed_poses_give_cube_fit_and_pose_to_pose_gyro(session):
     poses = segments.copy()
     poses.loc[poses["recording"] == "cube", "recording"] = "poses"
     outcomes = partial.run_stages(
-        {"poses": tables["cube"], "static": tables["static"]}, poses,
+        {"poses": tables["cube"], "static": tables["static"]},
+        poses,
         gravity_m_s2=dataset.gravity_m_s2,
     )
     status = statuses(outcomes)

@@ -9,16 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from scipy.spatial.transform import Rotation
 
-from imucal import io
-
-from imucal.pipeline import stages
 from imucal.calibration import ImuCalibration
-from imucal.io.dataset import read_dataset
-from imucal.segments.filtering import lowpass_recording
 from imucal.ingest import ingest_recording
+from imucal.io.dataset import read_dataset
+from imucal.pipeline import stages
+from imucal.segments.filtering import lowpass_recording
 from imucal.segments.segmentation import segment_dataset
 
 REPO = Path(__file__).resolve().parents[2]
@@ -77,12 +74,15 @@ def test_conformance_session_recovers_truth(conformance_dir):
 
 
 def test_demo_validation_finds_the_simulated_time_offset_and_mounting():
-    """Issue 5 acceptance: offset within one sample, mounting rotation within 0.1 degree."""
+    """Time alignment: offset within one sample, mounting rotation within 0.1 degree."""
     calibration, truth, inputs = calibrate(REPO / "data" / "demo")
     rotation3d, metadata = inputs["tables"]["rotation3d"]
     reference, _ = inputs["tables"]["reference"]
     result = stages.validate_session(
-        rotation3d, metadata, reference, inputs["segments"],
+        rotation3d,
+        metadata,
+        reference,
+        inputs["segments"],
         ImuCalibration.from_dict(calibration),
     )
     ref = truth["reference"]
@@ -95,15 +95,23 @@ def test_demo_validation_finds_the_simulated_time_offset_and_mounting():
     timing = result["time_alignment"]
     assert abs(timing["offset_s"] - expected_offset_s) < one_sample_s
     estimated = Rotation.from_rotvec(result["mounting"]["rotvec_rad"])
-    error_deg = np.degrees((estimated * Rotation.from_rotvec(ref["mounting_rotvec_rad"]).inv()).magnitude())
+    error_deg = np.degrees(
+        (estimated * Rotation.from_rotvec(ref["mounting_rotvec_rad"]).inv()).magnitude()
+    )
     assert error_deg < 0.1
     # "much better than the raw one": the raw errors are 10-100x the noise floor here
     metrics = result["metrics"]
     for sensor in ("acc", "gyr", "mag"):
         raw = metrics["raw"][sensor]["rms_norm_diff"]
         assert metrics["calibrated"][sensor]["rms_norm_diff"] < raw / 5, sensor
-    print(json.dumps({"offset_error_s": timing["offset_s"] - expected_offset_s,
-                      "mounting_error_deg": error_deg}))
+    print(
+        json.dumps(
+            {
+                "offset_error_s": timing["offset_s"] - expected_offset_s,
+                "mounting_error_deg": error_deg,
+            }
+        )
+    )
 
 
 def test_jittered_receive_times_integrate_on_the_packet_counter(tmp_path):
@@ -125,7 +133,8 @@ def test_phase_figures_show_the_alignment_at_work():
     panels = figure.axes
     assert len(panels) == 6  # phases x, y, z; before and after
     assert [p.get_title() for p in panels[:2]] == [
-        "phase x: before alignment", "phase x: after alignment"
+        "phase x: before alignment",
+        "phase x: after alignment",
     ]
     before, after = ([line.get_ydata() for line in p.get_lines()[:3]] for p in panels[:2])
     # off-axis rate (deg/s): misalignment of ~1e-2 rad times ~50 deg/s before; noise after
@@ -145,9 +154,21 @@ def test_workflow_runs_on_a_simulated_session(tmp_path):
         src = REPO / name
         (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
     subprocess.run(
-        ["imucal", "simulate", str(work / "data/sim"), "--preset", "paper", "--seed", "5",
-         "--static-s", "30", "--name", "sim"],
-        check=True, capture_output=True,
+        [
+            "imucal",
+            "simulate",
+            str(work / "data/sim"),
+            "--preset",
+            "paper",
+            "--seed",
+            "5",
+            "--static-s",
+            "30",
+            "--name",
+            "sim",
+        ],
+        check=True,
+        capture_output=True,
     )
     (work / "config/config.yaml").write_text("datasets:\n  sim: data/sim\n")
     run = subprocess.run(

@@ -13,9 +13,9 @@ import pytest
 from matplotlib.figure import Figure
 
 from imucal import ImuCalibration, SensorCalibration
-from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording, summarize_dataset
 from imucal.io import write_json
+from imucal.io.dataset import read_dataset
 from imucal.report import (
     build_report_context,
     collect_warnings,
@@ -354,10 +354,18 @@ def test_partial_session_lists_stages_and_uncalibrated_sensors(artifacts):
     calibration["missing"] = {"acc": "no stage of this sensor could run: acc_cube: needs poses"}
     stages = {
         "stages": [
-            {"stage": "mag_step1", "what": "magnetometer ellipsoid fit", "status": "run",
-             "reason": "ran"},
-            {"stage": "acc_cube", "what": "accelerometer fit", "status": "skipped",
-             "reason": "not applicable: needs >= 9 static poses"},
+            {
+                "stage": "mag_step1",
+                "what": "magnetometer ellipsoid fit",
+                "status": "run",
+                "reason": "ran",
+            },
+            {
+                "stage": "acc_cube",
+                "what": "accelerometer fit",
+                "status": "skipped",
+                "reason": "not applicable: needs >= 9 static poses",
+            },
         ]
     }
     html = render_report(

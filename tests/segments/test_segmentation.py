@@ -141,7 +141,7 @@ def test_table_layout(session):
     assert segments["recording"].unique().tolist() == ["rotation3d", "cube", "ratetable", "static"]
     assert set(segments["kind"]) <= {"static", "phase", "transition", "position", "run"}
     assert (segments["end_index"] > segments["start_index"]).all()
-    assert segments.dtypes["start_index"] == np.int64 and segments.dtypes["turns"] == float
+    assert segments.dtypes["start_index"] == np.int64 and segments.dtypes["turns"] == np.float64
 
 
 def test_rotation3d_phases(session):

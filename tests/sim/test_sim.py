@@ -29,7 +29,8 @@ from imucal.columns import (
     SENSOR_COLUMNS,
     SEQ_MODULUS,
 )
-from imucal.io.dataset import IMU_RECORDINGS, read_dataset
+from imucal.constants import IMU_RECORDINGS
+from imucal.io.dataset import read_dataset
 from imucal.sim import (
     ProtocolConfig,
     evaluate_motion,

@@ -2,8 +2,6 @@
 
 
 rule acc_cube:
-    conda:
-        "../envs/imucal.yaml"
     input:
         cube="results/{dataset}/ingest/cube.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -18,6 +16,8 @@ rule acc_cube:
         "results/{dataset}/logs/acc_cube.log",
     benchmark:
         "results/{dataset}/benchmarks/acc_cube.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         gravity_m_s2=gravity,
         saturation_limit_m_s2=saturation_limit("acc"),
@@ -28,8 +28,6 @@ rule acc_cube:
 
 
 rule acc_align:
-    conda:
-        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -40,6 +38,8 @@ rule acc_align:
         "results/{dataset}/logs/acc_align.log",
     benchmark:
         "results/{dataset}/benchmarks/acc_align.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         method=config["accelerometer"]["alignment_method"],
         exact=config["exact_rotation"],

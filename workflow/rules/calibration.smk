@@ -2,8 +2,6 @@
 
 
 rule calibration:
-    conda:
-        "../envs/imucal.yaml"
     input:
         acc="results/{dataset}/acc.json",
         gyr="results/{dataset}/gyr.json",
@@ -16,6 +14,8 @@ rule calibration:
         ),
     log:
         "results/{dataset}/logs/calibration.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
@@ -23,8 +23,6 @@ rule calibration:
 
 
 rule apply_calibration:
-    conda:
-        "../envs/imucal.yaml"
     input:
         table="results/{dataset}/ingest/{recording}.parquet",
         calibration="results/{dataset}/calibration.json",
@@ -32,6 +30,8 @@ rule apply_calibration:
         table="results/{dataset}/calibrated/{recording}.parquet",
     log:
         "results/{dataset}/logs/apply/{recording}.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
@@ -39,8 +39,6 @@ rule apply_calibration:
 
 
 rule phase_figures:
-    conda:
-        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -59,6 +57,8 @@ rule phase_figures:
         ),
     log:
         "results/{dataset}/logs/phase_figures.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:

@@ -7,7 +7,8 @@ import yaml
 from snakemake.utils import validate
 
 import imucal
-from imucal.io.dataset import IMU_RECORDINGS, RECORDING_NAMES, read_dataset
+from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
+from imucal.io.dataset import read_dataset
 from imucal.pipeline.partial import is_full_protocol
 
 DATASETS = sorted(config["datasets"])
@@ -117,9 +118,7 @@ def raw_recording(wildcards):
 def ingested(wildcards):
     """All ingested recordings of a dataset, by recording name."""
     info = dataset_info(wildcards)
-    return {
-        name: f"results/{wildcards.dataset}/ingest/{name}.parquet" for name in info.recordings
-    }
+    return {name: f"results/{wildcards.dataset}/ingest/{name}.parquet" for name in info.recordings}
 
 
 def ingested_imu(wildcards):

@@ -1,4 +1,4 @@
-# Sim-to-real gap diagnosis (issue 6): every dataset against its twin (imucal.gap), in the
+# Sim-to-real gap diagnosis: every dataset against its twin (imucal.gap), in the
 # default run; the blind check (`snakemake --cores 2 blind`) renders sessions with hidden
 # effects, keeps their answer keys under results/blind/sealed/ (an input of the scorer only)
 # and scores the diagnoses; the stress set (`snakemake --cores 2 stress`) does the same with
@@ -8,10 +8,6 @@
 
 
 rule gap_diagnose:
-    wildcard_constraints:
-        dataset=datasets_pattern(full=True),
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(ingested),
         segments="results/{dataset}/segments.parquet",
@@ -24,6 +20,10 @@ rule gap_diagnose:
         "results/{dataset}/logs/gap_diagnose.log",
     benchmark:
         "results/{dataset}/benchmarks/gap_diagnose.tsv"
+    wildcard_constraints:
+        dataset=datasets_pattern(full=True),
+    conda:
+        "../envs/imucal.yaml"
     params:
         folder=dataset_folder,
         replicas=config["gap"]["replicas"],
@@ -44,10 +44,6 @@ rule gap_diagnose:
 # A session off the paper's protocol: the same diagnosis on its static recording (docs/gap-real.md);
 # without one, diagnosis.json says that no location could be scored and why.
 rule gap_diagnose_partial:
-    wildcard_constraints:
-        dataset=datasets_pattern(full=False),
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(gap_partial_inputs),
     output:
@@ -58,6 +54,10 @@ rule gap_diagnose_partial:
         "results/{dataset}/logs/gap_diagnose_partial.log",
     benchmark:
         "results/{dataset}/benchmarks/gap_diagnose_partial.tsv"
+    wildcard_constraints:
+        dataset=datasets_pattern(full=False),
+    conda:
+        "../envs/imucal.yaml"
     params:
         folder=dataset_folder,
         replicas=config["gap"]["replicas"],
@@ -78,8 +78,6 @@ ruleorder: detection_score > report
 
 
 rule blind_render:
-    conda:
-        "../envs/imucal.yaml"
     output:
         folder=directory("results/blind/data/{session}"),
         key="results/blind/sealed/{session}.json",
@@ -87,6 +85,8 @@ rule blind_render:
         "results/blind/logs/render/{session}.log",
     benchmark:
         "results/blind/benchmarks/render/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         spec=blind_spec,
         imucal_version=IMUCAL_VERSION,
@@ -95,8 +95,6 @@ rule blind_render:
 
 
 rule blind_diagnose:
-    conda:
-        "../envs/imucal.yaml"
     input:
         folder="results/blind/data/{session}",
     output:
@@ -105,6 +103,8 @@ rule blind_diagnose:
         "results/blind/logs/diagnose/{session}.log",
     benchmark:
         "results/blind/benchmarks/diagnose/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         exclude=blind_exclude,
         replicas=config["blind"]["replicas"],
@@ -119,19 +119,17 @@ rule blind_diagnose:
 
 
 rule blind_score:
-    conda:
-        "../envs/imucal.yaml"
     input:
         diagnoses=expand("results/blind/diagnoses/{session}.json", session=BLIND_SESSIONS),
         sealed=expand("results/blind/sealed/{session}.json", session=BLIND_SESSIONS),
-        benchmarks=expand(
-            "results/blind/benchmarks/diagnose/{session}.tsv", session=BLIND_SESSIONS
-        ),
+        benchmarks=expand("results/blind/benchmarks/diagnose/{session}.tsv", session=BLIND_SESSIONS),
     output:
         score="results/blind/score.json",
         html="reports/blind.html",
     log:
         "results/blind/logs/score.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         check="blind",
         options={},
@@ -149,8 +147,6 @@ rule blind:
 # The stress set renders with the blind check's script (the spec carries truth preset, protocol
 # and effects); its diagnosis records a failure instead of failing the rule.
 rule stress_render:
-    conda:
-        "../envs/imucal.yaml"
     output:
         folder=directory("results/stress/data/{session}"),
         key="results/stress/sealed/{session}.json",
@@ -158,6 +154,8 @@ rule stress_render:
         "results/stress/logs/render/{session}.log",
     benchmark:
         "results/stress/benchmarks/render/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         spec=stress_spec,
         imucal_version=IMUCAL_VERSION,
@@ -166,8 +164,6 @@ rule stress_render:
 
 
 rule stress_diagnose:
-    conda:
-        "../envs/imucal.yaml"
     input:
         folder="results/stress/data/{session}",
     output:
@@ -176,6 +172,8 @@ rule stress_diagnose:
         "results/stress/logs/diagnose/{session}.log",
     benchmark:
         "results/stress/benchmarks/diagnose/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         replicas=config["stress"]["replicas"],
         alpha=config["gap"]["alpha"],
@@ -189,12 +187,8 @@ rule stress_diagnose:
 
 
 rule stress_score:
-    conda:
-        "../envs/imucal.yaml"
     input:
-        diagnoses=expand(
-            "results/stress/diagnoses/{session}.json", session=STRESS_SESSIONS
-        ),
+        diagnoses=expand("results/stress/diagnoses/{session}.json", session=STRESS_SESSIONS),
         sealed=expand("results/stress/sealed/{session}.json", session=STRESS_SESSIONS),
         benchmarks=expand(
             "results/stress/benchmarks/diagnose/{session}.tsv", session=STRESS_SESSIONS
@@ -204,6 +198,8 @@ rule stress_score:
         html="reports/stress.html",
     log:
         "results/stress/logs/score.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         check="stress",
         options={},
@@ -221,8 +217,6 @@ rule stress:
 # The detection sweep renders with the blind check's script and diagnoses with the stress set's
 # (a crash is recorded and names nothing).
 rule detection_render:
-    conda:
-        "../envs/imucal.yaml"
     output:
         folder=directory("results/detection/data/{session}"),
         key="results/detection/sealed/{session}.json",
@@ -230,6 +224,8 @@ rule detection_render:
         "results/detection/logs/render/{session}.log",
     benchmark:
         "results/detection/benchmarks/render/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         spec=detection_spec,
         imucal_version=IMUCAL_VERSION,
@@ -238,8 +234,6 @@ rule detection_render:
 
 
 rule detection_diagnose:
-    conda:
-        "../envs/imucal.yaml"
     input:
         folder="results/detection/data/{session}",
     output:
@@ -248,6 +242,8 @@ rule detection_diagnose:
         "results/detection/logs/diagnose/{session}.log",
     benchmark:
         "results/detection/benchmarks/diagnose/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         replicas=config["detection"]["replicas"],
         alpha=config["gap"]["alpha"],
@@ -261,12 +257,8 @@ rule detection_diagnose:
 
 
 rule detection_score:
-    conda:
-        "../envs/imucal.yaml"
     input:
-        diagnoses=expand(
-            "results/detection/diagnoses/{session}.json", session=DETECTION_SESSIONS
-        ),
+        diagnoses=expand("results/detection/diagnoses/{session}.json", session=DETECTION_SESSIONS),
         sealed=expand("results/detection/sealed/{session}.json", session=DETECTION_SESSIONS),
         benchmarks=expand(
             "results/detection/benchmarks/diagnose/{session}.tsv", session=DETECTION_SESSIONS
@@ -276,6 +268,8 @@ rule detection_score:
         html="reports/detection.html",
     log:
         "results/detection/logs/score.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         check="detection",
         options={

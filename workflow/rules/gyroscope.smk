@@ -3,8 +3,6 @@
 
 
 rule gyr_bias:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(gyr_bias_inputs),
         segments="results/{dataset}/segments.parquet",
@@ -19,6 +17,8 @@ rule gyr_bias:
         "results/{dataset}/logs/gyr_bias.log",
     benchmark:
         "results/{dataset}/benchmarks/gyr_bias.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
@@ -26,8 +26,6 @@ rule gyr_bias:
 
 
 rule gyr_align:
-    conda:
-        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -38,6 +36,8 @@ rule gyr_align:
         "results/{dataset}/logs/gyr_align.log",
     benchmark:
         "results/{dataset}/benchmarks/gyr_align.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         bias_estimator=config["gyroscope"]["bias_estimator"],
         method=config["gyroscope"]["alignment_method"],
@@ -48,8 +48,6 @@ rule gyr_align:
 
 
 rule gyr_scale:
-    conda:
-        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/ingest/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -63,6 +61,8 @@ rule gyr_scale:
         "results/{dataset}/logs/gyr_scale.log",
     benchmark:
         "results/{dataset}/benchmarks/gyr_scale.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         bias_estimator=config["gyroscope"]["bias_estimator"],
         imucal_version=IMUCAL_VERSION,
@@ -71,8 +71,6 @@ rule gyr_scale:
 
 
 rule gyr_table:
-    conda:
-        "../envs/imucal.yaml"
     input:
         ratetable="results/{dataset}/ingest/ratetable.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -87,6 +85,8 @@ rule gyr_table:
         "results/{dataset}/logs/gyr_table.log",
     benchmark:
         "results/{dataset}/benchmarks/gyr_table.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         saturation_limit_rad_s=saturation_limit("gyr"),
         imucal_version=IMUCAL_VERSION,
@@ -95,8 +95,6 @@ rule gyr_table:
 
 
 rule gyr_table_align:
-    conda:
-        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -107,6 +105,8 @@ rule gyr_table_align:
         "results/{dataset}/logs/gyr_table_align.log",
     benchmark:
         "results/{dataset}/benchmarks/gyr_table_align.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         method=config["gyroscope"]["alignment_method"],
         exact=config["exact_rotation"],
@@ -116,8 +116,6 @@ rule gyr_table_align:
 
 
 rule gyr:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(gyr_table_inputs),
         unpack(truth_input),
@@ -133,6 +131,8 @@ rule gyr:
         ),
     log:
         "results/{dataset}/logs/gyr.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         bias_estimator=config["gyroscope"]["bias_estimator"],
         exact=config["exact_rotation"],

@@ -4,8 +4,6 @@
 
 
 rule ingest:
-    conda:
-        "../envs/imucal.yaml"
     input:
         raw=raw_recording,
         dataset_yaml=dataset_yaml,
@@ -15,6 +13,8 @@ rule ingest:
         "results/{dataset}/logs/ingest/{recording}.log",
     benchmark:
         "results/{dataset}/benchmarks/ingest/{recording}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
@@ -22,14 +22,14 @@ rule ingest:
 
 
 rule ingest_summary:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(ingested),
     output:
         summary="results/{dataset}/ingest/summary.json",
     log:
         "results/{dataset}/logs/ingest/summary.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:

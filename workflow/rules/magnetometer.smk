@@ -3,8 +3,6 @@
 
 
 rule mag_step1:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(mag_step1_inputs),
     output:
@@ -13,6 +11,8 @@ rule mag_step1:
         "results/{dataset}/logs/mag_step1.log",
     benchmark:
         "results/{dataset}/benchmarks/mag_step1.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         field_norm=field_norm,
         refine_lm=config["magnetometer"]["refine_lm"],
@@ -22,8 +22,6 @@ rule mag_step1:
 
 
 rule mag_step2:
-    conda:
-        "../envs/imucal.yaml"
     input:
         rotation3d="results/{dataset}/ingest/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
@@ -54,6 +52,8 @@ rule mag_step2:
         "results/{dataset}/logs/mag_step2.log",
     benchmark:
         "results/{dataset}/benchmarks/mag_step2.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         method=config["magnetometer"]["step2_method"],
         exact=config["exact_rotation"],

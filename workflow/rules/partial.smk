@@ -4,8 +4,6 @@
 
 
 rule partial:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(ingested_imu_all),
         segments="results/{dataset}/segments.parquet",
@@ -21,6 +19,8 @@ rule partial:
         "results/{dataset}/logs/partial.log",
     benchmark:
         "results/{dataset}/benchmarks/partial.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         lowpass_order=config["lowpass"]["order"],
         lowpass_cutoff_hz=config["lowpass"]["cutoff_hz"],
@@ -30,8 +30,6 @@ rule partial:
 
 
 rule stages_full:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(full_stage_artifacts),
         dataset_yaml=dataset_yaml,
@@ -40,6 +38,8 @@ rule stages_full:
         stages="results/{dataset}/full/stages.json",
     log:
         "results/{dataset}/logs/stages_full.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
@@ -47,8 +47,6 @@ rule stages_full:
 
 
 rule stages:
-    conda:
-        "../envs/imucal.yaml"
     input:
         stages=stages_listing,
     output:
@@ -59,5 +57,7 @@ rule stages:
         ),
     log:
         "results/{dataset}/logs/stages.log",
+    conda:
+        "../envs/imucal.yaml"
     script:
         "../scripts/copy_json.py"

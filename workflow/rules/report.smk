@@ -3,8 +3,6 @@
 
 
 rule validate:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(reference_input),
         rotation3d="results/{dataset}/ingest/rotation3d.parquet",
@@ -20,6 +18,8 @@ rule validate:
         "results/{dataset}/logs/validate.log",
     benchmark:
         "results/{dataset}/benchmarks/validate.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
@@ -27,8 +27,6 @@ rule validate:
 
 
 rule validation_figures:
-    conda:
-        "../envs/imucal.yaml"
     input:
         reference="results/{dataset}/ingest/reference.parquet",
         rotation3d="results/{dataset}/ingest/rotation3d.parquet",
@@ -43,6 +41,8 @@ rule validation_figures:
         xcorr="results/{dataset}/figures/validation_xcorr.png",
     log:
         "results/{dataset}/logs/validation_figures.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:
@@ -50,10 +50,6 @@ rule validation_figures:
 
 
 rule report:
-    wildcard_constraints:
-        dataset=ALL_DATASETS_PATTERN,
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(report_inputs),
     output:
@@ -62,6 +58,10 @@ rule report:
         "results/{dataset}/logs/report.log",
     benchmark:
         "results/{dataset}/benchmarks/report.tsv"
+    wildcard_constraints:
+        dataset=ALL_DATASETS_PATTERN,
+    conda:
+        "../envs/imucal.yaml"
     params:
         config=config,
         git_commit=GIT_COMMIT,

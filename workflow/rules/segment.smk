@@ -5,8 +5,6 @@
 
 
 rule lowpass:
-    conda:
-        "../envs/imucal.yaml"
     input:
         table="results/{dataset}/ingest/{recording}.parquet",
     output:
@@ -15,6 +13,8 @@ rule lowpass:
         "results/{dataset}/logs/lowpass/{recording}.log",
     benchmark:
         "results/{dataset}/benchmarks/lowpass/{recording}.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         order=config["lowpass"]["order"],
         cutoff_hz=config["lowpass"]["cutoff_hz"],
@@ -24,8 +24,6 @@ rule lowpass:
 
 
 rule segment:
-    conda:
-        "../envs/imucal.yaml"
     input:
         unpack(ingested_imu_all),
         dataset_yaml=dataset_yaml,
@@ -35,6 +33,8 @@ rule segment:
         "results/{dataset}/logs/segment.log",
     benchmark:
         "results/{dataset}/benchmarks/segment.tsv"
+    conda:
+        "../envs/imucal.yaml"
     params:
         settings=segmentation_settings,
         imucal_version=IMUCAL_VERSION,
@@ -43,8 +43,6 @@ rule segment:
 
 
 rule plot_segments:
-    conda:
-        "../envs/imucal.yaml"
     input:
         table="results/{dataset}/ingest/{recording}.parquet",
         segments=rules.segment.output.segments,
@@ -52,6 +50,8 @@ rule plot_segments:
         png="results/{dataset}/segments/{recording}.png",
     log:
         "results/{dataset}/logs/segments/{recording}.log",
+    conda:
+        "../envs/imucal.yaml"
     params:
         imucal_version=IMUCAL_VERSION,
     script:

@@ -3,11 +3,12 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io.dataset import IMU_RECORDINGS, read_dataset
+from imucal.constants import IMU_RECORDINGS
 from imucal.gap import PipelineOptions, diagnose
 from imucal.gap.blind import failed_diagnosis
 from imucal.ingest import ingest_recording
 from imucal.io import write_json
+from imucal.io.dataset import read_dataset
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -15,9 +16,13 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 p = snakemake.params
 info = read_dataset(snakemake.input.folder)
-tables = {r: ingest_recording(path, r, info, p.imucal_version)[0] for r, path in info.recordings.items()}
+tables = {
+    r: ingest_recording(path, r, info, p.imucal_version)[0] for r, path in info.recordings.items()
+}
 imu = {r: t for r, t in tables.items() if r in IMU_RECORDINGS}
-options = PipelineOptions(info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm)
+options = PipelineOptions(
+    info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm
+)
 try:
     result = diagnose(
         imu, tables.get("reference"), options, dataset=snakemake.wildcards.session,

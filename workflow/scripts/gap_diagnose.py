@@ -3,10 +3,11 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io.dataset import IMU_RECORDINGS, read_dataset
+from imucal.constants import IMU_RECORDINGS
 from imucal.gap import PipelineOptions, diagnose
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.io import read_recording, read_segments, write_json
+from imucal.io.dataset import read_dataset
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -14,8 +15,14 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 p = snakemake.params
 info = read_dataset(p.folder)
-imu = {r: read_recording(getattr(snakemake.input, r))[0] for r in IMU_RECORDINGS if r in snakemake.input.keys()}  # noqa: SIM118
-reference = read_recording(snakemake.input.reference)[0] if "reference" in snakemake.input.keys() else None  # noqa: SIM118
+imu = {
+    r: read_recording(getattr(snakemake.input, r))[0]
+    for r in IMU_RECORDINGS
+    if r in snakemake.input.keys()
+}  # noqa: SIM118
+reference = (
+    read_recording(snakemake.input.reference)[0] if "reference" in snakemake.input.keys() else None
+)  # noqa: SIM118
 options = PipelineOptions(
     info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm,
     p.exact_rotation, p.lowpass_order, p.lowpass_cutoff_hz,

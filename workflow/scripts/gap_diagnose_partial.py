@@ -3,10 +3,10 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.io.dataset import read_dataset
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.gap.partial import diagnose_partial_session
 from imucal.io import read_json, read_recording, write_json
+from imucal.io.dataset import read_dataset
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,9 +4,9 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
 from imucal.io import write_recording
+from imucal.io.dataset import read_dataset
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

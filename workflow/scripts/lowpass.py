@@ -3,8 +3,8 @@
 import logging
 from typing import TYPE_CHECKING
 
-from imucal.segments.filtering import lowpass_recording
 from imucal.io import read_recording, write_recording
+from imucal.segments.filtering import lowpass_recording
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake

@@ -5,8 +5,8 @@ from typing import TYPE_CHECKING
 
 from imucal.io import read_recording, read_segments, write_json
 from imucal.pipeline.outcome import read_artifact, stage_guard
-from imucal.plots.magnetometer import plot_magnetometer_steps
 from imucal.pipeline.stages import align_mag
+from imucal.plots.magnetometer import plot_magnetometer_steps
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)

@@ -4,10 +4,10 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.pipeline import partial
 from imucal.calibration import FORMAT_VERSION
-from imucal.io.dataset import read_dataset
 from imucal.io import read_recording, read_segments, write_json
+from imucal.io.dataset import read_dataset
+from imucal.pipeline import partial
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -38,8 +38,9 @@ calibration = {
     "frame": "B of the session's own protocol (see each sensor's method)",
 }
 write_json(calibration, snakemake.output.calibration)
-write_json({"dataset": dataset.name, "stages": [o.summary() for o in outcomes]},
-           snakemake.output.stages)
+write_json(
+    {"dataset": dataset.name, "stages": [o.summary() for o in outcomes]}, snakemake.output.stages
+)
 for sensor, artifacts in partial.stage_results(outcomes).items():
     write_json(artifacts, snakemake.output[sensor])
 figure_dir = Path(snakemake.output.figures)

@@ -16,5 +16,7 @@ with stage_guard("phase_figures", snakemake.output):
     rotation3d, _ = read_recording(snakemake.input.rotation3d)
     segments = read_segments(snakemake.input.segments)
     for sensor in ("acc", "gyr"):
-        figure = plot_phases(rotation3d, segments, sensor, read_artifact(snakemake.input[sensor])["calibration"])
+        figure = plot_phases(
+            rotation3d, segments, sensor, read_artifact(snakemake.input[sensor])["calibration"]
+        )
         figure.savefig(snakemake.output[sensor], dpi=110)

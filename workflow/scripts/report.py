@@ -21,7 +21,11 @@ context = build_report_context(
     tables=snakemake.input.get("tables"),
     stages=snakemake.input.stages,
     figures=list(snakemake.input.figures)
-    + (sorted(Path(snakemake.input.figure_dir).glob("*.png")) if "figure_dir" in snakemake.input.keys() else []),  # noqa: SIM118
+    + (
+        sorted(Path(snakemake.input.figure_dir).glob("*.png"))
+        if "figure_dir" in snakemake.input.keys()
+        else []
+    ),  # noqa: SIM118
     benchmarks=list(snakemake.input.benchmarks),
     config=dict(snakemake.params.config),
     git_commit=snakemake.params.git_commit,

@@ -4,8 +4,8 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.io.dataset import read_dataset
 from imucal.io import read_recording, write_recording
+from imucal.io.dataset import read_dataset
 from imucal.segments.segmentation import segment_dataset
 
 if TYPE_CHECKING:
@@ -34,9 +34,12 @@ try:
     write_recording(
         segments,
         snakemake.output.segments,
-        {"dataset": dataset.name, "imucal_version": p.imucal_version,
-         "notes": segments.attrs.get("notes", {}),
-         "held_by_hand": segments.attrs.get("held_by_hand", [])},
+        {
+            "dataset": dataset.name,
+            "imucal_version": p.imucal_version,
+            "notes": segments.attrs.get("notes", {}),
+            "held_by_hand": segments.attrs.get("held_by_hand", []),
+        },
     )
     logging.info(
         "%d segments -> %s\n%s", len(segments), snakemake.output.segments, segments.to_string()

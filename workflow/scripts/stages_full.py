@@ -5,8 +5,8 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.io.dataset import read_dataset
 from imucal.io import read_json, read_recording, write_json
+from imucal.io.dataset import read_dataset
 from imucal.pipeline.partial import STAGES, full_protocol_stages
 
 if TYPE_CHECKING:

@@ -27,7 +27,7 @@ from imucal.sim.effects.sensor import (
 )
 from imucal.sim.effects.timing import PacketLoss, TimeOffset, TimingJitter
 
-#: The canonical effects of issue 6, in the order of docs/simulator.md.
+#: The canonical effects of the diagnosis, in the order of docs/simulator.md.
 CANONICAL = (
     "temperature_drift",
     "bias_instability",

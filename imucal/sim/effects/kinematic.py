@@ -6,12 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imucal.constants import EARTH_RATE_RAD_S
 from imucal.sim.effects.base import Effect, Magnitude, RecordingContext, register
 from imucal.sim.motion import KinematicState
 from imucal.sim.sensors import Signals
-
-#: Earth's rotation rate (rad/s), sidereal.
-EARTH_RATE_RAD_S = 7.2921150e-5
 
 
 @register

@@ -9,9 +9,10 @@ from __future__ import annotations
 import sys
 import time
 
-from imucal.io.dataset import IMU_RECORDINGS, read_dataset
+from imucal.constants import IMU_RECORDINGS
 from imucal.gap import PipelineOptions, calibrate_session, diagnose
 from imucal.ingest import ingest_recording
+from imucal.io.dataset import read_dataset
 
 
 def main(folder: str, replicas: int = 20) -> None:

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from imucal.fits.accelerometer import heldout_errors
 from imucal.columns import ACC
-from imucal.io.dataset import read_dataset
+from imucal.fits.accelerometer import heldout_errors
 from imucal.io import read_recording, read_segments
+from imucal.io.dataset import read_dataset
 
 for folder in map(Path, sys.argv[1:]):
     segments = read_segments(folder / "segments.parquet")

@@ -23,9 +23,9 @@ import numpy as np
 import pyarrow.csv as pacsv
 
 from imucal.columns import ACC, GYR, MAG, RAW_COLUMNS, SEQ_MODULUS
-from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
 from imucal.io import write_recording
+from imucal.io.dataset import read_dataset
 
 SENSITIVITY = {"acc": 0.00239501953125, "gyr": 0.0002664624812205083, "mag": 0.001}
 

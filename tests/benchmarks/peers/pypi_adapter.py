@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
 from imucal import FerrarisCalibration, ferraris_regions_from_df, ferraris_regions_from_section_list
 
 ACC = ["acc_x", "acc_y", "acc_z"]
@@ -39,14 +40,19 @@ def main() -> None:
     times = []
     for _ in range(REPEATS):
         t0 = time.perf_counter()
-        info = cal.compute(regions, sampling_rate_hz=rate_hz, from_acc_unit=acc_unit, from_gyr_unit=gyr_unit)
+        info = cal.compute(
+            regions, sampling_rate_hz=rate_hz, from_acc_unit=acc_unit, from_gyr_unit=gyr_unit
+        )
         times.append(time.perf_counter() - t0)
     acc, gyr = info.calibrate(
         full[ACC].to_numpy(float), full[GYR].to_numpy(float), acc_unit=acc_unit, gyr_unit=gyr_unit
     )
     import imucal
 
-    out = {k: np.asarray(getattr(info, k)).tolist() for k in ("K_a", "R_a", "b_a", "K_g", "R_g", "K_ga", "b_g")}
+    out = {
+        k: np.asarray(getattr(info, k)).tolist()
+        for k in ("K_a", "R_a", "b_a", "K_g", "R_g", "K_ga", "b_g")
+    }
     out.update(
         version=imucal.__version__ if hasattr(imucal, "__version__") else "unknown",
         expected_angle_deg=float(expected_angle),

@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from imucal import errormodel
 from imucal.accelerometer import fit_cube
 from imucal.ferraris import FACE_DIRECTIONS, fit_known_orientations, fit_known_rotations
 from imucal.posetopose import fit_pose_to_pose, gravity_direction_errors
+
+from imucal import errormodel
 
 REPO = Path(__file__).resolve().parents[3]
 HERE = Path(__file__).resolve().parent
@@ -206,7 +206,10 @@ def pose_problem(
     start = np.array([means[i] for i, _ in pairs])
     end = np.array([means[j] for _, j in pairs])
     intervals = [
-        (t_s[stretches[i][1] - 1 : stretches[j][0] + 1], gyr[stretches[i][1] - 1 : stretches[j][0] + 1])
+        (
+            t_s[stretches[i][1] - 1 : stretches[j][0] + 1],
+            gyr[stretches[i][1] - 1 : stretches[j][0] + 1],
+        )
         for i, j in pairs
     ]
     return start, end, intervals
@@ -241,15 +244,22 @@ def _peer_env() -> dict:
 def ensure_venv() -> Path:
     python = VENV / "bin" / "python"
     check = [str(python), "-c", "import imucal.ferraris_calibration"]
-    if python.exists() and subprocess.run(check, capture_output=True, env=_peer_env()).returncode == 0:
+    if (
+        python.exists()
+        and subprocess.run(check, capture_output=True, env=_peer_env()).returncode == 0
+    ):
         return python
     venv.create(VENV, with_pip=True, clear=True)
     pip = subprocess.run(
         [str(python), "-m", "pip", "install", "--quiet", "imucal"],
-        capture_output=True, text=True, env=_peer_env(),
+        capture_output=True,
+        text=True,
+        env=_peer_env(),
     )
     if pip.returncode != 0:
-        skip(f"pip could not install the PyPI imucal into {VENV} (no network?):\n{pip.stderr[-800:]}")
+        skip(
+            f"pip could not install the PyPI imucal into {VENV} (no network?):\n{pip.stderr[-800:]}"
+        )
     return python
 
 
@@ -257,9 +267,17 @@ def run_peer(python: Path, session: str, expected_angle_deg: float) -> tuple[dic
     WORK.mkdir(parents=True, exist_ok=True)
     prefix = WORK / f"{session}_{expected_angle_deg:+.0f}"
     subprocess.run(
-        [str(python), str(HERE / "pypi_adapter.py"), session, str(FERRARIS_DIR),
-         str(expected_angle_deg), str(prefix)],
-        check=True, env=_peer_env(), cwd=WORK,
+        [
+            str(python),
+            str(HERE / "pypi_adapter.py"),
+            session,
+            str(FERRARIS_DIR),
+            str(expected_angle_deg),
+            str(prefix),
+        ],
+        check=True,
+        env=_peer_env(),
+        cwd=WORK,
     )
     info = json.loads(prefix.with_suffix(".json").read_text())
     arrays = np.load(prefix.with_suffix(".npz"))
@@ -285,7 +303,11 @@ def our_ferraris(s: dict, faces: Sequence[str] = FACES):
     rotations = [(s["t_s"][slice(*sec[k])], gyr[slice(*sec[k])]) for k in ROTATIONS]
     known = s["rotation_sign"] * 2 * np.pi * np.eye(3)
     gyr_fit = fit_known_rotations(
-        rotations, known, bias, noise_std_rad_s=noise, bias_std_rad_s=noise / np.sqrt(n_static),
+        rotations,
+        known,
+        bias,
+        noise_std_rad_s=noise,
+        bias_std_rad_s=noise / np.sqrt(n_static),
         labels=list(ROTATIONS),
     )
     return acc_fit, gyr_fit
@@ -339,12 +361,14 @@ def ferraris_benchmark(s: dict, peer: dict, peer_arrays: dict) -> dict:
 
     pairs = consecutive_pairs(stretches, s["blocks"])
     outside = [
-        p for p in pairs
-        if not in_rotation[stretches[p[0]][1] - 1 : stretches[p[1]][0] + 1].any()
+        p for p in pairs if not in_rotation[stretches[p[0]][1] - 1 : stretches[p[1]][0] + 1].any()
     ]
     gravity = {}
-    for name, acc_cal, gyr_cal in (("ours", ours_acc, ours_gyr), ("pypi", peer_acc, peer_gyr),
-                                   ("raw", s["acc"], s["gyr"] - gyr_fit.calibration.bias)):
+    for name, acc_cal, gyr_cal in (
+        ("ours", ours_acc, ours_gyr),
+        ("pypi", peer_acc, peer_gyr),
+        ("raw", s["acc"], s["gyr"] - gyr_fit.calibration.bias),
+    ):
         res = {}
         for label, subset in (("all", pairs), ("outside_rotations", outside)):
             if subset:
@@ -361,9 +385,14 @@ def ferraris_benchmark(s: dict, peer: dict, peer_arrays: dict) -> dict:
         loo = []
         for k in range(len(iv)):
             keep = [i for i in range(len(iv)) if i != k]
-            f = fit_pose_to_pose(st[keep], en[keep], [iv[i] for i in keep], gyr_fit.calibration.bias)
-            loo.append(gravity_direction_errors(st[k : k + 1], en[k : k + 1], [iv[k]],
-                                                f.calibration.matrix, f.calibration.bias)[0])
+            f = fit_pose_to_pose(
+                st[keep], en[keep], [iv[i] for i in keep], gyr_fit.calibration.bias
+            )
+            loo.append(
+                gravity_direction_errors(
+                    st[k : k + 1], en[k : k + 1], [iv[k]], f.calibration.matrix, f.calibration.bias
+                )[0]
+            )
         p2p = {
             "in_sample": angle_summary(full_fit.angle_errors_deg),
             "leave_one_interval_out": angle_summary(np.array(loo)),
@@ -397,7 +426,9 @@ def ferraris_benchmark(s: dict, peer: dict, peer_arrays: dict) -> dict:
                 "raw": magnitude_rms(s["acc"], held, G_FERRARIS),
                 "ours": magnitude_rms(ours_acc, held, G_FERRARIS),
                 "pypi": magnitude_rms(peer_acc, held, G_FERRARIS),
-            } if held else None,
+            }
+            if held
+            else None,
             "ours_leave_one_face_out_rms_m_s2": float(np.sqrt(np.mean(lopo**2))),
         },
         "gravity_direction": gravity,
@@ -407,9 +438,11 @@ def ferraris_benchmark(s: dict, peer: dict, peer_arrays: dict) -> dict:
         "params": {
             "ours": {"acc": acc_fit.calibration.to_dict(), "gyr": gyr_fit.calibration.to_dict()},
             "pypi": {
-                "acc_matrix": peer_matrix_acc.tolist(), "acc_bias": peer["b_a"],
+                "acc_matrix": peer_matrix_acc.tolist(),
+                "acc_bias": peer["b_a"],
                 "gyr_matrix_from_deg_s_to_deg_s": peer_matrix_gyr.tolist(),
-                "gyr_bias": peer["b_g"], "K_ga": peer["K_ga"],
+                "gyr_bias": peer["b_g"],
+                "K_ga": peer["K_ga"],
                 "expected_angle_deg": peer["expected_angle_deg"],
             },
         },
@@ -449,8 +482,9 @@ def imutk_benchmark() -> dict:
     for k in range(len(iv)):
         keep = [i for i in range(len(iv)) if i != k]
         f = fit_pose_to_pose(st[keep], en[keep], [iv[i] for i in keep], np.zeros(3))
-        loo.append(gravity_direction_errors(st[k : k + 1], en[k : k + 1], [iv[k]],
-                                            f.calibration.matrix)[0])
+        loo.append(
+            gravity_direction_errors(st[k : k + 1], en[k : k + 1], [iv[k]], f.calibration.matrix)[0]
+        )
     dt = np.diff(t)
     return {
         "samples": len(t),
@@ -498,15 +532,21 @@ def tables(results: dict) -> str:
         a, gd = r["acc"], r["gravity_direction"]
         name = r["session"]
         ins = a["in_sample_rms_m_s2"]
-        lines.append(f"| {name} | in-sample static abs(a)-g RMS, 6 faces | {ins['raw']:.4f} | "
-                     f"{ins['ours']:.4f} | {ins['pypi']:.4f} |")
-        lines.append(f"| {name} | held-out: leave-one-face-out abs(a)-g RMS | | "
-                     f"{a['ours_leave_one_face_out_rms_m_s2']:.4f} | not refittable on 5 faces |")
+        lines.append(
+            f"| {name} | in-sample static abs(a)-g RMS, 6 faces | {ins['raw']:.4f} | "
+            f"{ins['ours']:.4f} | {ins['pypi']:.4f} |"
+        )
+        lines.append(
+            f"| {name} | held-out: leave-one-face-out abs(a)-g RMS | | "
+            f"{a['ours_leave_one_face_out_rms_m_s2']:.4f} | not refittable on 5 faces |"
+        )
         if a["held_out_pauses_rms_m_s2"]:
             h = a["held_out_pauses_rms_m_s2"]
-            lines.append(f"| {name} | held-out: abs(a)-g RMS on {r['held_out_stretches']} static "
-                         f"stretches outside the faces | {h['raw']:.4f} | {h['ours']:.4f} | "
-                         f"{h['pypi']:.4f} |")
+            lines.append(
+                f"| {name} | held-out: abs(a)-g RMS on {r['held_out_stretches']} static "
+                f"stretches outside the faces | {h['raw']:.4f} | {h['ours']:.4f} | "
+                f"{h['pypi']:.4f} |"
+            )
         for label in ("all", "outside_rotations"):
             if label in gd["ours"]:
                 o, p, w = gd["ours"][label], gd["pypi"][label], gd["raw"][label]
@@ -518,11 +558,15 @@ def tables(results: dict) -> str:
         p2p = r["ours_pose_to_pose_gyro"]
         if "leave_one_interval_out" in p2p:
             q = p2p["leave_one_interval_out"]
-            lines.append(f"| {name} | ours pose-to-pose gyro, leave-one-interval-out RMS / max deg "
-                         f"| | {q['rms_deg']:.3f} / {q['max_deg']:.3f} | |")
+            lines.append(
+                f"| {name} | ours pose-to-pose gyro, leave-one-interval-out RMS / max deg "
+                f"| | {q['rms_deg']:.3f} / {q['max_deg']:.3f} | |"
+            )
         rt = r["run_time_s"]
-        lines.append(f"| {name} | fit run time, s (fastest of {REPEATS}) | | "
-                     f"{rt['ours_acc_plus_gyr']:.4f} | {rt['pypi_compute']:.4f} |")
+        lines.append(
+            f"| {name} | fit run time, s (fastest of {REPEATS}) | | "
+            f"{rt['ours_acc_plus_gyr']:.4f} | {rt['pypi_compute']:.4f} |"
+        )
     m = results["imu_tk"]
     g = m["gravity_direction"]
     lines += [

@@ -20,12 +20,22 @@ from pathlib import Path
 
 import pandas as pd
 
-from imucal.io.dataset import read_dataset
 from imucal.ingest import ingest_recording
+from imucal.io.dataset import read_dataset
 
 REPO = Path(__file__).resolve().parents[3]
-FIT_RULES = ("segment", "mag_step1", "mag_step2", "acc_cube", "acc_align", "gyr_bias",
-             "gyr_align", "gyr_scale", "gyr_table", "validate")
+FIT_RULES = (
+    "segment",
+    "mag_step1",
+    "mag_step2",
+    "acc_cube",
+    "acc_align",
+    "gyr_bias",
+    "gyr_align",
+    "gyr_scale",
+    "gyr_table",
+    "validate",
+)
 
 
 def session_minutes(folder: Path) -> float:
@@ -51,18 +61,47 @@ def main() -> None:
             src = REPO / name
             (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
         probe = work / "data" / "probe"
-        subprocess.run(["imucal", "simulate", str(probe), "--preset", "demo", "--seed",
-                        str(args.seed), "--static-s", "10", "--name", "probe"], check=True,
-                       capture_output=True)
+        subprocess.run(
+            [
+                "imucal",
+                "simulate",
+                str(probe),
+                "--preset",
+                "demo",
+                "--seed",
+                str(args.seed),
+                "--static-s",
+                "10",
+                "--name",
+                "probe",
+            ],
+            check=True,
+            capture_output=True,
+        )
         static_s = max(10.0, args.minutes * 60 - (session_minutes(probe) * 60 - 10))
         folder = work / "data" / "long"
-        subprocess.run(["imucal", "simulate", str(folder), "--preset", "demo", "--seed",
-                        str(args.seed), "--static-s", f"{static_s:.0f}", "--name", "long"],
-                       check=True, capture_output=True)
+        subprocess.run(
+            [
+                "imucal",
+                "simulate",
+                str(folder),
+                "--preset",
+                "demo",
+                "--seed",
+                str(args.seed),
+                "--static-s",
+                f"{static_s:.0f}",
+                "--name",
+                "long",
+            ],
+            check=True,
+            capture_output=True,
+        )
         minutes = session_minutes(folder)
         (work / "config" / "config.yaml").write_text("datasets:\n  long: data/long\n")
-        run = subprocess.run(["snakemake", "--cores", "2", "-q"], cwd=work, capture_output=True,
-                             text=True)
+        run = subprocess.run(
+            ["snakemake", "--cores", "2", "-q"], cwd=work, capture_output=True, text=True
+        )
         if run.returncode != 0:
             raise SystemExit(f"snakemake failed:\n{run.stderr[-3000:]}")
         bench = work / "results" / "long" / "benchmarks"
