@@ -48,7 +48,7 @@ def diagnose(
     *,
     dataset: str,
     segments: pd.DataFrame | None = None,
-    replicas: int = 30,
+    replicas: int = 20,
     alpha: float = 0.05,
     seed: int = 1000,
     min_heldout_shrink: float = 0.3,

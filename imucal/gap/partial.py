@@ -680,7 +680,7 @@ def diagnose_static(
     calibration: Mapping | None = None,
     sensitivity: Mapping[str, float] | None = None,
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
-    replicas: int = 30,
+    replicas: int = 20,
     alpha: float = 0.05,
     seed: int = 1000,
     min_heldout_shrink: float = 0.3,

@@ -41,9 +41,10 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from imucal import errormodel, validation
+from imucal import errormodel
 from imucal.columns import AXES, GYR, SENSOR_COLUMNS, SENSORS, SEQ, TIME
 from imucal.gap.pipeline import SessionFit, calibrated
+from imucal.ingest.timebase import unwrap_seq
 
 HALVES = (None, "A", "B")
 #: Column of the temperature channel when a session has one.
@@ -169,14 +170,14 @@ def lost_packets(seq: np.ndarray) -> tuple[int, int, np.ndarray]:
     gaps : ndarray of int
         Length of every gap (packets), shape (k,).
     """
-    step = np.diff(validation.unwrap_seq(np.asarray(seq)))
+    step = np.diff(unwrap_seq(np.asarray(seq)))
     gaps = step[step > 1] - 1
     return int(gaps.sum()), int(step.sum()) + 1, gaps
 
 
 def stamp_residual(t_s: np.ndarray, seq: np.ndarray) -> np.ndarray:
     """Receive timestamps about the straight line of the packet clock (s), shape (n,)."""
-    k = validation.unwrap_seq(np.asarray(seq)).astype(float)
+    k = unwrap_seq(np.asarray(seq)).astype(float)
     a = np.polyfit(k - k.mean(), t_s, 1)
     return t_s - np.polyval(a, k - k.mean())
 

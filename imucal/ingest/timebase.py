@@ -106,6 +106,49 @@ def unwrap_counter(
     return c[0] + np.concatenate(([0], np.cumsum(steps)))
 
 
+def unwrap_seq(
+    seq: np.ndarray, modulus: int = SEQ_MODULUS, t_s: np.ndarray | None = None
+) -> np.ndarray:
+    """Packet index from a wrapping packet counter, checked (see :func:`unwrap_counter`).
+
+    Parameters
+    ----------
+    seq : array_like of int, shape (n,)
+        Received packet counters in order of reception, counting modulo ``modulus``.
+    modulus : int
+        Counter period (65536 for a 16-bit counter).
+    t_s : array_like, shape (n,), optional
+        Receiver times, s; with them a silence longer than a wrap is counted from the time.
+
+    Returns
+    -------
+    ndarray of int64, shape (n,)
+        Index of each packet counted from the first received one (0); lost packets leave gaps.
+
+    Raises
+    ------
+    ValueError
+        If ``seq`` is empty, not one-dimensional, or repeats a counter value (difference 0).
+
+    Notes
+    -----
+    Without ``t_s`` a loss of ``modulus / 2`` or more consecutive packets cannot be told from a
+    counter going back.
+    """
+    s = np.asarray(seq)
+    if s.ndim != 1 or s.size == 0:
+        raise ValueError(f"seq must be a non-empty 1-D array, got shape {s.shape}")
+    step = np.mod(np.diff(s.astype(np.int64)), modulus)
+    if np.any(step == 0):
+        first = int(np.flatnonzero(step == 0)[0])
+        raise ValueError(
+            f"seq repeats the value {int(s[first])} at rows {first} and {first + 1}; "
+            "expected a strictly advancing packet counter"
+        )
+    index = unwrap_counter(s, modulus, t_s)
+    return index - index[0]
+
+
 def sampling_period(t_s: np.ndarray) -> tuple[float, bool]:
     """Nominal sampling period of timestamps ``t_s`` and whether they are irregular.
 

@@ -21,7 +21,6 @@ from imucal.validation.timing import (
     correlate_offsets,
     estimate_time_alignment,
     packet_times,
-    unwrap_seq,
 )
 
 __all__ = [
@@ -38,6 +37,5 @@ __all__ = [
     "estimate_time_alignment",
     "packet_times",
     "summarise_dip",
-    "unwrap_seq",
     "validate",
 ]

@@ -27,57 +27,14 @@ from scipy.interpolate import BSpline, CubicSpline, make_smoothing_spline
 from scipy.optimize import least_squares
 from scipy.signal import correlate
 
-from imucal.columns import SENSOR_COLUMNS, SENSORS, SEQ, SEQ_MODULUS, TIME
-from imucal.ingest.timebase import unwrap_counter
+from imucal.columns import SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.ingest.timebase import unwrap_seq
 
 #: The time convention of :class:`TimeAlignment`, written into the JSON result.
 TIME_CONVENTION = "t_ref = offset_s + (1 + drift_ppm * 1e-6) * t_module"
 
 
 # --------------------------------------------------------------------------- time axes
-
-
-def unwrap_seq(
-    seq: np.ndarray, modulus: int = SEQ_MODULUS, t_s: np.ndarray | None = None
-) -> np.ndarray:
-    """Packet index from a wrapping packet counter (:func:`imucal.ingest.timebase.unwrap_counter`).
-
-    Parameters
-    ----------
-    seq : array_like of int, shape (n,)
-        Received packet counters in order of reception, counting modulo ``modulus``.
-    modulus : int
-        Counter period (65536 for a 16-bit counter).
-    t_s : array_like, shape (n,), optional
-        Receiver times, s; with them a silence longer than a wrap is counted from the time.
-
-    Returns
-    -------
-    ndarray of int64, shape (n,)
-        Index of each packet counted from the first received one (0); lost packets leave gaps.
-
-    Raises
-    ------
-    ValueError
-        If ``seq`` is empty, not one-dimensional, or repeats a counter value (difference 0).
-
-    Notes
-    -----
-    Without ``t_s`` a loss of ``modulus / 2`` or more consecutive packets cannot be told from a
-    counter going back.
-    """
-    s = np.asarray(seq)
-    if s.ndim != 1 or s.size == 0:
-        raise ValueError(f"seq must be a non-empty 1-D array, got shape {s.shape}")
-    step = np.mod(np.diff(s.astype(np.int64)), modulus)
-    if np.any(step == 0):
-        first = int(np.flatnonzero(step == 0)[0])
-        raise ValueError(
-            f"seq repeats the value {int(s[first])} at rows {first} and {first + 1}; "
-            "expected a strictly advancing packet counter"
-        )
-    index = unwrap_counter(s, modulus, t_s)
-    return index - index[0]
 
 
 def packet_times(t_s: np.ndarray, seq: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from imucal.columns import (
     SEQ_MODULUS,
     TIME,
 )
+from imucal.ingest.timebase import unwrap_seq
 from imucal.plots.validation import plot_cross_correlation, plot_magnitudes
 
 matplotlib.use("Agg")
@@ -185,7 +186,7 @@ def test_packet_times_place_samples_by_counter_across_wrap_and_losses(session):
 
 def test_unwrap_seq_rejects_repeated_counter():
     with pytest.raises(ValueError, match="repeats the value 7"):
-        validation.unwrap_seq(np.array([5, 6, 7, 7, 8]))
+        unwrap_seq(np.array([5, 6, 7, 7, 8]))
 
 
 def test_time_alignment_recovers_offset_and_drift(session):
