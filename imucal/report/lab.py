@@ -582,7 +582,8 @@ def build_report_context(
     benchmarks : sequence of path or mapping label -> path
         Snakemake benchmark TSV files (:func:`read_benchmarks`).
     config : mapping, optional
-        The workflow config, shown in the provenance.
+        The settings of the run (the dataset's folder and config sections), shown in the
+        provenance.
     git_commit : str
         Commit of the workflow ("unknown" when not in a git checkout).
     snakemake_version : str, optional

@@ -44,12 +44,36 @@ def folder_of(name):
     return str(Path(folders[name]))
 
 
+#: Config sections a config/real file may set for its datasets alone.
+DATASET_SECTIONS = ("segmentation", "noise")
+#: Config sections of the checks (blind, stress, detection), not of one dataset's run.
+CHECK_SECTIONS = ("datasets", "blind", "stress", "detection")
+
+
+def dataset_config(name, section):
+    """One config section of a dataset: global, updated by its config/real file."""
+    settings = dict(config[section])
+    if section in DATASET_SECTIONS:
+        for real in REAL_CONFIGS.values():
+            if name in real.get("datasets", {}):
+                settings.update(real.get(section, {}))
+    return settings
+
+
 def segmentation_settings(wildcards):
-    """The `segmentation` config of a dataset: global, updated by its config/real file."""
-    settings = dict(config["segmentation"])
-    for real in REAL_CONFIGS.values():
-        if wildcards.dataset in real.get("datasets", {}):
-            settings.update(real.get("segmentation", {}))
+    """The `segmentation` config of a dataset (a rule param)."""
+    return dataset_config(wildcards.dataset, "segmentation")
+
+
+def run_settings(wildcards):
+    """The settings one dataset's run used, as its report records them: its folder and every
+    config section of the pipeline (with the dataset's config/real overrides)."""
+    settings = {"datasets": {wildcards.dataset: folder_of(wildcards.dataset)}}
+    for key, value in config.items():
+        if key in CHECK_SECTIONS:
+            continue
+        is_section = isinstance(value, dict)
+        settings[key] = dataset_config(wildcards.dataset, key) if is_section else value
     return settings
 
 
@@ -213,12 +237,8 @@ def gravity(wildcards):
 
 
 def noise_settings(name):
-    """The `noise` config of a dataset: global, updated by its config/real file."""
-    settings = dict(config["noise"])
-    for real in REAL_CONFIGS.values():
-        if name in real.get("datasets", {}):
-            settings.update(real.get("noise", {}))
-    return settings
+    """The `noise` config of a dataset."""
+    return dataset_config(name, "noise")
 
 
 def noise_setting(key):

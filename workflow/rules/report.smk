@@ -63,7 +63,7 @@ rule report:
     conda:
         "../envs/imucal.yaml"
     params:
-        config=config,
+        settings=run_settings,
         git_commit=GIT_COMMIT,
         imucal_version=IMUCAL_VERSION,
     script:

@@ -27,7 +27,7 @@ context = build_report_context(
         else []
     ),  # noqa: SIM118
     benchmarks=list(snakemake.input.benchmarks),
-    config=dict(snakemake.params.config),
+    config=dict(snakemake.params.settings),
     git_commit=snakemake.params.git_commit,
     imucal_version=snakemake.params.imucal_version,
     gap=list(snakemake.input.gap) if "gap" in snakemake.input.keys() else None,  # noqa: SIM118
