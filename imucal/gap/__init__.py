@@ -10,6 +10,5 @@ set), :mod:`.detection` (detection limits). See docs/gap.md.
 """
 
 from imucal.gap.diagnosis import FORMAT_VERSION, diagnose
-from imucal.gap.pipeline import PipelineOptions, SessionFit, calibrate_session
 
-__all__ = ["FORMAT_VERSION", "PipelineOptions", "SessionFit", "calibrate_session", "diagnose"]
+__all__ = ["FORMAT_VERSION", "diagnose"]

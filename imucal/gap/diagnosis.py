@@ -24,9 +24,9 @@ import pandas as pd
 from imucal.gap.attribution import attribute, confusable
 from imucal.gap.effects import library, misalignment_report
 from imucal.gap.null import build_null, holm, run_replicas
-from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.gap.statistics import CATALOGUE, HALVES, clip_fractions, compute_statistics
 from imucal.gap.twin import build_twin
+from imucal.pipeline.full import PipelineOptions, calibrate_session
 
 FORMAT_VERSION = 1
 LOCATION_FIELDS = ("stage", "sensor", "axis", "segment", "statistic")

@@ -19,7 +19,7 @@ from imucal import errormodel
 from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
 from imucal.constants import EARTH_RATE_RAD_S, SESSION_GAP_S
 from imucal.gap import statistics as st
-from imucal.gap.pipeline import SessionFit, calibrated
+from imucal.pipeline.full import SessionFit, calibrated
 from imucal.sim.effects import EFFECTS, make_effect
 
 
@@ -514,7 +514,7 @@ def misalignment_report(fit: SessionFit, replica_fits: list, z: float) -> dict:
     """Whether the paper's small-angle form (eq. 5) would open a gap for this calibration.
 
     The session's alignment stages are refitted with the small-angle form
-    (:func:`imucal.gap.pipeline.refit_alignment`); the small-angle matrix error of a sensor is
+    (:func:`imucal.pipeline.full.refit_alignment`); the small-angle matrix error of a sensor is
     the Frobenius norm of ``K_small K_exact^-1 - I``. Its precision is the matrix's own: the
     root of the summed variances of the entries of ``K_r Kbar^-1 - I`` over the replicas
     (null; their truths carry the session's fitted angles). A sensor needs the exact rotation
@@ -528,7 +528,7 @@ def misalignment_report(fit: SessionFit, replica_fits: list, z: float) -> dict:
         ``replica_small_angle_error`` (mean, std over the replicas), ``matrix_precision``;
         ``sensors`` where the small-angle form would fail; ``present`` and a ``note``.
     """
-    from imucal.gap.pipeline import refit_alignment
+    from imucal.pipeline.full import refit_alignment
 
     angles = estimate_large_misalignment(fit, None).params
     small = refit_alignment(fit, exact=False)

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
-from imucal.gap.pipeline import calibrate_session
 from imucal.gap.statistics import CATALOGUE, HALVES, Key, compute_statistics
 from imucal.gap.twin import Twin, render_replica, replica_options
+from imucal.pipeline.full import calibrate_session
 
 
 def transform(key: Key, value: float) -> float:

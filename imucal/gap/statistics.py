@@ -43,8 +43,8 @@ from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.columns import AXES, GYR, SENSOR_COLUMNS, SENSORS, SEQ, TIME
-from imucal.gap.pipeline import SessionFit, calibrated
 from imucal.ingest.timebase import unwrap_seq
+from imucal.pipeline.full import SessionFit, calibrated
 
 HALVES = (None, "A", "B")
 #: Column of the temperature channel when a session has one.

@@ -25,9 +25,9 @@ from imucal.columns import SENSORS
 from imucal.constants import IMU_RECORDINGS
 from imucal.gap.blind import failed_diagnosis
 from imucal.gap.diagnosis import diagnose
-from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
+from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim.effects import CANONICAL, stream_rng
 
 #: Conditions: truth preset, protocol settings and protocol effects the diagnosis does not model.
@@ -200,9 +200,7 @@ def diagnose_folder(
             for r, path in info.recordings.items()
         }
         imu = {r: t for r, t in tables.items() if r in IMU_RECORDINGS}
-        options = PipelineOptions(
-            info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm
-        )
+        options = PipelineOptions.of_dataset(info)
         try:
             fit = calibrate_session(imu, tables.get("reference"), options)
             calibration, incomplete = fit.calibration.to_dict(), None

@@ -22,8 +22,8 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
-from imucal.gap.pipeline import PipelineOptions, SessionFit, calibrated
 from imucal.ingest import counts_to_si
+from imucal.pipeline.full import PipelineOptions, SessionFit, calibrated
 from imucal.sim import ProtocolConfig, World, simulate_session
 from imucal.sim.sensors import INT16_MAX
 from imucal.sim.truth import REFERENCE_NOISE, Truth
@@ -261,7 +261,7 @@ def build_twin(fit: SessionFit, options: PipelineOptions) -> Twin:
     Parameters
     ----------
     fit : SessionFit
-        The session run through :func:`imucal.gap.pipeline.calibrate_session`.
+        The session run through :func:`imucal.pipeline.full.calibrate_session`.
     options : PipelineOptions
 
     Returns

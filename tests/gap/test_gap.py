@@ -8,9 +8,9 @@ from scipy import stats as sps
 
 from imucal.gap import effects as gap_effects
 from imucal.gap.null import NullModel, build_null, holm, run_replicas, total_gap
-from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.gap.statistics import compute_statistics
 from imucal.gap.twin import build_twin, render_replica
+from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import ProtocolConfig, make_effect, make_truth
 from imucal.sim.effects import stream_rng
 from imucal.sim.session import SENSITIVITY

@@ -10,8 +10,8 @@ import pytest
 from imucal.gap import effects as gap_effects
 from imucal.gap.effects import EARTH_RATE_RAD_S, Estimate, earth_gate, misalignment_report
 from imucal.gap.null import run_replica
-from imucal.gap.pipeline import PipelineOptions, calibrate_session
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
+from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import ProtocolConfig, make_effect, make_truth
 from imucal.sim.effects import stream_rng
 from imucal.sim.session import SENSITIVITY

@@ -126,9 +126,10 @@ def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_satura
     scale can be fitted and the full twin cannot be built, yet the diagnosis ends, on the
     static recording, with the reason and 'saturation' noted from the readings."""
     from imucal.constants import IMU_RECORDINGS
-    from imucal.gap import PipelineOptions, diagnose
+    from imucal.gap import diagnose
     from imucal.ingest import ingest_recording
     from imucal.io.dataset import read_dataset
+    from imucal.pipeline.full import PipelineOptions
     from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
     from imucal.sim.effects import make_effect, stream_rng
 
@@ -142,9 +143,7 @@ def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_satura
         for r, p in info.recordings.items()
         if r in IMU_RECORDINGS
     }
-    options = PipelineOptions(
-        info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm
-    )
+    options = PipelineOptions.of_dataset(info)
     result = diagnose(imu, None, options, dataset="clipped", replicas=5)
     assert "the calibration chain stopped" in result["fallback"]
     assert result["noted"] == ["saturation"]

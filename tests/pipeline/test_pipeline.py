@@ -15,17 +15,16 @@ from imucal.calibration import ImuCalibration
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import stages
-from imucal.segments.filtering import lowpass_recording
-from imucal.segments.segmentation import segment_dataset
+from imucal.pipeline.full import PipelineOptions, calibrate_session
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 def calibrate(folder: Path) -> tuple[dict, dict, dict]:
-    """Run every stage function in pipeline order, as the workflow does.
+    """Ingest a session and run the paper's chain on it, as the workflow does.
 
     Returns the calibration dict, the session's truth.json, and the stage inputs (``tables``:
-    ingested recordings with their metadata, ``segments``).
+    ingested recordings with their metadata, ``segments``, ``lowpass``).
     """
     dataset = read_dataset(folder)
     tables = {
@@ -33,27 +32,10 @@ def calibrate(folder: Path) -> tuple[dict, dict, dict]:
         for name, path in dataset.recordings.items()
     }
     imu = {k: v[0] for k, v in tables.items() if k != "reference"}
-    segments = segment_dataset(imu, ratetable=dataset.ratetable)
-    low = lowpass_recording(imu["rotation3d"], order=4, cutoff_hz=5.0)
-    limit_acc = dataset.range_counts["acc"] * dataset.sensitivity["acc"]
-    limit_gyr = dataset.range_counts["gyr"] * dataset.sensitivity["gyr"]
-    mag = stages.align_mag(
-        imu["rotation3d"], segments, stages.fit_mag_step1(imu["rotation3d"], imu["cube"])
-    )
-    cube, _ = stages.fit_acc_cube(
-        imu["cube"], segments, gravity_m_s2=dataset.gravity_m_s2, saturation_limit_m_s2=limit_acc
-    )
-    acc = stages.align_acc(low, segments, cube)
-    bias, _ = stages.estimate_gyr_bias(imu, segments)
-    o, _ = stages.gyr_bias_value(bias, "ls")
-    alignment = stages.align_gyr(low, segments, o)
-    scale = stages.estimate_gyr_scale(imu["rotation3d"], segments, bias, alignment, acc, mag)
-    table, _ = stages.fit_gyr_table(imu["ratetable"], segments, saturation_limit_rad_s=limit_gyr)
-    table_alignment = stages.align_gyr(low, segments, table["bias"], table["upper"])
+    fit = calibrate_session(imu, None, PipelineOptions.of_dataset(dataset))
     truth = json.loads((folder / "truth.json").read_text())
-    gyr, _ = stages.combine_gyr(bias, alignment, scale, table, table_alignment, truth=truth)
-    calibration = stages.combine_calibration(acc, gyr, mag).to_dict()
-    return calibration, truth, {"tables": tables, "segments": segments, "lowpass": low}
+    inputs = {"tables": tables, "segments": fit.segments, "lowpass": fit.lowpass}
+    return fit.calibration.to_dict(), truth, inputs
 
 
 def max_errors(calibration: dict, truth: dict, sensor: str) -> tuple[float, float]:

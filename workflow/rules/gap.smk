@@ -113,6 +113,9 @@ rule blind_diagnose:
         min_heldout_shrink=config["gap"]["min_heldout_shrink"],
         crn_seeds=config["gap"]["crn_seeds"],
         detect_z=config["gap"]["detect_z"],
+        exact_rotation=config["exact_rotation"],
+        lowpass_order=config["lowpass"]["order"],
+        lowpass_cutoff_hz=config["lowpass"]["cutoff_hz"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_blind_diagnose.py"

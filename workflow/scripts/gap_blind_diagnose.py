@@ -4,11 +4,12 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.constants import IMU_RECORDINGS
-from imucal.gap import PipelineOptions, diagnose
+from imucal.gap import diagnose
 from imucal.gap.blind import failed_diagnosis
 from imucal.ingest import ingest_recording
 from imucal.io import write_json
 from imucal.io.dataset import read_dataset
+from imucal.pipeline.full import PipelineOptions
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -20,8 +21,11 @@ tables = {
     r: ingest_recording(path, r, info, p.imucal_version)[0] for r, path in info.recordings.items()
 }
 imu = {r: t for r, t in tables.items() if r in IMU_RECORDINGS}
-options = PipelineOptions(
-    info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm
+options = PipelineOptions.of_dataset(
+    info,
+    exact_rotation=p.exact_rotation,
+    lowpass_order=p.lowpass_order,
+    lowpass_cutoff_hz=p.lowpass_cutoff_hz,
 )
 try:
     result = diagnose(

@@ -4,10 +4,11 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.constants import IMU_RECORDINGS
-from imucal.gap import PipelineOptions, diagnose
+from imucal.gap import diagnose
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.pipeline.full import PipelineOptions
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -23,10 +24,12 @@ imu = {
 reference = (
     read_recording(snakemake.input.reference)[0] if "reference" in snakemake.input.keys() else None
 )  # noqa: SIM118
-options = PipelineOptions(
-    info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm,
-    p.exact_rotation, p.lowpass_order, p.lowpass_cutoff_hz,
-)  # fmt: skip
+options = PipelineOptions.of_dataset(
+    info,
+    exact_rotation=p.exact_rotation,
+    lowpass_order=p.lowpass_order,
+    lowpass_cutoff_hz=p.lowpass_cutoff_hz,
+)
 result = diagnose(
     imu, reference, options, dataset=snakemake.wildcards.dataset,
     segments=read_segments(snakemake.input.segments), replicas=p.replicas, alpha=p.alpha,

@@ -10,18 +10,17 @@ import sys
 import time
 
 from imucal.constants import IMU_RECORDINGS
-from imucal.gap import PipelineOptions, calibrate_session, diagnose
+from imucal.gap import diagnose
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
+from imucal.pipeline.full import PipelineOptions, calibrate_session
 
 
 def main(folder: str, replicas: int = 20) -> None:
     info = read_dataset(folder)
     tables = {r: ingest_recording(p, r, info, "bench")[0] for r, p in info.recordings.items()}
     imu = {r: t for r, t in tables.items() if r in IMU_RECORDINGS}
-    options = PipelineOptions(
-        info.gravity_m_s2, info.sensitivity, info.range_counts, info.ratetable, info.field_norm
-    )
+    options = PipelineOptions.of_dataset(info)
     t0 = time.perf_counter()
     calibrate_session(imu, tables.get("reference"), options)
     base = time.perf_counter() - t0

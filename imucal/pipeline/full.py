@@ -1,15 +1,16 @@
-"""The calibration pipeline run in process on in-memory tables (the real session and its twins).
+"""The paper's whole chain run in process on in-memory tables: segment, filter, fit, combine.
 
-The gap statistics of a recorded session and of its twin replicas must come from the same code
-path, so both go through :func:`calibrate_session`, which calls the stage functions of
-:mod:`imucal.pipeline.stages` in the workflow's order (as ``tests/test_pipeline.py`` does), without
-Snakemake and without files.
+:func:`calibrate_session` calls the stage functions of :mod:`imucal.pipeline.stages` in the
+workflow's order, with the workflow's fallbacks, without Snakemake and without files. The gap
+diagnosis calibrates a recorded session and its twin replicas with it (their statistics must
+come from one code path), and the tests check the chain against known truth with it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -17,6 +18,7 @@ import pandas as pd
 from imucal import validation
 from imucal.calibration import ImuCalibration
 from imucal.columns import GYR, SEQ, TIME
+from imucal.io.dataset import Dataset
 from imucal.pipeline import stages
 from imucal.segments.filtering import lowpass_recording
 from imucal.segments.segmentation import segment_dataset
@@ -53,6 +55,19 @@ class PipelineOptions:
     lowpass_order: int = 4
     lowpass_cutoff_hz: float = 5.0
     held_by_hand: tuple = ()
+
+    @classmethod
+    def of_dataset(cls, dataset: Dataset, **settings: Any) -> PipelineOptions:
+        """The options of a dataset (``dataset.yaml``), with the workflow's ``settings``
+        (``exact_rotation``, ``lowpass_order``, ``lowpass_cutoff_hz``, ``held_by_hand``)."""
+        return cls(
+            dataset.gravity_m_s2,
+            dataset.sensitivity,
+            dataset.range_counts,
+            dataset.ratetable,
+            dataset.field_norm,
+            **settings,
+        )
 
     def limit(self, sensor: str) -> float:
         """Sensor range in SI units."""
