@@ -34,21 +34,8 @@ from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
 from imucal.fits import accelerometer, gyroscope
 from imucal.pipeline import stages
 from imucal.pipeline.outcome import not_run_reason
+from imucal.pipeline.registry import FINAL, STAGES, VALIDATE
 
-#: Stage names in run order, with what each does (the report lists them in this order).
-STAGES = {
-    "mag_step1": "magnetometer ellipsoid fit (eqs. 17-24)",
-    "mag_step2": "magnetometer alignment T_R from the rotation3d phases (eqs. 25-27)",
-    "acc_known_orientation": "accelerometer from static faces of known orientation (Ferraris)",
-    "acc_cube": "accelerometer multi-position fit |a| = g (eq. 32)",
-    "acc_align": "accelerometer alignment T_R from the rotation3d phases (eqs. 25-27)",
-    "gyr_bias": "gyroscope bias from static data (eqs. 34-35)",
-    "gyr_table": "gyroscope rate-table fit (eq. 33)",
-    "gyr_align": "gyroscope alignment T_R from the rotation3d phases (eqs. 28-31)",
-    "gyr_known_rotation": "gyroscope from rotations of known angle (Ferraris; hand turns)",
-    "gyr_pose_to_pose": "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
-    "gyr_scale": "gyroscope scale from acc/mag angles, tool-free (eq. 36)",
-}
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
 MAG_RECORDINGS = ("tumble", "rotation3d", "cube", "poses", "ferraris", "static")
 #: The cube fit has 9 parameters and one equation per position.
@@ -81,7 +68,7 @@ class Outcome:
     def summary(self) -> dict:
         return {
             "stage": self.name,
-            "what": STAGES[self.name],
+            "what": STAGES[self.name].what,
             "status": self.status,
             "reason": self.reason,
         }
@@ -526,16 +513,11 @@ def run_stages(
             outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
             continue
         session.done[name] = artifact
-        outcomes.append(Outcome(name, "run", STAGES[name], artifact))
+        outcomes.append(Outcome(name, "run", STAGES[name].what, artifact))
     return outcomes
 
 
 #: Stages whose result is a sensor's final calibration, best first.
-FINAL = {
-    "mag": ("mag_step2", "mag_step1"),
-    "acc": ("acc_known_orientation", "acc_align", "acc_cube"),
-    "gyr": ("gyr_table", "gyr_known_rotation", "gyr_pose_to_pose", "gyr_scale", "gyr_bias"),
-}
 
 
 def final_calibration(outcomes: list[Outcome]) -> dict[str, Any]:
@@ -646,14 +628,14 @@ def full_protocol_stages(
     rows = [
         {
             "stage": name,
-            "what": what,
+            "what": stage.what,
             "status": "skipped" if name in skipped else "run",
-            "reason": skipped.get(name, what),
+            "reason": skipped.get(name, stage.what),
         }
-        for name, what in STAGES.items()
+        for name, stage in STAGES.items()
     ]
     rows.append({
-        "stage": "validate", "what": "validation against the reference",
+        "stage": VALIDATE.name, "what": VALIDATE.what,
         "status": "skipped" if "validate" in skipped else "run",
         "reason": skipped.get("validate") or ("against the reference" if has_reference
         else "reference-free checks only: the dataset has no reference recording"),

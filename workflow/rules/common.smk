@@ -10,6 +10,7 @@ import imucal
 from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.partial import is_full_protocol
+from imucal.pipeline.registry import full_protocol_artifacts
 
 DATASETS = sorted(config["datasets"])
 #: The public recordings' configs (config/real/*.yaml), each checked against the schema
@@ -173,17 +174,7 @@ def stages_listing(wildcards):
 
 
 #: Artifact of each stage of the stage-per-rule path (stages.json reads what ran from them).
-FULL_STAGE_ARTIFACTS = {
-    "mag_step1": "mag_step1.json",
-    "mag_step2": "mag.json",
-    "acc_cube": "acc_step1.json",
-    "acc_align": "acc.json",
-    "gyr_bias": "gyr_bias.json",
-    "gyr_table": "gyr_table.json",
-    "gyr_align": "gyr_align.json",
-    "gyr_scale": "gyr_scale.json",
-    "validate": "validation.json",
-}
+FULL_STAGE_ARTIFACTS = full_protocol_artifacts()
 
 
 def full_stage_artifacts(wildcards):

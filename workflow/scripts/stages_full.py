@@ -7,7 +7,8 @@ from typing import TYPE_CHECKING
 
 from imucal.io import read_json, read_recording, write_json
 from imucal.io.dataset import read_dataset
-from imucal.pipeline.partial import STAGES, full_protocol_stages
+from imucal.pipeline.partial import full_protocol_stages
+from imucal.pipeline.registry import full_protocol_artifacts
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -17,7 +18,7 @@ dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 artifacts = {
     stage: read_json(path)
     for stage, path in snakemake.input.items()
-    if stage in STAGES or stage == "validate"
+    if stage in full_protocol_artifacts()
 }
 stages = full_protocol_stages(
     set(dataset.recordings),

@@ -1,0 +1,99 @@
+"""The stages of the calibration, defined once: name, sensor, what each does, its artifact.
+
+The partial path (:mod:`imucal.pipeline.partial`) runs them in this order, the stage-per-rule
+workflow names its artifacts from here (``workflow/rules/common.smk``), and ``stages.json``
+lists them in this order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of the calibration.
+
+    Attributes
+    ----------
+    name : str
+        Stage name (the rule's name where the stage-per-rule workflow has one).
+    sensor : str
+        'acc', 'gyr' or 'mag'; 'all' for the validation.
+    what : str
+        What it does, with the paper's equations (the report lists it).
+    artifact : str or None
+        File of the stage-per-rule workflow under ``results/{dataset}/``; None for stages of
+        the partial protocols only.
+    """
+
+    name: str
+    sensor: str
+    what: str
+    artifact: str | None = None
+
+
+#: The calibration stages in run order.
+STAGES: dict[str, Stage] = {
+    s.name: s
+    for s in (
+        Stage("mag_step1", "mag", "magnetometer ellipsoid fit (eqs. 17-24)", "mag_step1.json"),
+        Stage(
+            "mag_step2",
+            "mag",
+            "magnetometer alignment T_R from the rotation3d phases (eqs. 25-27)",
+            "mag.json",
+        ),
+        Stage(
+            "acc_known_orientation",
+            "acc",
+            "accelerometer from static faces of known orientation (Ferraris)",
+        ),
+        Stage(
+            "acc_cube", "acc", "accelerometer multi-position fit |a| = g (eq. 32)", "acc_step1.json"
+        ),
+        Stage(
+            "acc_align",
+            "acc",
+            "accelerometer alignment T_R from the rotation3d phases (eqs. 25-27)",
+            "acc.json",
+        ),
+        Stage("gyr_bias", "gyr", "gyroscope bias from static data (eqs. 34-35)", "gyr_bias.json"),
+        Stage("gyr_table", "gyr", "gyroscope rate-table fit (eq. 33)", "gyr_table.json"),
+        Stage(
+            "gyr_align",
+            "gyr",
+            "gyroscope alignment T_R from the rotation3d phases (eqs. 28-31)",
+            "gyr_align.json",
+        ),
+        Stage(
+            "gyr_known_rotation",
+            "gyr",
+            "gyroscope from rotations of known angle (Ferraris; hand turns)",
+        ),
+        Stage(
+            "gyr_pose_to_pose",
+            "gyr",
+            "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
+        ),
+        Stage(
+            "gyr_scale",
+            "gyr",
+            "gyroscope scale from acc/mag angles, tool-free (eq. 36)",
+            "gyr_scale.json",
+        ),
+    )
+}
+#: The validation against the reference, listed after the calibration stages.
+VALIDATE = Stage("validate", "all", "validation against the reference", "validation.json")
+#: Per sensor, the stages whose result calibrates it, preferred first.
+FINAL = {
+    "mag": ("mag_step2", "mag_step1"),
+    "acc": ("acc_known_orientation", "acc_align", "acc_cube"),
+    "gyr": ("gyr_table", "gyr_known_rotation", "gyr_pose_to_pose", "gyr_scale", "gyr_bias"),
+}
+
+
+def full_protocol_artifacts() -> dict[str, str]:
+    """Stage name -> artifact file of the stage-per-rule workflow (with the validation)."""
+    return {s.name: s.artifact for s in (*STAGES.values(), VALIDATE) if s.artifact}
