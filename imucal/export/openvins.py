@@ -27,6 +27,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from imucal.calibration import SensorCalibration
+from imucal.export.kalibr import kalibr_imu
 from imucal.export.model import ROSTOPIC, NoiseParameters, matrix_list, rotation_times_lower
 
 MODEL = "kalibr"
@@ -57,13 +58,8 @@ def openvins_imu_chain(
     intrinsics = openvins_intrinsics(calibration)
     imu0 = {
         "T_i_b": matrix_list(np.eye(4)),
-        "accelerometer_noise_density": noise.acc_noise_density,
-        "accelerometer_random_walk": noise.acc_random_walk,
-        "gyroscope_noise_density": noise.gyr_noise_density,
-        "gyroscope_random_walk": noise.gyr_random_walk,
-        "rostopic": rostopic,
+        **kalibr_imu(noise, rostopic=rostopic),  # OpenVINS reads Kalibr's noise keys
         "time_offset": 0.0,
-        "update_rate": noise.update_rate_hz,
         "model": MODEL,
         **{name: matrix_list(m) for name, m in intrinsics.items()},
         "imucal_acc_bias": [float(v) for v in calibration["acc"].bias],

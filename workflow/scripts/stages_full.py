@@ -15,10 +15,9 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
+stage_names = full_protocol_artifacts()
 artifacts = {
-    stage: read_json(path)
-    for stage, path in snakemake.input.items()
-    if stage in full_protocol_artifacts()
+    stage: read_json(path) for stage, path in snakemake.input.items() if stage in stage_names
 }
 stages = full_protocol_stages(
     set(dataset.recordings),
