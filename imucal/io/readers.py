@@ -272,16 +272,26 @@ def _check_targets(columns: Mapping[str, Any], where: str) -> None:
                 f"target {target!r}",
                 "t_s, seq, acc_x..mag_z or an extra name of lower-case letters, digits and _",
             )
-        if (
-            isinstance(source, bool)
-            or not isinstance(source, (str, int))
-            or (isinstance(source, int) and source < 0)
-        ):
+        if not (_is_index(source) or isinstance(source, str) or _is_array_column(source)):
             raise DeclarationError(
                 f"{where}.columns.{target}",
                 f"source {source!r}",
-                "a column name or a 0-based column index",
+                "a column name, a 0-based column index or [array, 0-based column index]",
             )
+
+
+def _is_index(source: Any) -> bool:
+    return isinstance(source, int) and not isinstance(source, bool) and source >= 0
+
+
+def _is_array_column(source: Any) -> bool:
+    """``[array, index]``: a column of a named 2-D array (MATLAB variable, HDF5 dataset)."""
+    return (
+        isinstance(source, (list, tuple))
+        and len(source) == 2
+        and isinstance(source[0], str)
+        and _is_index(source[1])
+    )
 
 
 def _read_table(
@@ -327,6 +337,12 @@ def _read_table(
         raise io.RawDataError(path, first_line + row, "an empty line", "one row per line")
 
     def position(target: str, source: Any, key: str) -> int:
+        if _is_array_column(source):
+            raise DeclarationError(
+                key,
+                f"source {list(source)!r} (a column of a named array) in the table {path}",
+                "a column name or a 0-based column index (arrays are for matlab and hdf5)",
+            )
         if isinstance(source, int):
             if source >= len(names):
                 raise DeclarationError(
@@ -387,13 +403,20 @@ def _read_arrays(
     where: str,
     label_column: str | None,
 ) -> tuple[dict[str, np.ndarray], np.ndarray | None]:
-    """MATLAB (v5 or v7.3) or HDF5: one 2-D array with column indices, or one vector per target."""
+    """MATLAB (v5 or v7.3) or HDF5 columns, each from one of three sources.
+
+    An integer is a column of the 2-D array named by ``variable`` / ``dataset``; a name is a
+    vector (e.g. a ``1 x N`` time variable); ``[array, index]`` is a column of the named 2-D
+    array, read along the dimension that holds the samples (so a ``3 x N`` array beside a
+    ``1 x N`` time vector needs no ``transpose``). Every column must have the same length.
+    """
     reader = entry["reader"]
     key = "variable" if reader == "matlab" else "dataset"
     name = entry.get(key)
     transpose = bool(entry.get("transpose", False))
     store = _ArrayFile(path, reader)
     raw: dict[str, np.ndarray] = {}
+    array = None
     if name is not None:
         array = store.get(name, f"{where}.{key}")
         if array.ndim != 2:
@@ -402,38 +425,76 @@ def _read_arrays(
             )
         if transpose:
             array = array.T
-        for target, source in columns.items():
-            if not isinstance(source, int):
-                raise DeclarationError(
-                    f"{where}.columns.{target}",
-                    f"column {source!r} by name in the array {name!r} of {path}",
-                    "a 0-based column index",
-                )
-            if source >= array.shape[1]:
-                raise DeclarationError(
-                    f"{where}.columns.{target}",
-                    f"column index {source} not in {name!r} of {path} (shape {array.shape}"
-                    f"{', transposed' if transpose else ''})",
-                    f"an index 0..{array.shape[1] - 1}",
-                )
-            raw[target] = np.asarray(array[:, source], dtype=float)
-    else:
-        for target, source in columns.items():
-            vector = store.get(str(source), f"{where}.columns.{target}")
-            if vector.ndim == 2 and 1 in vector.shape:
-                vector = vector.reshape(-1)
-            if vector.ndim != 1:
-                raise DeclarationError(
-                    f"{where}.columns.{target}",
-                    f"{source!r} in {path} has shape {vector.shape}",
-                    f"a vector (or name the 2-D array with '{key}' and use column indices)",
-                )
-            raw[target] = np.asarray(vector, dtype=float)
-        lengths = {t: v.size for t, v in raw.items()}
-        if len(set(lengths.values())) > 1:
+    for target, source in columns.items():
+        if not isinstance(source, str):
+            continue
+        vector = store.get(source, f"{where}.columns.{target}")
+        if vector.ndim == 2 and 1 in vector.shape:
+            vector = vector.reshape(-1)
+        if vector.ndim != 1:
             raise DeclarationError(
-                f"{where}.columns", f"vectors of lengths {lengths}", "equal lengths"
+                f"{where}.columns.{target}",
+                f"{source!r} in {path} has shape {vector.shape}",
+                f"a vector (or a column of a 2-D array: an index with '{key}', or "
+                "[array, index])",
             )
+        raw[target] = np.asarray(vector, dtype=float)
+    for target, source in columns.items():
+        if not _is_index(source):
+            continue
+        if array is None:
+            raise DeclarationError(
+                f"{where}.columns.{target}",
+                f"column index {source} without '{key}' in {where}",
+                f"'{key}' naming the 2-D array of the indices, or [array, index]",
+            )
+        if source >= array.shape[1]:
+            raise DeclarationError(
+                f"{where}.columns.{target}",
+                f"column index {source} not in {name!r} of {path} (shape {array.shape}"
+                f"{', transposed' if transpose else ''})",
+                f"an index 0..{array.shape[1] - 1}",
+            )
+        raw[target] = np.asarray(array[:, source], dtype=float)
+    n_samples = len(next(iter(raw.values()))) if raw else None
+    arrays: dict[str, np.ndarray] = {}
+    for target, source in columns.items():
+        if not _is_array_column(source):
+            continue
+        array_name, index = source
+        key_path = f"{where}.columns.{target}"
+        if array_name not in arrays:
+            values = store.get(array_name, key_path)
+            if values.ndim != 2:
+                raise DeclarationError(
+                    key_path,
+                    f"{array_name!r} in {path} has shape {values.shape}",
+                    "a 2-D array (samples x columns or columns x samples)",
+                )
+            if n_samples is None:
+                n_samples = max(values.shape)
+            if values.shape[0] != n_samples and values.shape[1] == n_samples:
+                values = values.T  # columns x samples, e.g. a 3 x N array
+            if values.shape[0] != n_samples:
+                raise DeclarationError(
+                    key_path,
+                    f"{array_name!r} in {path} has shape {values.shape}, no dimension of "
+                    f"{n_samples} samples (the length of the other columns)",
+                    "one dimension with one entry per sample",
+                )
+            arrays[array_name] = values
+        if index >= arrays[array_name].shape[1]:
+            raise DeclarationError(
+                key_path,
+                f"column index {index} not in {array_name!r} of {path} ({n_samples} samples "
+                f"x {arrays[array_name].shape[1]} columns)",
+                f"an index 0..{arrays[array_name].shape[1] - 1}",
+            )
+        raw[target] = np.asarray(arrays[array_name][:, index], dtype=float)
+    lengths = {t: v.size for t, v in raw.items()}
+    if len(set(lengths.values())) > 1:
+        raise DeclarationError(f"{where}.columns", f"columns of lengths {lengths}", "equal lengths")
+    raw = {target: raw[target] for target in columns}
     labels = None
     if label_column is not None and name is None and store.has(label_column):
         labels = np.asarray(store.get(label_column, where), dtype=str).reshape(-1)

@@ -473,3 +473,46 @@ def test_seq_in_a_declared_table_is_checked(tmp_path):
              "columns": {"t_s": "t", SEQ: "seq", "acc_x": "ax", "acc_y": "ay", "acc_z": "az"}}  # fmt: skip
     with pytest.raises(io.RawDataError, match=r"d.csv, line 7: seq 4 repeats the seq of line 6"):
         ingest(write_dataset(tmp_path, {"static": entry}), "static")
+
+
+def test_time_vector_beside_columns_of_2d_arrays(tmp_path):
+    """A 1 x N time variable beside 3 x N sensor arrays (MATLAB v5 and HDF5), no transpose."""
+    t = 0.01 * np.arange(N) + 0.5
+    sio.savemat(tmp_path / "r.mat", {"MATLABtime": t[None, :], "SENSacc": ACC_G.T,
+                                     "SENSgyr": GYR_DPS.T})  # fmt: skip
+    with h5py.File(tmp_path / "r.h5", "w") as f:
+        f["time"] = t
+        f["imu/acc"] = ACC_G  # N x 3
+        f["imu/gyr"] = GYR_DPS.T  # 3 x N
+    arrays = {"reader": "matlab", "file": "r.mat", "units": {"acc": "g", "gyr": "deg/s"},
+              "columns": {"t_s": "MATLABtime", **{f"acc_{a}": ["SENSacc", k] for k, a in
+                          enumerate("xyz")}, **{f"gyr_{a}": ["SENSgyr", k] for k, a in
+                          enumerate("xyz")}}}  # fmt: skip
+    variable = {"reader": "matlab", "file": "r.mat", "variable": "SENSacc", "transpose": True,
+                "columns": {"t_s": "MATLABtime", "acc_x": 0, "acc_y": 1, "acc_z": 2},
+                "units": {"acc": "g"}}  # fmt: skip
+    hdf5 = {"reader": "hdf5", "file": "r.h5", "units": {"acc": "g", "gyr": "deg/s"},
+            "columns": {"t_s": "time", **{f"acc_{a}": ["imu/acc", k] for k, a in
+                        enumerate("xyz")}, **{f"gyr_{a}": ["imu/gyr", k] for k, a in
+                        enumerate("xyz")}}}  # fmt: skip
+    folder = write_dataset(tmp_path, {"poses": arrays, "static": variable, "tumble": hdf5})
+    for name in ("poses", "static", "tumble"):
+        table, _ = ingest(folder, name)
+        np.testing.assert_array_equal(table[TIME].to_numpy(), t)
+        np.testing.assert_allclose(table[list(ACC)].to_numpy(), ACC_G * G, rtol=1e-15)
+        if name != "static":
+            np.testing.assert_allclose(table[list(GYR)].to_numpy(), np.deg2rad(GYR_DPS), rtol=1e-15)
+    short = {**arrays, "columns": {**arrays["columns"], "acc_z": ["SENSacc", 3]}}
+    with pytest.raises(DeclarationError, match=r"recordings.poses.columns.acc_z: column index 3 "
+                       r"not in 'SENSacc' of .*r.mat \(20 samples x 3 columns\)"):  # fmt: skip
+        ingest(write_dataset(tmp_path, {"poses": short}), "poses")
+    sio.savemat(tmp_path / "r.mat", {"MATLABtime": t[None, :-1], "SENSacc": ACC_G.T})
+    with pytest.raises(DeclarationError, match=r"recordings.poses.columns.acc_x: 'SENSacc' in "
+                       r".*r.mat has shape \(3, 20\), no dimension of 19 samples"):  # fmt: skip
+        ingest(write_dataset(tmp_path, {"poses": {**arrays, "units": {"acc": "g"}, "columns": {
+            k: v for k, v in arrays["columns"].items() if not k.startswith("gyr")}}}), "poses")
+    table_entry = {"reader": "table", "file": "x.csv", "columns": {"acc_x": ["a", 0]}}
+    (tmp_path / "x.csv").write_text("a\n1\n2\n")
+    with pytest.raises(DeclarationError, match=r"columns.acc_x: source \['a', 0\] \(a column "
+                       r"of a named array\) in the table"):  # fmt: skip
+        ingest(write_dataset(tmp_path, {"poses": table_entry}), "poses")
