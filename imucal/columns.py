@@ -22,6 +22,14 @@ SENSOR_COLUMNS = {"acc": ACC, "gyr": GYR, "mag": MAG}
 #: Header of the native raw CSV format, in this order (extra columns may follow).
 RAW_COLUMNS = (TIME, SEQ, *ACC, *GYR, *MAG)
 
+#: Ingested orientation reference: unit quaternion, scalar first, rotating vectors from the
+#: reference's body frame to its world frame (``docs/data-format.md``).
+QUAT = ("q_w", "q_x", "q_y", "q_z")
+#: Declared source columns of an orientation reference: the four quaternion components in the
+#: file's order (``scalar`` says where w is), or the rotation matrix row by row.
+QUAT_SOURCE = ("q_0", "q_1", "q_2", "q_3")
+MATRIX_SOURCE = tuple(f"r_{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
+
 #: Unit of each sensor after ingest (inside the package everything is SI).
 SI_UNITS = {"acc": "m/s^2", "gyr": "rad/s", "mag": "normalised"}
 

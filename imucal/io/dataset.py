@@ -61,6 +61,10 @@ class Dataset:
         The ``sections`` declaration (``file`` absolute), or None.
     yaml_path : Path or None
         The ``dataset.yaml`` file (for messages).
+    orientation_references : dict
+        Recording name -> the declaration of the orientation reference recorded with it (the
+        ``reference`` key of its declaration, ``file`` absolute); read by
+        :func:`imucal.io.orientation.read_orientation_reference`.
     """
 
     name: str
@@ -76,9 +80,14 @@ class Dataset:
     field_norm_t: float | None = None
     sections: dict | None = None
     yaml_path: Path | None = None
+    orientation_references: dict = field(default_factory=dict)
 
     def has(self, recording: str) -> bool:
         return recording in self.recordings
+
+    def reference_where(self, recording: str) -> str:
+        """Prefix of the error messages of a recording's orientation reference."""
+        return f"{self.yaml_path}: recordings.{recording}.reference"
 
     def recording_files(self, recording: str) -> list[Path]:
         """Every file a recording reads (the Snakemake inputs of its ingest), in order.
@@ -139,10 +148,16 @@ def read_dataset(folder: str | Path) -> Dataset:
         raise ValueError(f"{path}: key 'ratetable': required when recordings/ratetable is given")
     recordings: dict[str, Path] = {}
     readers: dict[str, dict] = {}
+    references: dict[str, dict] = {}
     for name, value in cfg["recordings"].items():
         if isinstance(value, str):
             recordings[name] = _resolve(folder, value)
             continue
+        value = dict(value)
+        if "reference" in value:
+            references[name] = _orientation_reference(
+                value.pop("reference"), value, folder, f"{path}: recordings.{name}"
+            )
         readers[name] = _declaration(value, folder, f"{path}: recordings.{name}", top=True)
         recordings[name] = Path(_first_file(readers[name]))
     native = [n for n in recordings if n not in readers and n != REFERENCE]
@@ -174,6 +189,7 @@ def read_dataset(folder: str | Path) -> Dataset:
         field_norm_t=float(cfg["field_norm_t"]) if "field_norm_t" in cfg else None,
         sections=sections,
         yaml_path=path,
+        orientation_references=references,
     )
 
 
@@ -206,6 +222,10 @@ def _declaration(value: dict, folder: Path, where: str, top: bool) -> dict:
             f"{where}: has {kinds or 'none'} of {list(allowed)}; expected exactly one of them"
         )
     out = dict(value)
+    if not top and "reference" in value:
+        raise ValueError(
+            f"{where}.reference: inside a stream or part; expected it at the recording's top level"
+        )
     if "file" in value:
         if "reader" not in value:
             raise ValueError(f"{where}.reader: missing; expected table, matlab or hdf5")
@@ -228,6 +248,22 @@ def _declaration(value: dict, folder: Path, where: str, top: bool) -> dict:
             _declaration(p, folder, f"{where}.parts[{i}]", top=False)
             for i, p in enumerate(value["parts"])
         ]
+    return out
+
+
+def _orientation_reference(reference: dict, recording: dict, folder: Path, where: str) -> dict:
+    """The orientation reference of a recording, its file absolute.
+
+    Only a recording on one time base (one file or streams) can carry one: parts are shifted in
+    time at ingest, which the reference's clock would not follow.
+    """
+    if "parts" in recording:
+        raise ValueError(
+            f"{where}.reference: beside parts; expected it on a recording of one file or of "
+            "streams (give each part's recording its own reference)"
+        )
+    out = dict(reference)
+    out["file"] = str(_resolve(folder, reference["file"]))
     return out
 
 

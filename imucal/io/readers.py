@@ -435,8 +435,7 @@ def _read_arrays(
             raise DeclarationError(
                 f"{where}.columns.{target}",
                 f"{source!r} in {path} has shape {vector.shape}",
-                f"a vector (or a column of a 2-D array: an index with '{key}', or "
-                "[array, index])",
+                f"a vector (or a column of a 2-D array: an index with '{key}', or [array, index])",
             )
         raw[target] = np.asarray(vector, dtype=float)
     for target, source in columns.items():

@@ -278,6 +278,7 @@ def estimate_time_alignment(
     t_reference: np.ndarray,
     gyr_reference: np.ndarray,
     n_windows: int = 6,
+    reference_max_gap_s: float | None = None,
 ) -> TimeAlignment:
     """Offset and drift of the reference clock against the module clock from ``|omega|^2``.
 
@@ -295,6 +296,10 @@ def estimate_time_alignment(
     n_windows : int
         Number of equal windows of the overlap in which the offset is fitted alone (scale and
         drift held at the global values); their scatter calibrates the reported uncertainty.
+    reference_max_gap_s : float, optional
+        Reference samples further apart than this (s) bound a gap (e.g. motion-capture tracking
+        lost): module samples that fall into one are left out of the fit rather than compared
+        with the spline bridging it. None: the reference has no gaps.
 
     Returns
     -------
@@ -324,6 +329,9 @@ def estimate_time_alignment(
     spline = _smooth_reference(t_r, w_r)
     # keep a margin of 0.5 s inside the reference so that the drift cannot push samples out
     inside = (t_m + coarse > t_r[0] + 0.5) & (t_m + coarse < t_r[-1] - 0.5)
+    if reference_max_gap_s is not None:
+        right = np.clip(np.searchsorted(t_r, t_m + coarse), 1, t_r.size - 1)
+        inside &= t_r[right] - t_r[right - 1] <= reference_max_gap_s
     if np.count_nonzero(inside) < 10:
         raise ValueError(
             f"the recordings overlap by {np.count_nonzero(inside)} module samples at the offset "

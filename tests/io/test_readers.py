@@ -509,8 +509,21 @@ def test_time_vector_beside_columns_of_2d_arrays(tmp_path):
     sio.savemat(tmp_path / "r.mat", {"MATLABtime": t[None, :-1], "SENSacc": ACC_G.T})
     with pytest.raises(DeclarationError, match=r"recordings.poses.columns.acc_x: 'SENSacc' in "
                        r".*r.mat has shape \(3, 20\), no dimension of 19 samples"):  # fmt: skip
-        ingest(write_dataset(tmp_path, {"poses": {**arrays, "units": {"acc": "g"}, "columns": {
-            k: v for k, v in arrays["columns"].items() if not k.startswith("gyr")}}}), "poses")
+        ingest(
+            write_dataset(
+                tmp_path,
+                {
+                    "poses": {
+                        **arrays,
+                        "units": {"acc": "g"},
+                        "columns": {
+                            k: v for k, v in arrays["columns"].items() if not k.startswith("gyr")
+                        },
+                    }
+                },
+            ),
+            "poses",
+        )
     table_entry = {"reader": "table", "file": "x.csv", "columns": {"acc_x": ["a", 0]}}
     (tmp_path / "x.csv").write_text("a\n1\n2\n")
     with pytest.raises(DeclarationError, match=r"columns.acc_x: source \['a', 0\] \(a column "

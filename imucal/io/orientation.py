@@ -1,0 +1,161 @@
+"""Declared orientation references: motion capture or a robot's orientation series.
+
+A recording of ``dataset.yaml`` may declare the orientation reference recorded with it (key
+``reference`` inside the recording's declaration, ``docs/data-format.md``): quaternions (scalar
+first or last) or rotation matrices, read by any reader of :mod:`imucal.io.readers`, at their
+own rate or time base. This module reads it and converts it to one convention: unit
+quaternions, scalar first, rotating vectors from the reference's body frame to its world frame.
+Rows where tracking was lost (all components NaN) stay NaN rows: gaps are kept, never filled.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.spatial.transform import Rotation
+
+from imucal.columns import MATRIX_SOURCE, QUAT, QUAT_SOURCE, TIME
+from imucal.io.readers import DeclarationError, read_entry
+
+#: Keys of a reference declaration that are its reader's (passed to :func:`read_entry`).
+READER_KEYS = (
+    "reader", "file", "columns", "rate_hz", "delimiter", "skip_lines", "header", "variable",
+    "dataset", "transpose", "sort_by_time",
+)  # fmt: skip
+#: Representations of the orientation and the source columns each needs.
+ORIENTATIONS = {"quaternion": QUAT_SOURCE, "matrix": MATRIX_SOURCE}
+#: Directions of the declared rotation: it maps body vectors to world vectors, or the reverse.
+ROTATES = ("body_to_world", "world_to_body")
+#: Largest accepted deviation of a source quaternion's norm from 1 (and of R^T R from I).
+UNIT_TOLERANCE = 1e-3
+#: The convention of the ingested columns, written into the metadata.
+CONVENTION = (
+    "q_w, q_x, q_y, q_z: unit quaternion, scalar first, rotating vectors from the reference's "
+    "body frame to its world frame (v_world = q v_body q*); NaN rows: tracking lost"
+)
+
+
+def read_orientation_reference(
+    declaration: Mapping[str, Any], *, where: str
+) -> tuple[pd.DataFrame, dict]:
+    """Read a declared orientation reference into unit quaternions (scalar first, body->world).
+
+    Parameters
+    ----------
+    declaration : mapping
+        The ``reference`` mapping of a recording in ``dataset.yaml`` with its ``file`` made
+        absolute: reader keys (:data:`READER_KEYS`), ``orientation`` (``quaternion`` or
+        ``matrix``), ``scalar`` (``first`` or ``last``, quaternions only), ``rotates``
+        (:data:`ROTATES`), ``up`` (the world axis pointing up, e.g. ``+z``).
+    where : str
+        ``"<dataset.yaml>: recordings.<name>.reference"``, the prefix of every error message.
+
+    Returns
+    -------
+    table : DataFrame, shape (n, 5)
+        ``t_s`` (s, the reference's own clock) and ``q_w, q_x, q_y, q_z``; all four NaN on the
+        rows where the source has no orientation.
+    metadata : dict
+        ``reader``, ``files``, ``convention``, ``orientation``, ``scalar``, ``rotates``, ``up``,
+        ``held_out``, ``rows``, ``gap_rows``, ``max_norm_error``.
+
+    Raises
+    ------
+    DeclarationError
+        Columns that do not match ``orientation``, a quaternion far from unit norm, a matrix
+        that is not a rotation, a row with only some components.
+    RawDataError, FileNotFoundError
+        From the reader.
+    """
+    kind = declaration.get("orientation")
+    if kind not in ORIENTATIONS:
+        raise DeclarationError(f"{where}.orientation", f"{kind!r}", f"one of {list(ORIENTATIONS)}")
+    rotates = declaration.get("rotates")
+    if rotates not in ROTATES:
+        raise DeclarationError(f"{where}.rotates", f"{rotates!r}", f"one of {list(ROTATES)}")
+    scalar = declaration.get("scalar")
+    if kind == "quaternion" and scalar not in ("first", "last"):
+        raise DeclarationError(
+            f"{where}.scalar", f"{scalar!r}", "first (w, x, y, z) or last (x, y, z, w)"
+        )
+    if kind == "matrix" and scalar is not None:
+        raise DeclarationError(f"{where}.scalar", "scalar with a matrix", "it for quaternions only")
+    needed = ORIENTATIONS[kind]
+    columns = dict(declaration.get("columns") or {})
+    given = sorted(set(columns) - {TIME})
+    if given != sorted(needed):
+        raise DeclarationError(
+            f"{where}.columns",
+            f"targets {given}",
+            f"exactly {', '.join(needed)} (and optionally t_s) for orientation {kind}",
+        )
+    entry = {k: declaration[k] for k in READER_KEYS if k in declaration}
+    rec = read_entry(entry, where=where)
+    values = rec.table[list(needed)].to_numpy(dtype=float)
+    finite = np.isfinite(values)
+    partial = finite.any(axis=1) & ~finite.all(axis=1)
+    if partial.any():
+        row = int(np.flatnonzero(partial)[0])
+        raise DeclarationError(
+            f"{where}.columns",
+            f"row {row} of {entry['file']} has only some of the {kind}'s components",
+            "all of them (an orientation) or none (tracking lost) per row",
+        )
+    ok = finite.all(axis=1)
+    if not ok.any():
+        raise DeclarationError(f"{where}.columns", f"no orientation in {entry['file']}", "some")
+    quat = np.full((values.shape[0], 4), np.nan)
+    if kind == "quaternion":
+        q = values[ok] if scalar == "first" else values[ok][:, [3, 0, 1, 2]]
+        norm = np.linalg.norm(q, axis=1)
+        error = np.abs(norm - 1.0)
+        worst = int(np.argmax(error))
+        if error[worst] > UNIT_TOLERANCE:
+            row = int(np.flatnonzero(ok)[worst])
+            raise DeclarationError(
+                f"{where}.columns",
+                f"row {row} of {entry['file']} has |q| = {norm[worst]:.6g}",
+                f"unit quaternions (| |q| - 1 | <= {UNIT_TOLERANCE}); check that the columns "
+                "are the four components of one quaternion",
+            )
+        quat[ok] = q / norm[:, None]
+        max_error = float(error.max())
+    else:
+        matrices = values[ok].reshape(-1, 3, 3)
+        gram = np.einsum("nji,njk->nik", matrices, matrices) - np.eye(3)
+        error = np.max(np.abs(gram), axis=(1, 2))
+        det = np.linalg.det(matrices)
+        bad = (error > UNIT_TOLERANCE) | (det <= 0)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            row = int(np.flatnonzero(ok)[i])
+            raise DeclarationError(
+                f"{where}.columns",
+                f"row {row} of {entry['file']} is not a rotation matrix (max |R^T R - I| = "
+                f"{error[i]:.3g}, det {det[i]:.6g})",
+                f"rotation matrices given row by row as r_11, r_12, ..., r_33 (tolerance "
+                f"{UNIT_TOLERANCE})",
+            )
+        xyzw = Rotation.from_matrix(matrices).as_quat()
+        quat[ok] = xyzw[:, [3, 0, 1, 2]]
+        max_error = float(error.max())
+    if rotates == "world_to_body":
+        quat[ok, 1:] *= -1.0  # the conjugate: the inverse rotation
+    table = pd.DataFrame({TIME: rec.table[TIME].to_numpy(), **dict(zip(QUAT, quat.T))})
+    metadata = {
+        "reader": rec.metadata["reader"],
+        "files": rec.metadata["files"],
+        "convention": CONVENTION,
+        "orientation": kind,
+        "scalar": scalar,
+        "rotates": rotates,
+        "up": declaration.get("up"),
+        "held_out": bool(declaration.get("held_out", False)),
+        "rows": int(len(table)),
+        "gap_rows": int(np.count_nonzero(~ok)),
+        "max_norm_error": max_error,
+    }
+    return table, metadata

@@ -1,0 +1,145 @@
+"""A hand-held session recorded with an orientation reference (motion capture, robot).
+
+The body turns with a smooth random rate about all axes, with rests between bouts; the module's
+gyroscope and accelerometer sample it on the module clock, the reference samples its orientation
+on its own clock (another rate, an offset and a drift), with orientation noise and tracking
+gaps (NaN rows). Used by the tests of :mod:`imucal.validation.orientation` and
+:mod:`imucal.fits.reference`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from imucal.orientation import (
+    integrate_rates,
+    quat_conjugate,
+    quat_from_matrix,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_rotate,
+)
+
+
+@dataclass(frozen=True)
+class OrientationSession:
+    """Simulated module and reference series with the truth.
+
+    Attributes
+    ----------
+    t_module : ndarray, shape (n,)
+        Module times, s.
+    gyr, acc : ndarray, shape (n, 3)
+        Gyroscope readings (rad/s) and accelerometer (m/s^2, in B, ideal).
+    t_reference : ndarray, shape (m,)
+        Reference times on its clock: ``t_ref = offset_s + (1 + drift_ppm 1e-6) t_module``.
+    quat_reference : ndarray, shape (m, 4)
+        Body -> world (``up`` = +z), scalar first; NaN rows in the gaps.
+    matrix, bias : ndarray
+        Truth: ``omega_B = matrix @ (gyr - bias)``.
+    mounting : ndarray, shape (3, 3)
+        Truth: ``omega_B = mounting @ omega_body``.
+    offset_s, drift_ppm : float
+    rests_s : list of (float, float)
+        Module-clock rests.
+    """
+
+    t_module: np.ndarray
+    gyr: np.ndarray
+    acc: np.ndarray
+    t_reference: np.ndarray
+    quat_reference: np.ndarray
+    matrix: np.ndarray
+    bias: np.ndarray
+    mounting: np.ndarray
+    offset_s: float
+    drift_ppm: float
+    rests_s: list
+
+
+def simulate_orientation_session(
+    seed: int,
+    *,
+    matrix: np.ndarray,
+    bias: np.ndarray,
+    mounting: np.ndarray,
+    duration_s: float = 120.0,
+    module_rate_hz: float = 200.0,
+    reference_rate_hz: float = 120.0,
+    offset_s: float = 0.0,
+    drift_ppm: float = 0.0,
+    gyro_noise_rad_s: float = 0.01,
+    orientation_noise_rad: float = 0.0005,
+    gaps: int = 5,
+    gap_s: float = 1.0,
+    rate_rad_s: float = 2.0,
+) -> OrientationSession:
+    """Simulate one session (all rates rad/s, times s).
+
+    The body rate is a sum of sinusoids (0.05-1.5 Hz) per axis, scaled to ``rate_rad_s`` RMS,
+    switched off in 3 s rests every 20 s (smooth ramps). Gyroscope readings are
+    ``matrix^-1 mounting omega_body + bias`` plus white noise; the reference adds a random
+    rotation of ``orientation_noise_rad`` RMS per axis to each orientation.
+    """
+    rng = np.random.default_rng(seed)
+    dt_fine = 1e-3
+    t_fine = np.arange(0.0, duration_s + 1.0, dt_fine)
+    freqs = rng.uniform(0.05, 1.5, (3, 6))
+    phases = rng.uniform(0, 2 * np.pi, (3, 6))
+    amps = rng.normal(0, 1, (3, 6))
+
+    def rate(t: np.ndarray) -> np.ndarray:
+        w = np.einsum(
+            "ak,akn->na", amps, np.sin(2 * np.pi * freqs[:, :, None] * t + phases[:, :, None])
+        )
+        phase = np.mod(t, 20.0)
+        # rest for 3 s every 20 s (cosine ramps of 1 s)
+        env = np.clip(np.minimum(phase - 3.0, 20.0 - phase), 0.0, 1.0)
+        env = 0.5 - 0.5 * np.cos(np.pi * env)
+        return w * env[:, None]
+
+    scale = rate_rad_s / np.sqrt(np.mean(rate(t_fine) ** 2))
+    w_fine = scale * rate(t_fine)
+    q_fine = integrate_rates(t_fine, w_fine)  # body -> start frame
+    q0 = quat_from_rotvec(rng.normal(0, 1, 3))
+    q_fine = quat_multiply(q0, q_fine)
+    t_m = np.arange(0.0, duration_s, 1.0 / module_rate_hz)
+    w_body = scale * rate(t_m)
+    gyr_b = w_body @ np.asarray(mounting).T
+    gyr = np.linalg.solve(matrix, gyr_b.T).T + bias + rng.normal(0, gyro_noise_rad_s, gyr_b.shape)
+    up = np.array([0.0, 0.0, 1.0])
+    idx = np.clip(np.round(t_m / dt_fine).astype(int), 0, t_fine.size - 1)
+    q_mount = quat_from_matrix(mounting)
+    acc = 9.81 * quat_rotate(quat_multiply(q_mount, quat_conjugate(q_fine[idx])), up)
+    # reference clock: sample k at t_ref = k / rate, module time (t_ref - offset) / (1 + drift)
+    t_ref_all = np.arange(
+        0.0, offset_s + duration_s * (1 + drift_ppm * 1e-6), 1.0 / reference_rate_hz
+    )
+    t_mod_of_ref = (t_ref_all - offset_s) / (1 + drift_ppm * 1e-6)
+    inside = (t_mod_of_ref >= 0.2) & (t_mod_of_ref <= duration_s - 0.2)
+    t_ref, t_mod_of_ref = t_ref_all[inside], t_mod_of_ref[inside]
+    pos = t_mod_of_ref / dt_fine
+    i = np.floor(pos).astype(int)
+    frac = (pos - i)[:, None]
+    q_ref = (1 - frac) * q_fine[i] + frac * q_fine[i + 1]
+    q_ref /= np.linalg.norm(q_ref, axis=1, keepdims=True)
+    noise = quat_from_rotvec(rng.normal(0, orientation_noise_rad, (t_ref.size, 3)))
+    q_ref = quat_multiply(q_ref, noise)
+    for start in rng.uniform(t_ref[0] + 5, t_ref[-1] - 5, gaps):
+        q_ref[(t_ref >= start) & (t_ref < start + gap_s)] = np.nan
+    rests = [(s + 0.3, s + 2.7) for s in np.arange(0.0, duration_s - 3.0, 20.0)]
+    return OrientationSession(
+        t_module=t_m,
+        gyr=gyr,
+        acc=acc,
+        t_reference=t_ref,
+        quat_reference=q_ref,
+        matrix=np.asarray(matrix, dtype=float),
+        bias=np.asarray(bias, dtype=float),
+        mounting=np.asarray(mounting, dtype=float),
+        offset_s=offset_s,
+        drift_ppm=drift_ppm,
+        rests_s=rests,
+    )

@@ -1,0 +1,127 @@
+"""Declared orientation references (imucal.io.orientation): conventions, gaps and bad input."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+from imucal.columns import QUAT, TIME
+from imucal.ingest import ingest_orientation_reference
+from imucal.io.dataset import read_dataset
+from imucal.io.readers import DeclarationError
+
+N = 50
+ROT = Rotation.random(N, random_state=4)
+WXYZ = ROT.as_quat()[:, [3, 0, 1, 2]]
+
+
+def write(tmp_path, reference: dict, recording_extra: dict | None = None):
+    recording = {
+        "reader": "hdf5",
+        "file": "imu.h5",
+        "rate_hz": 100.0,
+        "columns": {f"gyr_{a}": ["gyr", k] for k, a in enumerate("xyz")},
+        "units": {"gyr": "rad/s"},
+        "reference": reference,
+        **(recording_extra or {}),
+    }
+    cfg = {"name": "t", "gravity_m_s2": 9.81, "recordings": {"poses": recording}}
+    (tmp_path / "dataset.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return read_dataset(tmp_path)
+
+
+@pytest.fixture
+def files(tmp_path):
+    gaps = WXYZ.copy()
+    gaps[10:13] = np.nan
+    with h5py.File(tmp_path / "imu.h5", "w") as f:
+        f["gyr"] = np.zeros((N, 3))
+        f["quat_wxyz"] = gaps
+        f["quat_xyzw"] = gaps[:, [1, 2, 3, 0]].T  # 4 x N
+        f["matrix"] = ROT.as_matrix().reshape(N, 9)
+        f["mocap_t"] = 0.5 + np.arange(N) / 120.0
+    return tmp_path
+
+
+def quaternion(array: str, scalar: str, **extra) -> dict:
+    return {
+        "reader": "hdf5",
+        "file": "imu.h5",
+        "orientation": "quaternion",
+        "scalar": scalar,
+        "rotates": "body_to_world",
+        "up": "+z",
+        "columns": {f"q_{k}": [array, k] for k in range(4)},
+        **extra,
+    }
+
+
+def same_rotation(a: np.ndarray, b: np.ndarray) -> None:
+    np.testing.assert_allclose(np.abs(np.sum(a * b, axis=1)), 1.0, atol=1e-12)
+
+
+def test_scalar_first_last_and_gaps_kept(files):
+    for array, scalar in (("quat_wxyz", "first"), ("quat_xyzw", "last")):
+        ds = write(files, quaternion(array, scalar, rate_hz=120.0))
+        table, meta = ingest_orientation_reference("poses", ds, "test")
+        assert list(table.columns) == [TIME, *QUAT]
+        np.testing.assert_allclose(table[TIME], np.arange(N) / 120.0)
+        q = table[list(QUAT)].to_numpy()
+        assert np.isnan(q[10:13]).all() and meta["gap_rows"] == 3
+        keep = np.isfinite(q).all(axis=1)
+        same_rotation(q[keep], WXYZ[keep])
+        assert meta["held_out"] is False and meta["up"] == "+z"
+
+
+def test_matrix_own_time_base_and_world_to_body(files):
+    ref = {
+        "reader": "hdf5",
+        "file": "imu.h5",
+        "orientation": "matrix",
+        "rotates": "world_to_body",
+        "up": "+y",
+        "held_out": True,
+        "columns": {"t_s": "mocap_t", **{f"r_{i}{j}": ["matrix", 3 * (i - 1) + (j - 1)]
+                                          for i in (1, 2, 3) for j in (1, 2, 3)}},
+    }  # fmt: skip
+    table, meta = ingest_orientation_reference("poses", write(files, ref), "test")
+    np.testing.assert_allclose(table[TIME], 0.5 + np.arange(N) / 120.0)
+    inverse = ROT.inv().as_quat()[:, [3, 0, 1, 2]]
+    same_rotation(table[list(QUAT)].to_numpy(), inverse)
+    assert meta["held_out"] is True and meta["orientation"] == "matrix"
+
+
+def test_bad_declarations_name_the_key(files):
+    with h5py.File(files / "imu.h5", "a") as f:
+        bad = WXYZ.copy()
+        bad[7] *= 0.9
+        f["quat_bad"] = bad
+        part = WXYZ.copy()
+        part[3, 2] = np.nan
+        f["quat_part"] = part
+    ds = write(files, quaternion("quat_bad", "first", rate_hz=120.0))
+    with pytest.raises(DeclarationError, match=r"recordings.poses.reference.columns: row 7 of "
+                       r".*imu.h5 has \|q\| = 0.9; expected unit quaternions"):  # fmt: skip
+        ingest_orientation_reference("poses", ds, "test")
+    ds = write(files, quaternion("quat_part", "first", rate_hz=120.0))
+    with pytest.raises(DeclarationError, match=r"reference.columns: row 3 of .* only some"):
+        ingest_orientation_reference("poses", ds, "test")
+    ds = write(files, {**quaternion("quat_wxyz", "first", rate_hz=120.0), "orientation": "matrix"})
+    with pytest.raises(DeclarationError, match=r"reference.scalar: scalar with a matrix"):
+        ingest_orientation_reference("poses", ds, "test")
+    no_rate = quaternion("quat_wxyz", "first")
+    with pytest.raises(DeclarationError, match=r"reference.rate_hz: no t_s column and no rate_hz"):
+        ingest_orientation_reference("poses", write(files, no_rate), "test")
+    with pytest.raises(ValueError, match=r"key 'recordings/poses/reference': 'up' is a required"):
+        write(files, {k: v for k, v in quaternion("quat_wxyz", "first").items() if k != "up"})
+    cfg = {"name": "t", "gravity_m_s2": 9.81, "recordings": {"poses": {
+            "parts": [{"reader": "hdf5", "file": "imu.h5", "rate_hz": 100.0,
+                       "columns": {f"gyr_{a}": ["gyr", k] for k, a in enumerate("xyz")},
+                       "units": {"gyr": "rad/s"}}],
+            "reference": quaternion("quat_wxyz", "first", rate_hz=120.0)}}}  # fmt: skip
+    (files / "dataset.yaml").write_text(yaml.safe_dump(cfg))
+    with pytest.raises(ValueError, match=r"recordings.poses.reference: beside parts"):
+        read_dataset(files)

@@ -1,0 +1,116 @@
+"""Orientation reference: time alignment and mounting from the gyroscope, and the agreement
+metrics, on simulated sessions (reference at another rate, offset, drift, mounting, gaps)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from imucal import errormodel
+from imucal.orientation import body_rates, integrate_rates, quat_conjugate
+from imucal.sim.orientation import simulate_orientation_session
+from imucal.validation.orientation import (
+    align_orientation_reference,
+    gravity_errors,
+    orientation_errors,
+    rate_agreement,
+)
+
+MATRIX = errormodel.compose([1.02, 0.97, 1.01], [0.004, -0.006, 0.003], [0.0, 0.0, 0.0])
+BIAS = np.array([0.01, -0.02, 0.005])
+MOUNTING = Rotation.from_rotvec([0.3, -0.5, 1.2]).as_matrix()
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.degrees(np.linalg.norm(Rotation.from_matrix(a @ b.T).as_rotvec())))
+
+
+@pytest.fixture(scope="module")
+def session():
+    return simulate_orientation_session(
+        3, matrix=MATRIX, bias=BIAS, mounting=MOUNTING, offset_s=3.217, drift_ppm=40.0
+    )
+
+
+def test_body_rates_never_span_a_gap():
+    t = np.arange(10) * 0.01
+    w = np.tile([0.0, 0.0, 1.0], (10, 1))
+    q = integrate_rates(t, w)
+    q[4] = np.nan
+    start, end, rate = body_rates(t, q)
+    # intervals 3-4 and 4-5 touch the gap; the other seven are exact
+    assert start.size == 7 and not np.any((start <= 0.04) & (end >= 0.04))
+    np.testing.assert_allclose(rate, np.tile([0.0, 0.0, 1.0], (7, 1)), atol=1e-12)
+    start, _, _ = body_rates(t, q, step=2)
+    assert start.size == 5
+
+
+def test_offset_within_a_reference_sample_and_mounting_within_0_1_deg(session):
+    s = session
+    calibrated = errormodel.apply(MATRIX, BIAS, s.gyr)  # frame B exactly: the mounting is M
+    al = align_orientation_reference(s.t_module, calibrated, s.t_reference, s.quat_reference)
+    period = 1.0 / 120.0
+    assert al.reference_period_s == pytest.approx(period)
+    assert abs(al.time.offset_mid_s - (s.offset_s + s.drift_ppm * 1e-6 * al.time.t_mid_s)) < period
+    # and within its stated uncertainty (4 sigma)
+    truth_mid = s.offset_s + s.drift_ppm * 1e-6 * al.time.t_mid_s
+    assert abs(al.time.offset_mid_s - truth_mid) < 4 * al.time.offset_mid_std_s + 1e-4
+    error = angle_deg(al.mounting.matrix, MOUNTING)
+    assert error < 0.1
+    assert error < 4 * al.mounting.angle_std_deg
+    assert al.explained > 0.99
+
+
+def test_bad_declarations_name_the_key(session):
+    s = session
+    calibrated = errormodel.apply(MATRIX, BIAS, s.gyr)
+    scalar_last = s.quat_reference[:, [1, 2, 3, 0]]  # w, x, y, z read as x, y, z, w
+    with pytest.raises(ValueError, match=r"recordings.poses.reference: .* check .*scalar"):
+        align_orientation_reference(s.t_module, calibrated, s.t_reference, scalar_last,
+                                    where="d.yaml: recordings.poses.reference")  # fmt: skip
+    with pytest.raises(
+        ValueError,
+        match=r"recordings.poses.reference: the mounted .* check "
+        r"recordings.poses.reference.rotates",
+    ):
+        align_orientation_reference(s.t_module, calibrated, s.t_reference,
+                                    quat_conjugate(s.quat_reference),
+                                    where="d.yaml: recordings.poses.reference")  # fmt: skip
+    other = simulate_orientation_session(11, matrix=MATRIX, bias=BIAS, mounting=MOUNTING)
+    with pytest.raises(
+        ValueError,
+        match=r"recordings.poses.reference: the reference's "
+        r"\|omega\|\^2 correlates .* recorded with this recording",
+    ):
+        align_orientation_reference(s.t_module, calibrated, other.t_reference,
+                                    other.quat_reference,
+                                    where="d.yaml: recordings.poses.reference")  # fmt: skip
+
+
+def test_metrics_calibrated_against_raw(session):
+    s = session
+    calibrated = errormodel.apply(MATRIX, BIAS, s.gyr)
+    al = align_orientation_reference(s.t_module, calibrated, s.t_reference, s.quat_reference)
+    rates = rate_agreement(s.t_module, calibrated, s.t_reference, s.quat_reference, al, MOUNTING)
+    # the rate error is the reference's finite-difference noise: sqrt(2) sigma_q / dt per axis
+    expected = np.sqrt(2) * 0.0005 * 120.0
+    for axis in "xyz":
+        assert rates[axis]["rms_rad_s"] == pytest.approx(expected, rel=0.15)
+        assert abs(rates[axis]["slope"] - 1) < 5e-3
+    raw = orientation_errors(
+        s.t_module, s.gyr, s.t_reference, s.quat_reference, al, MOUNTING, windows_s=(10.0,)
+    )["10s"]
+    cal = orientation_errors(
+        s.t_module, calibrated, s.t_reference, s.quat_reference, al, MOUNTING, windows_s=(10.0,)
+    )["10s"]
+    # the bias alone (~0.023 rad/s) turns raw by ~13 deg in 10 s; calibrated: noise only
+    # (random walk 0.01 rad/s sqrt(10 s / 200 Hz) = 0.013 deg, reference noise 0.04 deg)
+    assert raw["median_deg"] > 5.0
+    assert cal["median_deg"] < 0.2
+    assert cal["n"] > 80
+    grav = gravity_errors(
+        s.t_module, s.acc, s.rests_s, s.t_reference, s.quat_reference, al, MOUNTING, "+z"
+    )
+    assert grav["n"] == len(s.rests_s)
+    assert grav["max_deg"] < 0.05  # the reference noise averaged over a rest
