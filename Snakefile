@@ -21,6 +21,7 @@ include: "workflow/rules/gyroscope.smk"
 include: "workflow/rules/calibration.smk"
 include: "workflow/rules/noise.smk"
 include: "workflow/rules/partial.smk"
+include: "workflow/rules/reference.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/gap.smk"
 

@@ -17,7 +17,7 @@ plane. Then ``K = Q U`` (QR, positive diagonal) gives the calibration matrix ``U
 ``[m, 1]``. Samples whose residual exceeds :data:`OUTLIER_SIGMA` robust standard deviations
 (motion-capture glitches at the edges of tracking gaps) are left out and counted. The
 finite-difference rates have coloured errors, so the standard deviations are the larger of the
-formal ones and those of :data:`N_BLOCKS` contiguous blocks fitted alone (batch means).
+formal ones and the delete-a-block jackknife's over :data:`N_BLOCKS` contiguous blocks.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from imucal.calibration import SensorCalibration
 
 #: Residuals beyond this many robust (MAD) standard deviations are outliers.
 OUTLIER_SIGMA = 5.0
-#: Contiguous blocks of the batch-means uncertainty.
+#: Contiguous blocks of the jackknife uncertainty.
 N_BLOCKS = 10
 #: Fewest intervals the fit accepts (twelve parameters, and every axis must be excited).
 MIN_INTERVALS = 100
@@ -168,21 +168,17 @@ def fit_gyro_to_reference(
     k, bias, u, mounting = _factor(theta)
     if np.linalg.det(k) <= 0:
         raise ValueError("the fitted matrix mirrors the axes; expected a right-handed reference")
-    # formal covariance per output axis: var_i (x^T x)^-1; samples of each block fitted alone
+    # formal covariance per output axis: var_i (x^T x)^-1
     dof = max(res.shape[0] - 4, 1)
     var = np.sum(res**2, axis=0) / dof
+    # delete-a-block jackknife: each fit leaves one contiguous block out, so every fit is as
+    # well excited as the whole and the blocks' coloured errors show in the spread
     idx = np.flatnonzero(keep)
     samples = []
     for part in np.array_split(idx, N_BLOCKS):
-        if part.size >= 4 * 12:
-            th, _ = _solve(x[part], w_all[part])
-            if np.linalg.det(th[:3].T) > 0:
-                samples.append(_derived(th))
-    derived = _derived(theta)
-    if len(samples) >= 3:
-        spread = np.std(np.array(samples), axis=0, ddof=1) / np.sqrt(len(samples))
-    else:
-        spread = np.zeros_like(derived)
+        rest = np.setdiff1d(idx, part, assume_unique=True)
+        samples.append(_derived(_solve(x[rest], w_all[rest])[0]))
+    spread = np.sqrt((N_BLOCKS - 1) * np.var(np.array(samples), axis=0))
     formal_derived = _propagate(theta, inv, var)
     std = np.maximum(spread, formal_derived)
     std_u = std[:9].reshape(3, 3) * (np.triu(np.ones((3, 3))) > 0)

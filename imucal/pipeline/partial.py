@@ -13,8 +13,9 @@ Methods per sensor, best first (the first that runs gives the final calibration)
   alone leaves the field in the magnetometer's own (ellipsoid) frame;
 - accelerometer: known orientations (six faces, Ferraris) in frame B of the positions; cube fit
   (eq. 32) on many static poses + ``T_R,acc`` from the rotation3d phases; the cube fit alone;
-- gyroscope: rate table (eq. 33) + ``T_R,gyr``; known-angle rotations (Ferraris); pose to pose
-  (Tedaldi et al. 2014) in the accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
+- gyroscope: rate table (eq. 33) + ``T_R,gyr``; known-angle rotations (Ferraris); against an
+  orientation reference (motion capture, robot); pose to pose (Tedaldi et al. 2014) in the
+  accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
   the bias alone.
 """
 
@@ -141,8 +142,12 @@ class _Session:
         saturation_rad_s: float | None,
         notes: Mapping[str, str],
         lowpass: Mapping[str, float],
+        references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
+        reference_where: Mapping[str, str] | None = None,
     ):
         self.tables = {k: v for k, v in tables.items() if k != "reference"}
+        self.references = dict(references or {})
+        self.reference_where = dict(reference_where or {})
         self.segments = segments
         self.gravity_m_s2 = gravity_m_s2
         self.field_norm = field_norm
@@ -360,6 +365,15 @@ def _gyr_known_rotation(s: _Session) -> dict:
     return artifact
 
 
+def _gyr_reference(s: _Session) -> dict:
+    from imucal.pipeline.reference import fit_gyr_reference
+
+    _need(bool(s.references), "needs a recording declared with an orientation reference")
+    _need("gyr_bias" in s.done, "needs the gyroscope bias (for the time alignment)")
+    where = {r: s.reference_where.get(r, f"recordings.{r}.reference") for r in s.references}
+    return fit_gyr_reference(s.tables, s.references, _bias(s), where)
+
+
 def _acc_final(s: _Session) -> SensorCalibration | None:
     for stage in ("acc_known_orientation", "acc_align", "acc_cube"):
         if stage in s.done:
@@ -447,6 +461,7 @@ RUNNERS: dict[str, Callable[[_Session], dict]] = {
     "gyr_table": _gyr_table,
     "gyr_align": _gyr_align,
     "gyr_known_rotation": _gyr_known_rotation,
+    "gyr_reference": _gyr_reference,
     "gyr_pose_to_pose": _gyr_pose_to_pose,
     "gyr_scale": _gyr_scale,
 }
@@ -464,6 +479,8 @@ def run_stages(
     notes: Mapping[str, str] | None = None,
     lowpass_order: int = 4,
     lowpass_cutoff_hz: float = 5.0,
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
+    reference_where: Mapping[str, str] | None = None,
 ) -> list[Outcome]:
     """Run every stage the session allows, in :data:`STAGES` order.
 
@@ -485,6 +502,11 @@ def run_stages(
     lowpass_order, lowpass_cutoff_hz : int, float
         Zero-phase Butterworth low-pass of rotation3d before the alignment stages (the
         workflow's ``lowpass`` config), cutoff in Hz.
+    references : mapping, optional
+        Recording -> (ingested orientation reference, its metadata) for the stage
+        ``gyr_reference`` (:mod:`imucal.pipeline.reference`).
+    reference_where : mapping, optional
+        Recording -> key path of its reference in dataset.yaml (error messages).
 
     Returns
     -------
@@ -501,6 +523,8 @@ def run_stages(
         saturation_rad_s,
         notes or {},
         {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz},
+        references,
+        reference_where,
     )
     outcomes = []
     for name, runner in RUNNERS.items():
@@ -615,6 +639,8 @@ def full_protocol_stages(
         "acc_known_orientation": "not applicable: the cube fit and T_R,acc of the full protocol "
         "are used (no ferraris recording)",
         "gyr_known_rotation": "not applicable: no ferraris recording",
+        "gyr_reference": "not applicable: the full protocol calibrates the gyroscope with the "
+        "platform (an orientation reference is declared on partial sessions' recordings)",
         "gyr_pose_to_pose": "not applicable: the full protocol calibrates the gyroscope with the "
         "platform (and rate table)",
     }

@@ -72,6 +72,12 @@ STAGES: dict[str, Stage] = {
             "gyroscope from rotations of known angle (Ferraris; hand turns)",
         ),
         Stage(
+            "gyr_reference",
+            "gyr",
+            "gyroscope scale, non-orthogonality, bias and mounting against an orientation "
+            "reference's rotations (motion capture, robot)",
+        ),
+        Stage(
             "gyr_pose_to_pose",
             "gyr",
             "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
@@ -90,7 +96,14 @@ VALIDATE = Stage("validate", "all", "validation against the reference", "validat
 FINAL = {
     "mag": ("mag_step2", "mag_step1"),
     "acc": ("acc_known_orientation", "acc_align", "acc_cube"),
-    "gyr": ("gyr_table", "gyr_known_rotation", "gyr_pose_to_pose", "gyr_scale", "gyr_bias"),
+    "gyr": (
+        "gyr_table",
+        "gyr_known_rotation",
+        "gyr_reference",
+        "gyr_pose_to_pose",
+        "gyr_scale",
+        "gyr_bias",
+    ),
 }
 
 

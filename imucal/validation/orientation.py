@@ -47,8 +47,6 @@ MIN_RATE_CORRELATION = 0.5
 #: the reference's body rates are not the gyroscope's (e.g. a world-to-body rotation declared as
 #: body-to-world gives world-frame rates).
 MIN_EXPLAINED = 0.5
-#: Windows of the integrated-orientation comparison, s.
-ORIENTATION_WINDOWS_S = (1.0, 10.0, 30.0)
 
 
 @dataclass(frozen=True)
@@ -169,6 +167,27 @@ def align_orientation_reference(
             f"{MIN_RATE_CORRELATION}: check .columns and .scalar (the component order), .rate_hz "
             "or the t_s column, and that the reference was recorded with this recording"
         )
+    return mount_orientation_reference(t_m, w_m, t_reference, quat_reference, time, where=where)
+
+
+def mount_orientation_reference(
+    t_module: np.ndarray,
+    gyr_module: np.ndarray,
+    t_reference: np.ndarray,
+    quat_reference: np.ndarray,
+    time: TimeAlignment,
+    *,
+    where: str = "reference",
+) -> OrientationAlignment:
+    """The mounting of an orientation reference for a given clock relation (hand-eye, Wahba).
+
+    Parameters and errors as :func:`align_orientation_reference`, with the clock ``time``
+    given (e.g. found once with the bias-corrected gyroscope and reused for the calibrated
+    one, whose frame differs but whose ``|omega|`` is the same up to the calibration).
+    """
+    t_m, w_m = _check(t_module, gyr_module, 3, "module")
+    start, end, rate = reference_rates(t_reference, quat_reference)
+    period = float(np.median(np.diff(np.asarray(t_reference, dtype=float))))
     alignment = OrientationAlignment(time, _identity_mounting(), 0.0, 0, period)
     a, b = alignment.to_module_time(start), alignment.to_module_time(end)
     means = interval_means(t_m, w_m, a, b)
@@ -240,7 +259,8 @@ def rate_agreement(
     -------
     dict
         Per axis ``x``, ``y``, ``z``: ``rms_rad_s`` (of gyro - reference), ``mean_rad_s``,
-        ``slope`` (least-squares gyro = slope * reference + c), ``correlation``; and
+        ``slope`` (gyro per reference: the inverse of the least-squares slope of the reference
+        on the gyroscope, unbiased by the reference's noise), ``correlation``; and
         ``n_intervals``.
     """
     start, end, rate = reference_rates(t_reference, quat_reference)
@@ -253,7 +273,10 @@ def rate_agreement(
     out: dict = {"n_intervals": int(np.count_nonzero(ok))}
     for k, axis in enumerate("xyz"):
         diff = gyro[:, k] - ref[:, k]
-        slope = float(np.polyfit(ref[:, k], gyro[:, k], 1)[0])
+        # gyro per reference from the regression of the reference on the gyroscope: the
+        # finite-difference reference is the noisy one, which would bias the direct slope down
+        centred = gyro[:, k] - gyro[:, k].mean()
+        slope = float(np.sum(centred**2) / np.sum(centred * (ref[:, k] - ref[:, k].mean())))
         out[axis] = {
             "rms_rad_s": float(np.sqrt(np.mean(diff**2))),
             "mean_rad_s": float(np.mean(diff)),
@@ -278,7 +301,7 @@ def orientation_errors(
     quat_reference: np.ndarray,
     alignment: OrientationAlignment,
     mounting: np.ndarray,
-    windows_s: Sequence[float] = ORIENTATION_WINDOWS_S,
+    windows_s: Sequence[float],
     stride_s: float = 1.0,
 ) -> dict:
     """Orientation change integrated from the gyroscope over windows against the reference's.
@@ -294,7 +317,7 @@ def orientation_errors(
     t_module, gyr_b, t_reference, quat_reference, alignment, mounting
         As in :func:`rate_agreement`.
     windows_s : sequence of float
-        Window lengths, s.
+        Window lengths, s (the workflow's ``reference.windows_s``).
     stride_s : float
         Step between window starts, s.
 

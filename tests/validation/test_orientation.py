@@ -98,16 +98,16 @@ def test_metrics_calibrated_against_raw(session):
     for axis in "xyz":
         assert rates[axis]["rms_rad_s"] == pytest.approx(expected, rel=0.15)
         assert abs(rates[axis]["slope"] - 1) < 5e-3
-    raw = orientation_errors(
-        s.t_module, s.gyr, s.t_reference, s.quat_reference, al, MOUNTING, windows_s=(10.0,)
-    )["10s"]
-    cal = orientation_errors(
-        s.t_module, calibrated, s.t_reference, s.quat_reference, al, MOUNTING, windows_s=(10.0,)
-    )["10s"]
-    # the bias alone (~0.023 rad/s) turns raw by ~13 deg in 10 s; calibrated: noise only
-    # (random walk 0.01 rad/s sqrt(10 s / 200 Hz) = 0.013 deg, reference noise 0.04 deg)
+    raw = orientation_errors(s.t_module, s.gyr, s.t_reference, s.quat_reference, al, MOUNTING,
+                             windows_s=(10.0,))["10s"]  # fmt: skip
+    cal = orientation_errors(s.t_module, calibrated, s.t_reference, s.quat_reference, al,
+                             MOUNTING, windows_s=(10.0,))["10s"]  # fmt: skip
+    # the bias alone (~0.023 rad/s) turns raw by ~13 deg in 10 s; calibrated, noise only: the
+    # random walk 0.01 rad/s sqrt(10 s / 200 Hz) = 0.13 deg and the reference's
+    # sqrt(2) 0.0005 rad = 0.04 deg per axis, whose 3-D norm has a median of 1.54 sigma =
+    # 0.21 deg; twice that bounds it
     assert raw["median_deg"] > 5.0
-    assert cal["median_deg"] < 0.2
+    assert cal["median_deg"] < 0.42
     assert cal["n"] > 80
     grav = gravity_errors(
         s.t_module, s.acc, s.rests_s, s.t_reference, s.quat_reference, al, MOUNTING, "+z"

@@ -283,6 +283,8 @@ def dataset_targets(name):
     else:
         targets += [f"results/{name}/partial/calibration.json"]
         targets += [f"results/{name}/gap/diagnosis.json"]
+        if has_orientation_reference(name):
+            targets += [f"results/{name}/reference/validation.json"]
     targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
     targets += noise_targets(name)
     return targets
@@ -326,6 +328,32 @@ def _git_commit():
 GIT_COMMIT = _git_commit()
 
 
+def orientation_files(wildcards):
+    """Every file the orientation reference of one recording reads (dataset.yaml)."""
+    from imucal.io.readers import declared_files
+
+    declaration = dataset_info(wildcards).orientation_references[wildcards.recording]
+    return [str(path) for path in declared_files(declaration)]
+
+
+def orientation_references(wildcards):
+    """Ingested orientation references of a dataset (empty without any)."""
+    d = wildcards.dataset
+    names = sorted(dataset_info(wildcards).orientation_references)
+    return [f"results/{d}/reference/{name}.parquet" for name in names]
+
+
+def orientation_recordings(wildcards):
+    """The ingested recordings that carry an orientation reference, by name."""
+    d = wildcards.dataset
+    names = sorted(dataset_info(wildcards).orientation_references)
+    return {name: f"results/{d}/ingest/{name}.parquet" for name in names}
+
+
+def has_orientation_reference(name):
+    return bool(dataset_of(name).orientation_references)
+
+
 def reference_input(wildcards):
     """The ingested reference when the dataset has one, else nothing."""
     if not has_recording(wildcards, "reference"):
@@ -353,6 +381,10 @@ def report_inputs(wildcards):
         benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
         inputs["figure_dir"] = f"results/{d}/partial/figures"
         benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
+        if has_orientation_reference(d):
+            inputs["validation"] = f"results/{d}/reference/validation.json"
+            figures.append(f"results/{d}/figures/reference_orientation.png")
+            benchmarks.append(f"results/{d}/benchmarks/validate_references.tsv")
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
         noise = noise_report_inputs(d)
         return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}

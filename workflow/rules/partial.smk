@@ -8,6 +8,7 @@ rule partial:
         unpack(ingested_imu_all),
         segments="results/{dataset}/segments.parquet",
         dataset_yaml=dataset_yaml,
+        orientation=orientation_references,
     output:
         calibration="results/{dataset}/partial/calibration.json",
         stages="results/{dataset}/partial/stages.json",

@@ -18,6 +18,10 @@ dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 names = [n for n in dataset.recordings if n != "reference"]
 tables = {name: read_recording(snakemake.input[name])[0] for name in names}
 _, segment_meta = read_recording(snakemake.input.segments)
+references = {}
+for path in snakemake.input.orientation:
+    reference, metadata = read_recording(path)
+    references[metadata["recording"]] = (reference, metadata)
 outcomes = partial.run_stages(
     tables,
     read_segments(snakemake.input.segments),
@@ -27,6 +31,8 @@ outcomes = partial.run_stages(
     gravity_m_s2=dataset.gravity_m_s2,
     field_norm=dataset.field_norm,
     ratetable=dataset.ratetable,
+    references=references,
+    reference_where={name: dataset.reference_where(name) for name in references},
 )
 for o in outcomes:
     logging.info("%-22s %-8s %s", o.name, o.status, o.reason)

@@ -1,0 +1,236 @@
+"""The orientation reference in the chain: the gyroscope calibrated against it (stage
+``gyr_reference``) and the validation of a session's calibration against it.
+
+Each recording declared with a ``reference`` (motion capture, robot) is aligned in time and
+mounting by :mod:`imucal.validation.orientation`. The stage fits the gyroscope
+(:mod:`imucal.fits.reference`) on the recordings whose reference is not ``held_out``; the
+validation compares, on every recording with a reference, the gyroscope as read, with the bias
+only, and calibrated, so a held-out recording tests the calibration on data it has not seen.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from imucal import errormodel
+from imucal.calibration import SensorCalibration
+from imucal.columns import ACC, GYR, QUAT, TIME
+from imucal.fits.reference import fit_gyro_to_reference
+from imucal.validation.orientation import (
+    OrientationAlignment,
+    align_orientation_reference,
+    aligned_intervals,
+    gravity_errors,
+    mount_orientation_reference,
+    orientation_errors,
+    rate_agreement,
+)
+from imucal.validation.timing import TimeAlignment
+
+#: Format of ``results/{dataset}/reference/validation.json``.
+VALIDATION_FORMAT = 1
+
+
+def _series(table: pd.DataFrame, columns) -> tuple[np.ndarray, np.ndarray]:
+    """(t_s, values) of the rows where every column is finite."""
+    values = table[list(columns)].to_numpy(dtype=float)
+    ok = np.all(np.isfinite(values), axis=1)
+    return table[TIME].to_numpy(dtype=float)[ok], values[ok]
+
+
+def _orientation(reference: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    return reference[TIME].to_numpy(dtype=float), reference[list(QUAT)].to_numpy(dtype=float)
+
+
+def fit_gyr_reference(
+    tables: Mapping[str, pd.DataFrame],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    bias_rad_s: np.ndarray,
+    where: Mapping[str, str],
+) -> dict:
+    """Stage ``gyr_reference``: the gyroscope calibrated against the orientation references.
+
+    Parameters
+    ----------
+    tables : mapping of str to DataFrame
+        Ingested recordings by name.
+    references : mapping of str to (DataFrame, dict)
+        Ingested orientation reference (``t_s``, ``q_w..q_z``) and its metadata per recording.
+    bias_rad_s : array_like, shape (3,)
+        Gyroscope bias for the time alignment (stage ``gyr_bias``); the fit finds its own.
+    where : mapping of str to str
+        Per recording, the key path of its reference in ``dataset.yaml`` (error messages).
+
+    Returns
+    -------
+    dict
+        The fit (:meth:`imucal.fits.reference.ReferenceGyroFit.to_dict`), the recordings used
+        and the time alignment and mounting of each (``alignments``).
+
+    Raises
+    ------
+    ValueError
+        No recording with a reference that is not held out, or the alignment or fit fails (the
+        message names the declaration).
+    """
+    used = [r for r, (_, meta) in references.items() if not meta.get("held_out", False)]
+    if not used:
+        raise ValueError(
+            f"every orientation reference ({sorted(references)}) is held_out; expected one to "
+            "fit on"
+        )
+    readings, rates, alignments = [], [], {}
+    for name in used:
+        t, gyr = _series(tables[name], GYR)
+        t_ref, quat = _orientation(references[name][0])
+        alignment = align_orientation_reference(
+            t, gyr - np.asarray(bias_rad_s, dtype=float), t_ref, quat, where=where[name]
+        )
+        m, w = aligned_intervals(t, gyr, t_ref, quat, alignment)
+        readings.append(m)
+        rates.append(w)
+        alignments[name] = alignment.to_dict()
+    fit = fit_gyro_to_reference(readings, rates)
+    return {**fit.to_dict(), "recordings": used, "alignments": alignments}
+
+
+def _variant(
+    label: str,
+    t: np.ndarray,
+    gyr_b: np.ndarray,
+    t_ref: np.ndarray,
+    quat: np.ndarray,
+    time: TimeAlignment,
+    where: str,
+    windows_s: Sequence[float],
+) -> tuple[dict, OrientationAlignment]:
+    alignment = mount_orientation_reference(t, gyr_b, t_ref, quat, time, where=where)
+    mounting = alignment.mounting.matrix
+    out = {
+        "gyroscope": label,
+        "mounting": alignment.mounting.to_dict(),
+        "rates": rate_agreement(t, gyr_b, t_ref, quat, alignment, mounting),
+        "orientation": orientation_errors(t, gyr_b, t_ref, quat, alignment, mounting, windows_s),
+    }
+    return out, alignment
+
+
+def validate_references(
+    tables: Mapping[str, pd.DataFrame],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    segments: pd.DataFrame,
+    calibration: Mapping,
+    bias_rad_s: np.ndarray | None,
+    where: Mapping[str, str],
+    windows_s: Sequence[float],
+) -> dict:
+    """The session's calibration against its orientation references, recording by recording.
+
+    Parameters
+    ----------
+    tables, references, where
+        As in :func:`fit_gyr_reference`.
+    segments : DataFrame
+        The segments table; the ``static`` and ``position`` segments of a recording are its
+        rests (gravity direction).
+    calibration : mapping
+        ``calibration.json`` of the session (sensors it could not calibrate under ``missing``).
+    bias_rad_s : array_like, shape (3,), or None
+        The gyroscope bias of stage ``gyr_bias`` (the "bias only" comparison), None without.
+    windows_s : sequence of float
+        Windows of the integrated-orientation comparison, s (config ``reference.windows_s``).
+
+    Returns
+    -------
+    dict
+        ``format``, ``gyroscope_method``, ``summary`` (per recording: held out, offset, drift,
+        mounting angle, orientation error medians per window and gyroscope) and
+        ``recordings`` (per recording: ``alignment`` of the raw gyroscope and per gyroscope
+        ``raw``, ``bias`` and ``calibrated`` the mounting, per-axis rates and windowed
+        orientation errors; ``gravity`` at rests for the accelerometer as read and calibrated).
+        Every gyroscope gets its own mounting (Wahba) on each recording, so the comparison is
+        about scale, non-orthogonality and bias, not about the misalignment.
+
+    Raises
+    ------
+    ValueError
+        When a reference cannot be aligned (the message names its declaration).
+    """
+    gyr_cal = (
+        SensorCalibration.from_dict("gyr", calibration["gyr"]) if "gyr" in calibration else None
+    )
+    acc_cal = (
+        SensorCalibration.from_dict("acc", calibration["acc"]) if "acc" in calibration else None
+    )
+    out: dict = {
+        "format": VALIDATION_FORMAT,
+        "gyroscope_method": None if gyr_cal is None else gyr_cal.method,
+        "accelerometer_method": None if acc_cal is None else acc_cal.method,
+        "summary": {},
+        "recordings": {},
+    }
+    for name, (reference, meta) in references.items():
+        t, gyr = _series(tables[name], GYR)
+        t_ref, quat = _orientation(reference)
+        variants = {"raw": gyr}
+        if bias_rad_s is not None:
+            variants["bias"] = gyr - np.asarray(bias_rad_s, dtype=float)
+        if gyr_cal is not None:
+            variants["calibrated"] = errormodel.apply(gyr_cal.matrix, gyr_cal.bias, gyr)
+        record: dict = {
+            "held_out": bool(meta.get("held_out", False)),
+            "reference": {k: meta.get(k) for k in ("rows", "gap_rows", "orientation", "up")},
+        }
+        # the clock from the bias-corrected gyroscope (else as read), shared by all three
+        clock = align_orientation_reference(
+            t, variants.get("bias", gyr), t_ref, quat, where=where[name]
+        ).time
+        alignments = {}
+        for label, values in variants.items():
+            record[label], alignments[label] = _variant(
+                label, t, values, t_ref, quat, clock, where[name], windows_s
+            )
+        base = alignments.get("bias", alignments["raw"])
+        record["alignment"] = base.to_dict()
+        rests = segments[
+            (segments["recording"] == name) & segments["kind"].isin(["static", "position"])
+        ]
+        if "acc_x" in tables[name].columns and len(rests):
+            t_acc, acc = _series(tables[name], ACC)
+            spans = list(zip(rests["start_s"].astype(float), rests["end_s"].astype(float)))
+            record["gravity"] = {
+                "raw": gravity_errors(
+                    t_acc, acc, spans, t_ref, quat, base, base.mounting.matrix, meta["up"]
+                )
+            }
+            if acc_cal is not None:
+                best = alignments.get("calibrated", base)
+                record["gravity"]["calibrated"] = gravity_errors(
+                    t_acc,
+                    errormodel.apply(acc_cal.matrix, acc_cal.bias, acc),
+                    spans,
+                    t_ref,
+                    quat,
+                    best,
+                    best.mounting.matrix,
+                    meta["up"],
+                )
+        out["recordings"][name] = record
+        out["summary"][name] = {
+            "held_out": record["held_out"],
+            "offset_ms": 1e3 * base.time.offset_s,
+            "offset_std_ms": 1e3 * base.time.offset_std_s,
+            "drift_ppm": base.time.drift_ppm,
+            "mounting_deg": base.mounting.angle_deg,
+            "reference_period_ms": 1e3 * base.reference_period_s,
+            **{
+                f"orientation_median_deg_{window}": {
+                    label: record[label]["orientation"][window]["median_deg"] for label in variants
+                }
+                for window in record["raw"]["orientation"]
+            },
+        }
+    return out

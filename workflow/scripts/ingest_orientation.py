@@ -1,0 +1,20 @@
+"""Rule ingest_orientation: the orientation reference of one recording -> parquet (imucal.ingest)."""
+
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from imucal.ingest import ingest_orientation_reference
+from imucal.io import write_recording
+from imucal.io.dataset import read_dataset
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
+table, metadata = ingest_orientation_reference(
+    snakemake.wildcards.recording, dataset, imucal_version=snakemake.params.imucal_version
+)
+write_recording(table, snakemake.output.table, metadata)
+logging.info("%d rows, %d gap rows", len(table), metadata["gap_rows"])

@@ -1,0 +1,32 @@
+"""Rule validate_references: the calibration against the orientation references."""
+
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from imucal.io import read_json, read_recording, read_segments, write_json
+from imucal.io.dataset import read_dataset
+from imucal.pipeline.reference import validate_references
+from imucal.plots.reference import plot_orientation_errors
+
+if TYPE_CHECKING:
+    from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
+
+logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
+references = {}
+for path in snakemake.input.orientation:
+    table, metadata = read_recording(path)
+    references[metadata["recording"]] = (table, metadata)
+bias = read_json(snakemake.input.gyr).get("gyr_bias", {}).get("bias_ls_rad_s")
+result = validate_references(
+    {name: read_recording(snakemake.input[name])[0] for name in references},
+    references,
+    read_segments(snakemake.input.segments),
+    read_json(snakemake.input.calibration),
+    bias,
+    {name: dataset.reference_where(name) for name in references},
+    windows_s=snakemake.params.windows_s,
+)
+write_json(result, snakemake.output.validation)
+plot_orientation_errors(result).savefig(snakemake.output.figure, dpi=110)
