@@ -82,19 +82,21 @@ PLANS: dict[str, Counter | str] = {
     ),
     "snakemake --cores 2 results/demo/calibrated/static.parquet": _CALIBRATION
     + Counter(apply_calibration=1),
-    # seven datasets of six public recordings, all on the partial path; three have a static
-    # recording (noise, export)
+    # eight datasets of seven public recordings, all on the partial path; three have a static
+    # recording (noise, export); BROAD's two trials carry an orientation reference each
     "snakemake --cores 2 real": Counter(
-        ingest=11,
-        ingest_summary=7,
-        segment=7,
-        plot_segments=11,
-        partial=7,
+        ingest=13,
+        ingest_summary=8,
+        segment=8,
+        plot_segments=13,
+        partial=8,
         noise=3,
         export=3,
-        gap_diagnose_partial=7,
-        stages=7,
-        report=7,
+        gap_diagnose_partial=8,
+        stages=8,
+        report=8,
+        ingest_orientation=2,
+        validate_references=1,
         real=1,
     ),
     # 28 sessions with one hidden effect, 5 without, 2 with an effect outside the library
