@@ -374,8 +374,17 @@ def _gyr_reference(s: _Session) -> dict:
     return fit_gyr_reference(s.tables, s.references, _bias(s), where)
 
 
+def _acc_reference(s: _Session) -> dict:
+    from imucal.pipeline.reference import fit_acc_reference
+
+    _need("gyr_reference" in s.done, "needs the gyroscope against the reference (gyr_reference)")
+    return fit_acc_reference(
+        s.tables, s.references, s.segments, s.done["gyr_reference"], s.gravity_m_s2
+    )
+
+
 def _acc_final(s: _Session) -> SensorCalibration | None:
-    for stage in ("acc_known_orientation", "acc_align", "acc_cube"):
+    for stage in FINAL["acc"]:
         if stage in s.done:
             return SensorCalibration.from_dict("acc", s.done[stage]["calibration"])
     return None
@@ -462,6 +471,7 @@ RUNNERS: dict[str, Callable[[_Session], dict]] = {
     "gyr_align": _gyr_align,
     "gyr_known_rotation": _gyr_known_rotation,
     "gyr_reference": _gyr_reference,
+    "acc_reference": _acc_reference,
     "gyr_pose_to_pose": _gyr_pose_to_pose,
     "gyr_scale": _gyr_scale,
 }
@@ -641,6 +651,8 @@ def full_protocol_stages(
         "gyr_known_rotation": "not applicable: no ferraris recording",
         "gyr_reference": "not applicable: the full protocol calibrates the gyroscope with the "
         "platform (an orientation reference is declared on partial sessions' recordings)",
+        "acc_reference": "not applicable: the full protocol calibrates the accelerometer with "
+        "the cube and the platform",
         "gyr_pose_to_pose": "not applicable: the full protocol calibrates the gyroscope with the "
         "platform (and rate table)",
     }

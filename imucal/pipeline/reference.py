@@ -19,6 +19,7 @@ from imucal import errormodel
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, QUAT, TIME
 from imucal.fits.reference import fit_gyro_to_reference
+from imucal.orientation import quat_conjugate, quat_rotate
 from imucal.validation.orientation import (
     OrientationAlignment,
     align_orientation_reference,
@@ -95,6 +96,123 @@ def fit_gyr_reference(
         alignments[name] = alignment.to_dict()
     fit = fit_gyro_to_reference(readings, rates)
     return {**fit.to_dict(), "recordings": used, "alignments": alignments}
+
+
+def _module_time(time: Mapping, t_reference: np.ndarray) -> np.ndarray:
+    """Module-clock times of reference times, from a time alignment's dict form."""
+    return (np.asarray(t_reference, dtype=float) - time["offset_s"]) / (
+        1.0 + time["drift_ppm"] * 1e-6
+    )
+
+
+def rest_directions(
+    table: pd.DataFrame,
+    reference: pd.DataFrame,
+    rests: pd.DataFrame,
+    time: Mapping,
+    mounting: np.ndarray,
+    up: str,
+) -> tuple[list[np.ndarray], np.ndarray, list[str]]:
+    """Accelerometer samples of each rest and the reference's up direction there, in B.
+
+    Parameters
+    ----------
+    table : DataFrame
+        Ingested recording.
+    reference : DataFrame
+        Its ingested orientation reference.
+    rests : DataFrame
+        The recording's static segments (segments-table rows).
+    time : mapping
+        The clock (:meth:`imucal.validation.timing.TimeAlignment.to_dict`).
+    mounting : array_like, shape (3, 3)
+        Reference body -> B.
+    up : str
+        The reference world's up axis (``+z``...).
+
+    Returns
+    -------
+    positions : list of ndarray, shape (n_k, 3)
+        Accelerometer readings of each rest with reference samples, m/s^2.
+    directions : ndarray, shape (k, 3)
+        Unit up direction in B per rest (mean over the rest's present reference samples).
+    labels : list of str
+    """
+    t_ref, quat = _orientation(reference)
+    t_ref_m = _module_time(time, t_ref)
+    present = np.all(np.isfinite(quat), axis=1)
+    up_world = np.zeros(3)
+    up_world["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    t, acc = _series(table, ACC)
+    positions, directions, labels = [], [], []
+    for row in rests.itertuples(index=False):
+        sel_r = present & (t_ref_m >= row.start_s) & (t_ref_m <= row.end_s)
+        sel_m = (t >= row.start_s) & (t <= row.end_s)
+        if np.count_nonzero(sel_r) < 2 or np.count_nonzero(sel_m) < 2:
+            continue
+        body = quat_rotate(quat_conjugate(quat[sel_r]), up_world).mean(axis=0)
+        direction = np.asarray(mounting, dtype=float) @ body
+        positions.append(acc[sel_m])
+        directions.append(direction / np.linalg.norm(direction))
+        labels.append(str(row.label))
+    return positions, np.array(directions).reshape(-1, 3), labels
+
+
+def fit_acc_reference(
+    tables: Mapping[str, pd.DataFrame],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    segments: pd.DataFrame,
+    gyr_reference: Mapping,
+    gravity_m_s2: float,
+) -> dict:
+    """Stage ``acc_reference``: the accelerometer from the reference's gravity direction at rests.
+
+    The rests of the recordings the gyroscope was fitted on (``gyr_reference``) are positions
+    of known orientation: the reference's up direction, carried into frame B of the gyroscope by
+    the fitted mounting, so both sensors end in the same B. The known-orientation fit
+    (:func:`imucal.fits.ferraris.fit_known_orientations`) needs at least four rests whose
+    directions span 3-D.
+
+    Returns
+    -------
+    dict
+        The fit (as the Ferraris stage writes it) with ``recordings`` and ``gravity_m_s2``.
+
+    Raises
+    ------
+    ValueError
+        Too few rests with reference samples, or directions that do not span 3-D.
+    """
+    from imucal.fits.ferraris import fit_known_orientations
+
+    mounting = np.asarray(gyr_reference["mounting"]["matrix"], dtype=float)
+    positions, directions, labels = [], [], []
+    for name in gyr_reference["recordings"]:
+        rests = segments[
+            (segments["recording"] == name) & segments["kind"].isin(["static", "position"])
+        ]
+        reference, meta = references[name]
+        pos, dirs, labs = rest_directions(
+            tables[name], reference, rests, gyr_reference["alignments"][name]["time"],
+            mounting, meta["up"],
+        )  # fmt: skip
+        positions += pos
+        directions.append(dirs)
+        labels += [f"{name}:{label}" for label in labs]
+    fit = fit_known_orientations(positions, np.vstack(directions), gravity_m_s2, labels=labels)
+    artifact = {k: v for k, v in _plain(fit).items() if k != "calibration"}
+    artifact.update(
+        calibration=fit.calibration.to_dict(),
+        gravity_m_s2=gravity_m_s2,
+        recordings=list(gyr_reference["recordings"]),
+    )
+    return artifact
+
+
+def _plain(fit) -> dict:
+    from imucal.pipeline.stages import plain
+
+    return plain(fit)
 
 
 def _variant(

@@ -78,6 +78,12 @@ STAGES: dict[str, Stage] = {
             "reference's rotations (motion capture, robot)",
         ),
         Stage(
+            "acc_reference",
+            "acc",
+            "accelerometer from the orientation reference's gravity direction at rests "
+            "(positions of known orientation, in the gyroscope's frame B)",
+        ),
+        Stage(
             "gyr_pose_to_pose",
             "gyr",
             "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
@@ -95,7 +101,7 @@ VALIDATE = Stage("validate", "all", "validation against the reference", "validat
 #: Per sensor, the stages whose result calibrates it, preferred first.
 FINAL = {
     "mag": ("mag_step2", "mag_step1"),
-    "acc": ("acc_known_orientation", "acc_align", "acc_cube"),
+    "acc": ("acc_known_orientation", "acc_align", "acc_reference", "acc_cube"),
     "gyr": (
         "gyr_table",
         "gyr_known_rotation",

@@ -32,7 +32,7 @@ class OrientationSession:
     t_module : ndarray, shape (n,)
         Module times, s.
     gyr, acc : ndarray, shape (n, 3)
-        Gyroscope readings (rad/s) and accelerometer (m/s^2, in B, ideal).
+        Gyroscope and accelerometer readings (rad/s, m/s^2).
     t_reference : ndarray, shape (m,)
         Reference times on its clock: ``t_ref = offset_s + (1 + drift_ppm 1e-6) t_module``.
     quat_reference : ndarray, shape (m, 4)
@@ -75,13 +75,18 @@ def simulate_orientation_session(
     gaps: int = 5,
     gap_s: float = 1.0,
     rate_rad_s: float = 2.0,
+    acc_matrix: np.ndarray | None = None,
+    acc_bias: np.ndarray | None = None,
+    acc_noise_m_s2: float = 0.0,
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
     The body rate is a sum of sinusoids (0.05-1.5 Hz) per axis, scaled to ``rate_rad_s`` RMS,
     switched off in 3 s rests every 20 s (smooth ramps). Gyroscope readings are
     ``matrix^-1 mounting omega_body + bias`` plus white noise; the reference adds a random
-    rotation of ``orientation_noise_rad`` RMS per axis to each orientation.
+    rotation of ``orientation_noise_rad`` RMS per axis to each orientation. The accelerometer
+    reads gravity only (``9.81`` m/s^2 along up, in B), ideal unless ``acc_matrix`` /
+    ``acc_bias`` / ``acc_noise_m_s2`` give its errors (``acc_B = acc_matrix (acc - acc_bias)``).
     """
     rng = np.random.default_rng(seed)
     dt_fine = 1e-3
@@ -113,6 +118,11 @@ def simulate_orientation_session(
     idx = np.clip(np.round(t_m / dt_fine).astype(int), 0, t_fine.size - 1)
     q_mount = quat_from_matrix(mounting)
     acc = 9.81 * quat_rotate(quat_multiply(q_mount, quat_conjugate(q_fine[idx])), up)
+    if acc_matrix is not None:
+        acc = np.linalg.solve(acc_matrix, acc.T).T
+    if acc_bias is not None:
+        acc = acc + acc_bias
+    acc = acc + rng.normal(0, 1, acc.shape) * acc_noise_m_s2
     # reference clock: sample k at t_ref = k / rate, module time (t_ref - offset) / (1 + drift)
     t_ref_all = np.arange(
         0.0, offset_s + duration_s * (1 + drift_ppm * 1e-6), 1.0 / reference_rate_hz

@@ -17,6 +17,8 @@ from imucal.sim.orientation import simulate_orientation_session
 MATRIX = errormodel.compose([1.03, 0.98, 1.01], [0.005, -0.004, 0.006], [0.0, 0.0, 0.0])
 BIAS = np.array([0.015, -0.01, 0.02])
 MOUNTING = Rotation.from_rotvec([0.2, 0.4, -0.9]).as_matrix()
+ACC_MATRIX = errormodel.compose([1.02, 0.99, 0.98], [0.003, 0.002, -0.004], [0.01, -0.02, 0.015])
+ACC_BIAS = np.array([0.1, -0.05, 0.2])
 
 
 def as_tables(session, name):
@@ -38,7 +40,9 @@ def as_tables(session, name):
 @pytest.fixture(scope="module")
 def chain():
     fit = simulate_orientation_session(21, matrix=MATRIX, bias=BIAS, mounting=MOUNTING,
-                                       offset_s=0.8, drift_ppm=30.0)  # fmt: skip
+                                       offset_s=0.8, drift_ppm=30.0, duration_s=240.0,
+                                       acc_matrix=ACC_MATRIX, acc_bias=ACC_BIAS,
+                                       acc_noise_m_s2=0.02)  # fmt: skip
     held = simulate_orientation_session(22, matrix=MATRIX, bias=BIAS, mounting=MOUNTING,
                                         offset_s=-0.4, reference_rate_hz=100.0)  # fmt: skip
     t_fit, r_fit, s_fit = as_tables(fit, "tumble")
@@ -95,3 +99,19 @@ def test_every_reference_held_out_skips_the_stage(chain):
     stage = next(o for o in outcomes if o.name == "gyr_reference")
     assert stage.status == "skipped" and "is held_out; expected one to fit on" in stage.reason
     assert partial.final_calibration(outcomes)["sensors"]["gyr"]["stage"] == "gyr_bias"
+
+
+def test_acc_reference_in_the_gyroscope_frame(chain):
+    _, _, _, outcomes = chain
+    done = {o.name: o for o in outcomes}
+    assert done["acc_reference"].status == "run", done["acc_reference"].reason
+    final = partial.final_calibration(outcomes)
+    assert final["sensors"]["acc"]["stage"] == "acc_reference"
+    cal = final["sensors"]["acc"]["calibration"]
+    matrix, bias = np.array(cal["matrix"]), np.array(cal["bias"])
+    std_m, std_b = np.array(cal["std"]["matrix"]), np.array(cal["std"]["bias"])
+    # B of the accelerometer is the gyroscope's B (the truth's), within the stated uncertainty:
+    # 12 rests of 2.4 s, noise 0.02 m/s^2 and the reference's tilt noise 0.0005 rad
+    assert np.all(np.abs(matrix - ACC_MATRIX) < 5 * std_m + 1e-4)
+    assert np.all(np.abs(bias - ACC_BIAS) < 5 * std_b + 1e-4)
+    assert np.abs(matrix - ACC_MATRIX).max() < 5e-3
