@@ -56,6 +56,8 @@ def test_offset_within_a_reference_sample_and_mounting_within_0_1_deg(session):
     # and within its stated uncertainty (4 sigma)
     truth_mid = s.offset_s + s.drift_ppm * 1e-6 * al.time.t_mid_s
     assert abs(al.time.offset_mid_s - truth_mid) < 4 * al.time.offset_mid_std_s + 1e-4
+    # the drift (40 ppm over 120 s: 4.8 ms, half a reference sample) is resolved
+    assert abs(al.time.drift_ppm - s.drift_ppm) < 4 * al.time.drift_std_ppm
     error = angle_deg(al.mounting.matrix, MOUNTING)
     assert error < 0.1
     assert error < 4 * al.mounting.angle_std_deg
