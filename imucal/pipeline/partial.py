@@ -12,7 +12,8 @@ Methods per sensor, best first (the first that runs gives the final calibration)
 - magnetometer: ellipsoid fit (step 1) + ``T_R,mag`` from the rotation3d phases (step 2); step 1
   alone leaves the field in the magnetometer's own (ellipsoid) frame;
 - accelerometer: known orientations (six faces, Ferraris) in frame B of the positions; cube fit
-  (eq. 32) on many static poses + ``T_R,acc`` from the rotation3d phases; the cube fit alone;
+  (eq. 32) on many static poses + ``T_R,acc`` from the rotation3d phases; the gravity direction
+  of an orientation reference at rests (in the gyroscope's frame); the cube fit alone;
 - gyroscope: rate table (eq. 33) + ``T_R,gyr``; known-angle rotations (Ferraris); against an
   orientation reference (motion capture, robot); pose to pose (Tedaldi et al. 2014) in the
   accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
