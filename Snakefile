@@ -24,6 +24,7 @@ include: "workflow/rules/partial.smk"
 include: "workflow/rules/reference.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/gap.smk"
+include: "workflow/rules/fleet.smk"
 
 
 rule all:
