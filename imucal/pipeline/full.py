@@ -155,9 +155,10 @@ def calibrate_session(
         segments,
         gravity_m_s2=options.gravity_m_s2,
         saturation_limit_m_s2=options.limit("acc"),
+        figures=False,
     )
     acc = stages.align_acc(low, segments, cube, exact=exact)
-    bias, _ = stages.estimate_gyr_bias(imu, segments)
+    bias, _ = stages.estimate_gyr_bias(imu, segments, figures=False)
     o, _ = stages.gyr_bias_value(bias, "ls")
     align = stages.align_gyr(low, segments, o, exact=exact)
     notes = []
@@ -175,7 +176,10 @@ def calibrate_session(
     if "ratetable" in imu:
         try:
             table, _ = stages.fit_gyr_table(
-                imu["ratetable"], segments, saturation_limit_rad_s=options.limit("gyr")
+                imu["ratetable"],
+                segments,
+                saturation_limit_rad_s=options.limit("gyr"),
+                figures=False,
             )
             table_align = stages.align_gyr(
                 low, segments, table["bias"], table["upper"], exact=exact
