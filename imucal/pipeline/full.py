@@ -265,9 +265,18 @@ def reference_alignment(
 
 
 def calibrated(fit: SessionFit, recording: str, sensor: str) -> np.ndarray:
-    """Calibrated values (frame B, SI) of one sensor of one recording, shape (n, 3)."""
+    """Calibrated values (frame B, SI) of one sensor of one recording, shape (n, 3).
+
+    Computed once per fit (the diagnosis's statistics ask for the same recording many times)
+    and returned read-only, so that no caller can change what the next one gets.
+    """
     from imucal.columns import sensor_columns
 
-    values = fit.imu[recording][list(sensor_columns(sensor))].to_numpy(dtype=float)
-    cal = fit.calibration.sensor(sensor)
-    return cal.apply(values, unit=cal.unit)
+    cache = fit.extra.setdefault("calibrated", {})
+    if (recording, sensor) not in cache:
+        values = fit.imu[recording][list(sensor_columns(sensor))].to_numpy(dtype=float)
+        cal = fit.calibration.sensor(sensor)
+        out = cal.apply(values, unit=cal.unit)
+        out.flags.writeable = False
+        cache[(recording, sensor)] = out
+    return cache[(recording, sensor)]
