@@ -35,9 +35,10 @@ from imucal.columns import (
     TIME,
 )
 
-#: Bytes of a raw log parsed per batch by :class:`ImuCsvStream` (pyarrow's block size); about
-#: 200 000 rows of the IMU CSV, so memory stays bounded whatever the length of the recording.
-BATCH_BYTES = 1 << 24
+#: Bytes of a raw log parsed per batch by :class:`ImuCsvStream` (pyarrow's block size), about
+#: 70 000 rows of the IMU CSV. pyarrow reads a bounded number of blocks ahead (some 30), so the
+#: memory held is a few hundred MB whatever the length of the recording.
+BATCH_BYTES = 1 << 22
 
 #: Format names recorded in the metadata.
 IMU_CSV_FORMAT = "imu-csv"

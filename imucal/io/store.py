@@ -11,6 +11,7 @@ import json
 import os
 import tempfile
 from collections.abc import Callable, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +78,10 @@ class RecordingWriter:
     to ``path`` by :meth:`close`; leaving the ``with`` block without calling it (an exception)
     removes the temporary file, so no partial file is ever left under the target's name.
 
+    A batch is encoded and written in a background thread while the caller prepares the next
+    one (pyarrow releases the GIL), so reading and writing overlap; at most one batch is in
+    flight, and an error of the write is raised by the next :meth:`write` or :meth:`close`.
+
     Parameters
     ----------
     path : str or Path
@@ -98,11 +103,14 @@ class RecordingWriter:
         )
         os.close(fd)
         self._writer: pq.ParquetWriter | None = None
+        self._thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="parquet-writer")
+        self._pending: Future | None = None
 
     def __enter__(self) -> RecordingWriter:
         try:
             self._writer = pq.ParquetWriter(self._tmp, self.schema, store_schema=False)
         except BaseException:
+            self._thread.shutdown()
             Path(self._tmp).unlink(missing_ok=True)
             raise
         return self
@@ -116,11 +124,13 @@ class RecordingWriter:
             for field in self.schema
         ]
         batch = pa.RecordBatch.from_arrays(arrays, schema=self.schema)
-        self._writer.write_batch(batch)
+        self._wait()
+        self._pending = self._thread.submit(self._writer.write_batch, batch)
         self.rows += batch.num_rows
 
     def close(self, metadata: Mapping[str, Any]) -> None:
         """Store ``metadata`` (as :func:`write_recording` does) and move the file in place."""
+        self._wait()
         keys = {METADATA_KEY: _metadata_blob(metadata)}
         if self._pandas is not None:
             keys = {b"pandas": self._pandas, **keys}
@@ -128,7 +138,14 @@ class RecordingWriter:
         self._writer.close()
         os.replace(self._tmp, self.path)
 
+    def _wait(self) -> None:
+        """Wait for the batch in flight; raise its error."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
+
     def __exit__(self, kind: object, error: object, trace: object) -> None:
+        self._thread.shutdown(wait=True)
         if kind is not None or Path(self._tmp).exists():
             if self._writer is not None and self._writer.is_open:
                 self._writer.close()

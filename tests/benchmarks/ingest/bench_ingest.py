@@ -1,8 +1,9 @@
 """Benchmark of the ingest: raw CSV -> checked SI parquet, against a bare pyarrow CSV read.
 
 A script, not a test (speed is measured, never asserted). It writes a synthetic log of
-``--rows`` packets (100 Hz, seq wrapping at 65536, 10 Hz magnetometer, a ``temp_c`` column)
-into a temporary folder, then times, in the same run and alternately:
+``--rows`` packets (at ``--rate-hz``, default 100 Hz; seq wrapping at 65536, a magnetometer
+sample every 10th packet, a ``temp_c`` column) into a temporary folder, then times, in the same
+run and alternately:
 
 - ``bare``: ``pyarrow.csv.read_csv(path)`` with default options (no checks, nothing written);
 - ``ingest``: :func:`imucal.ingest.ingest_to_parquet`, what the ingest rule runs (streamed:
@@ -14,9 +15,9 @@ and the peak RSS of the process. Run:
 ``python tests/benchmarks/ingest/bench_ingest.py [--rows 2000000]``.
 
 ``--stream-only`` skips the bare read (which holds the whole table in memory) and the checks
-against it, so that the peak RSS is the streaming ingest's own: e.g. ``--rows 86400000
---rate-hz 1000 --repeat 1 --stream-only`` for 24 h at 1 kHz (the file is written to ``--tmp``, ~6 GB, and
-deleted at the end).
+against it, so that the peak RSS is the streaming ingest's own (the synthetic log is written
+in chunks of 1 M rows first, by the same process): e.g. ``--rows 86400000 --rate-hz 1000
+--repeat 1 --stream-only --tmp /tmp`` for 24 h at 1 kHz (a 4.9 GB file, deleted at the end).
 """
 
 from __future__ import annotations
