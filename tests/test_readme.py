@@ -108,6 +108,8 @@ PLANS: dict[str, Counter | str] = {
         detection_render=830, detection_diagnose=830, detection_score=1, detection=1
     ),
     "snakemake --report report.zip": NEEDS_FINISHED_RUN,
+    # the SLURM profile plans the default DAG (each rule a cluster job)
+    "snakemake --profile workflow/profiles/slurm": _DATASET + Counter(all=1),
 }
 
 #: Commands the README gives in parts ("`snakemake --cores 2 detection` ... or a reduced grid

@@ -16,6 +16,10 @@ Methods per sensor, best first (the first that runs gives the final calibration)
 - gyroscope: rate table (eq. 33) + ``T_R,gyr``; known-angle rotations (Ferraris); pose to pose
   (Tedaldi et al. 2014) in the accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
   the bias alone.
+
+The module is long (about 700 lines): one runner per stage of the registry that a partial
+session can take, each with its condition and reason when it does not apply, and the choice of
+the final calibration among them; they share the session's state (:class:`_Session`).
 """
 
 from __future__ import annotations

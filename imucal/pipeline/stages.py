@@ -5,6 +5,10 @@ low-pass filtered) tables, calls the fits of :mod:`imucal.fits.accelerometer`,
 :mod:`imucal.fits.gyroscope` and :mod:`imucal.fits.alignment`, and returns a JSON-ready artifact (and
 figures, never saved here). Stages exchange their results through these artifacts, so one stage
 can be rerun on new data.
+
+The module is long (about 730 lines) because it has one function per rule of the paper's
+stage-per-rule path; the in-process chain (:mod:`imucal.pipeline.full`) and the partial path
+(:mod:`imucal.pipeline.partial`) call the same functions, so a stage is written once.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ from snakemake.utils import validate
 
 import imucal
 from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
+from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.partial import is_full_protocol
 from imucal.pipeline.registry import full_protocol_artifacts
@@ -28,6 +29,13 @@ REAL_DATASETS = {
     for real in REAL_CONFIGS.values()
     for name, folder in real.get("datasets", {}).items()
 }
+#: The sessions of a fleet's sample sheet (config `fleet.sessions`, target `fleet`).
+FLEET_SHEET = (
+    read_sample_sheet(config["fleet"]["sessions"]) if config["fleet"]["sessions"] else None
+)
+SHEET_DATASETS = (
+    {} if FLEET_SHEET is None else dict(zip(FLEET_SHEET["dataset"], FLEET_SHEET["path"]))
+)
 #: Package version as a param of every fit rule: an upgrade of imucal reruns them.
 IMUCAL_VERSION = imucal.__version__
 
@@ -39,16 +47,19 @@ wildcard_constraints:
 
 def folder_of(name):
     """Folder of a dataset (config `datasets`, else the public recordings of config/real)."""
-    folders = {**REAL_DATASETS, **config["datasets"]}
+    folders = {**REAL_DATASETS, **SHEET_DATASETS, **config["datasets"]}
     if name not in folders:
-        raise ValueError(f"dataset {name!r} is neither in config 'datasets' nor in config/real")
+        raise ValueError(
+            f"dataset {name!r} is neither in config 'datasets', nor in config/real, nor in the "
+            "fleet's sample sheet"
+        )
     return str(Path(folders[name]))
 
 
 #: Config sections a config/real file may set for its datasets alone.
 DATASET_SECTIONS = ("segmentation", "noise")
 #: Config sections of the checks (blind, stress, detection), not of one dataset's run.
-CHECK_SECTIONS = ("datasets", "blind", "stress", "detection")
+CHECK_SECTIONS = ("datasets", "blind", "stress", "detection", "fleet")
 
 
 def dataset_config(name, section):
@@ -96,7 +107,9 @@ def full_protocol(name):
 
 #: The configured and public datasets: a lab report is one of theirs (reports/blind.html and
 #: reports/stress.html are the checks' pages, not datasets).
-ALL_DATASETS_PATTERN = "|".join(sorted({**REAL_DATASETS, **config["datasets"]})) or "(?!)"
+ALL_DATASETS_PATTERN = (
+    "|".join(sorted({**REAL_DATASETS, **SHEET_DATASETS, **config["datasets"]})) or "(?!)"
+)
 
 
 def datasets_pattern(full):
@@ -107,7 +120,7 @@ def datasets_pattern(full):
     for its outputs then fails on that dataset alone, with the reader's message.
     """
     names = []
-    for name in sorted({**REAL_DATASETS, **config["datasets"]}):
+    for name in sorted({**REAL_DATASETS, **SHEET_DATASETS, **config["datasets"]}):
         try:
             on_path = full_protocol(name) == full
         except (FileNotFoundError, ValueError):
@@ -251,11 +264,15 @@ def noise_input(wildcards):
     return {"recording": f"results/{wildcards.dataset}/ingest/{recording}.parquet"}
 
 
+def calibration_path(name):
+    """calibration.json of the path a session takes (full protocol or partial)."""
+    path = "calibration.json" if full_protocol(name) else "partial/calibration.json"
+    return f"results/{name}/{path}"
+
+
 def calibration_of(wildcards):
-    """calibration.json of the path the session takes (full protocol or partial)."""
-    d = wildcards.dataset
-    path = "calibration.json" if full_protocol(d) else "partial/calibration.json"
-    return f"results/{d}/{path}"
+    """Input function: the dataset's calibration.json (:func:`calibration_path`)."""
+    return calibration_path(wildcards.dataset)
 
 
 #: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/.
@@ -438,3 +455,12 @@ PIPELINE_SETTINGS = {
     "lowpass_order": config["lowpass"]["order"],
     "lowpass_cutoff_hz": config["lowpass"]["cutoff_hz"],
 }
+
+
+def fleet_calibrations(wildcards):
+    """The calibration of every session of the fleet's sample sheet, by dataset."""
+    if FLEET_SHEET is None:
+        raise ValueError(
+            "the fleet target needs a sample sheet: set config fleet.sessions (docs/fleet.md)"
+        )
+    return {name: calibration_path(name) for name in FLEET_SHEET["dataset"]}
