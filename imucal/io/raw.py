@@ -4,6 +4,10 @@ The data contract is ``docs/data-format.md``. Readers check the *format* of a fi
 cells, which cells may be empty) and report any problem as one :class:`RawDataError` naming
 the file, the 1-based line number as a text editor shows it, and what was expected. Checks of
 the *content* (time order, packet counter) live in :mod:`imucal.ingest`.
+
+The module (about 630 lines) keeps both native formats together because they share the
+reading machinery (header, pyarrow options, locating the bad line, the cell checks), which
+the IMU CSV also runs batch by batch (:class:`ImuCsvStream`).
 """
 
 from __future__ import annotations
