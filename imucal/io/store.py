@@ -97,16 +97,17 @@ class RecordingWriter:
         schema = pa.Schema.from_pandas(empty, preserve_index=False)
         self._pandas = (schema.metadata or {}).get(b"pandas")
         self.schema = schema.remove_metadata()
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, self._tmp = tempfile.mkstemp(
-            prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent
-        )
-        os.close(fd)
+        self._tmp = ""
         self._writer: pq.ParquetWriter | None = None
         self._thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="parquet-writer")
         self._pending: Future | None = None
 
     def __enter__(self) -> RecordingWriter:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, self._tmp = tempfile.mkstemp(
+            prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent
+        )
+        os.close(fd)
         try:
             self._writer = pq.ParquetWriter(self._tmp, self.schema, store_schema=False)
         except BaseException:
