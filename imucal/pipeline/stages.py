@@ -39,7 +39,10 @@ PAPER_TABLE_II = {
 }
 ALIGNMENT_METHODS = ("full", "paper")
 #: How the rate table's covariance is scaled (for the calibration's ``quality``).
-RATE_TABLE_RULE = "noise per axis from the runs' residuals about the fit (dof = n_runs - 4)"
+RATE_TABLE_RULE = (
+    "noise per axis from the runs' residuals about the fit (dof = n_runs - 4), plus the outer "
+    "product of the shift of (K, b) when every run loses its outer tenths (cut_shift)"
+)
 #: What the tool-free gyroscope's covariance leaves out.
 TOOL_FREE_RULE = (
     "T_N is not observable without a rate table and is taken as exact (xi = 0, std 0); eq. 36's "
@@ -498,8 +501,21 @@ def fit_gyr_table(
     fit = gyroscope.fit_rate_table(
         np.array([r.mean(axis=0) for r in runs]), rates, np.array([len(r) for r in runs])
     )
+    # the runs' ends are where a segmentation can take in the ramps: the fit on runs without
+    # their outer tenths shows how far that moves (K, b), a systematic term of the covariance
+    inner = [r[len(r) // 10 : len(r) - len(r) // 10] for r in runs]
+    trimmed = gyroscope.fit_rate_table(
+        np.array([r.mean(axis=0) for r in inner]), rates, np.array([len(r) for r in inner])
+    )
     artifact = plain(fit)
-    artifact.update(labels=list(rows["label"]), rates_rad_s=rates.tolist(), warnings=warnings)
+    artifact.update(
+        labels=list(rows["label"]),
+        rates_rad_s=rates.tolist(),
+        warnings=warnings,
+        cut_shift=np.concatenate(
+            [(trimmed.matrix - fit.matrix).ravel(), trimmed.bias - fit.bias]
+        ).tolist(),
+    )
     figure = inertial_plots.plot_rate_table_errors(fit, list(rows["label"]))
     return artifact, {"gyr_table": figure}
 
@@ -597,7 +613,13 @@ def combine_gyr(
         covariance = uncertainty.two_step_covariance(
             upper,
             np.asarray(table["bias"], dtype=float),
-            upper_bias_covariance(table["matrix"], table["covariance"]),
+            upper_bias_covariance(
+                table["matrix"],
+                np.asarray(table["covariance"], dtype=float)
+                + np.outer(
+                    table.get("cut_shift", np.zeros(12)), table.get("cut_shift", np.zeros(12))
+                ),
+            ),
             np.asarray(chosen["alpha_rad"], dtype=float),
             np.asarray(chosen["covariance"], dtype=float),
             np.asarray(table_alignment["sensitivity"], dtype=float),
