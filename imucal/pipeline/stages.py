@@ -235,12 +235,23 @@ def estimate_gyr_bias(
 
 
 def gyr_bias_value(bias: Mapping, estimator: str) -> tuple[np.ndarray, np.ndarray]:
+    """The bias (3,) and its std (3,), rad/s, the std inflated per axis by the goodness of fit
+    of the static blocks (:func:`gyr_bias_quality`)."""
     if estimator not in ("ls", "mean"):
         raise ValueError(f"gyroscope bias estimator {estimator!r}: expected 'ls' or 'mean'")
+    inflation = np.array([q["inflation"] for q in gyr_bias_quality(bias)] or [1.0, 1.0, 1.0])
     return (
         np.asarray(bias[f"bias_{estimator}_rad_s"], dtype=float),
-        np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float),
+        np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float) * np.sqrt(inflation),
     )
+
+
+def gyr_bias_quality(bias: Mapping) -> list[dict]:
+    """Per axis the goodness of fit of the static blocks' means (empty for a single block)."""
+    dof = int(bias.get("dof_blocks", 0))
+    if dof < 1:
+        return []
+    return [uncertainty.goodness_of_fit(c, dof).to_dict() for c in bias["chi2_blocks"]]
 
 
 def align_gyr(
@@ -600,7 +611,11 @@ def combine_gyr(
             f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31); "
             "scale: eq. 36 from acc/mag angles",
             covariance,
-            {**quality, "tool_free": {"rule": TOOL_FREE_RULE}},
+            {
+                **quality,
+                **{f"bias_{a}": q for a, q in zip(AXES, gyr_bias_quality(bias), strict=True)},
+                "tool_free": {"rule": TOOL_FREE_RULE},
+            },
         )
     with_table = None
     table_i = {"LS (this run)": tuple(bias["bias_ls_rad_s"]), **PAPER_TABLE_I}

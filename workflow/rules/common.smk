@@ -431,3 +431,22 @@ DETECTION_SESSIONS = [s["name"] for s in _DETECTION_PLAN]
 def detection_spec(wildcards):
     """The sealed spec of one detection session (only the render rule takes it)."""
     return next(s for s in _DETECTION_PLAN if s["name"] == wildcards.session)
+
+
+# The Monte-Carlo check of the reported uncertainty (rules in benchmark.smk).
+wildcard_constraints:
+    setting="clean|effects",
+
+
+def uncertainty_effects(wildcards):
+    """Comma-separated simulator effects of a setting ('' for clean)."""
+    return ",".join(config["uncertainty"]["effects"]) if wildcards.setting == "effects" else ""
+
+
+def uncertainty_chunks(wildcards):
+    """The chunk files of a setting: seeds 0 .. sessions - 1 in steps of the chunk size."""
+    u = config["uncertainty"]
+    return [
+        f"results/uncertainty/{wildcards.setting}/chunk{first}.json"
+        for first in range(0, u["sessions"], u["chunk"])
+    ]
