@@ -61,6 +61,9 @@ class GyroBias:
         bias holds still, larger when it wanders (bias instability, warm-up).
     dof_blocks : int
         Number of blocks minus one (0 with a single block).
+    wander_var_rad2_s2 : ndarray, shape (3,)
+        Per axis, the variance of the block means beyond what the white noise gives them (0 when
+        they scatter no more than that): how far the bias wanders over the recording, (rad/s)^2.
     """
 
     bias_ls_rad_s: np.ndarray
@@ -72,6 +75,7 @@ class GyroBias:
     n_segments: int
     chi2_blocks: np.ndarray
     dof_blocks: int
+    wander_var_rad2_s2: np.ndarray
 
 
 def _static_segments(static: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
@@ -165,6 +169,10 @@ def estimate_bias(static: np.ndarray | Sequence[np.ndarray]) -> GyroBias:
     block_means = np.array([b.mean(axis=0) for b in blocks])
     counts = np.array([len(b) for b in blocks], dtype=float)
     chi2 = np.sum(counts[:, None] * (block_means - stacked.mean(axis=0)) ** 2, axis=0) / noise**2
+    white = noise**2 * np.mean(1.0 / counts)
+    wander = np.zeros(3)
+    if len(blocks) > 1:
+        wander = np.clip(np.var(block_means, axis=0, ddof=1) - white, 0.0, None)
     return GyroBias(
         bias_ls_rad_s=slope,
         std_ls_rad_s=noise * np.sqrt(weight_ss),
@@ -175,6 +183,7 @@ def estimate_bias(static: np.ndarray | Sequence[np.ndarray]) -> GyroBias:
         n_segments=len(segments),
         chi2_blocks=chi2,
         dof_blocks=len(blocks) - 1,
+        wander_var_rad2_s2=wander,
     )
 
 

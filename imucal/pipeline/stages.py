@@ -235,14 +235,20 @@ def estimate_gyr_bias(
 
 
 def gyr_bias_value(bias: Mapping, estimator: str) -> tuple[np.ndarray, np.ndarray]:
-    """The bias (3,) and its std (3,), rad/s, the std inflated per axis by the goodness of fit
-    of the static blocks (:func:`gyr_bias_quality`)."""
+    """The bias (3,) and its std (3,), rad/s.
+
+    Where the static blocks' means scatter beyond the white noise (:func:`gyr_bias_quality`
+    flags the axis), the bias wanders and the value at another time differs from the
+    recording's mean by that wander: its variance (``wander_var_rad2_s2``) is added.
+    """
     if estimator not in ("ls", "mean"):
         raise ValueError(f"gyroscope bias estimator {estimator!r}: expected 'ls' or 'mean'")
-    inflation = np.array([q["inflation"] for q in gyr_bias_quality(bias)] or [1.0, 1.0, 1.0])
+    std = np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float)
+    flagged = np.array([q["inflation"] > 1 for q in gyr_bias_quality(bias)] or [False] * 3)
+    wander = np.asarray(bias.get("wander_var_rad2_s2", np.zeros(3)), dtype=float)
     return (
         np.asarray(bias[f"bias_{estimator}_rad_s"], dtype=float),
-        np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float) * np.sqrt(inflation),
+        np.sqrt(std**2 + np.where(flagged, wander, 0.0)),
     )
 
 
@@ -251,7 +257,14 @@ def gyr_bias_quality(bias: Mapping) -> list[dict]:
     dof = int(bias.get("dof_blocks", 0))
     if dof < 1:
         return []
-    return [uncertainty.goodness_of_fit(c, dof).to_dict() for c in bias["chi2_blocks"]]
+    return [
+        {
+            **uncertainty.goodness_of_fit(c, dof).to_dict(),
+            "rule": "when chi2 > the 0.999 quantile: the variance of the block means beyond the "
+            "white noise (the bias's wander) is added to the bias's variance",
+        }
+        for c in bias["chi2_blocks"]
+    ]
 
 
 def align_gyr(
