@@ -249,3 +249,37 @@ def goodness_of_fit(chi2: float, dof: int) -> GoodnessOfFit:
     limit = stats.chi2.ppf(INFLATION_QUANTILE, dof)
     inflation = float(chi2 / dof) if chi2 > limit else 1.0
     return GoodnessOfFit(float(chi2), int(dof), float(stats.chi2.sf(chi2, dof)), inflation)
+
+
+def calibrated_covariance(
+    matrix: np.ndarray, bias: np.ndarray, covariance: np.ndarray, readings: np.ndarray
+) -> np.ndarray:
+    """Covariance of calibrated values from the parameters' covariance, per sample.
+
+    ``c = matrix (r - bias)``: ``dc = d(matrix) (r - bias) - matrix d(bias)``, so
+    ``J = [-matrix, I_3 kron (r - bias)^T]`` and ``Cov(c) = J C J^T``. The reading's own noise
+    is not included (it is the sensor's, not the calibration's).
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (3, 3)
+    bias : ndarray, shape (3,)
+    covariance : ndarray, shape (12, 12) or (21, 21)
+        Of ``(bias, matrix row by row)`` (the first 12 of :data:`PARAMETERS` are used).
+    readings : ndarray, shape (n, 3)
+        In the calibration's input unit.
+
+    Returns
+    -------
+    ndarray, shape (n, 3, 3)
+        In the output unit squared.
+    """
+    m = np.asarray(matrix, dtype=float)
+    centred = np.asarray(readings, dtype=float) - np.asarray(bias, dtype=float)
+    c = np.asarray(covariance, dtype=float)[:12, :12]
+    n = len(centred)
+    jac = np.zeros((n, 3, 12))
+    jac[:, :, :3] = -m
+    for i in range(3):
+        jac[:, i, 3 + 3 * i : 6 + 3 * i] = centred
+    return np.einsum("nip,pq,njq->nij", jac, c, jac)

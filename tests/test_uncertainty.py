@@ -88,3 +88,18 @@ def test_covariance_round_trips_and_old_files_load():
         back.__class__("mag", BIAS, MATRIX, "normalised"),
     )
     assert "covariance" not in full.to_dict()["gyr"]
+
+
+def test_calibrated_covariance_matches_sampling():
+    """Cov of matrix (r - bias) over draws of (bias, matrix) equals the analytic J C J^T."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(12, 12)) * 1e-3
+    cov12 = a @ a.T
+    readings = np.array([[9.8, 0.1, -0.3], [0.0, 0.0, 0.0], [-3.0, 5.0, 7.0]])
+    analytic = uncertainty.calibrated_covariance(MATRIX, BIAS, cov12, readings)
+    draws = rng.multivariate_normal(np.r_[BIAS, MATRIX.ravel()], cov12, size=20000)
+    for i, r in enumerate(readings):
+        values = np.array([d[3:].reshape(3, 3) @ (r - d[:3]) for d in draws])
+        # a sample covariance of 20000 draws: entries within 4 % of the largest variance
+        scale = np.max(np.diag(analytic[i]))
+        np.testing.assert_allclose(np.cov(values.T), analytic[i], atol=0.04 * scale)

@@ -319,6 +319,8 @@ def align_constant_component(
     method: str = "full",
     exact: bool = True,
     min_sweep: float = 0.1,
+    *,
+    correlated: bool = True,
 ) -> AlignmentResult:
     """``T_R`` such that in phase i the i-th calibrated component stays constant (eqs. 25-27).
 
@@ -343,6 +345,9 @@ def align_constant_component(
         ``min_sweep``, with ``lambda_2`` the middle eigenvalue of their covariance (the circle
         radius relative to the norm for a full turn). The accelerometer's phase about the vertical
         axis (gravity does not move) fails this and is skipped and reported.
+    correlated : bool
+        'full': the covariance allows for residuals correlated in time (sandwich); False
+        gives the plain ``sigma^2 (J^T J)^-1`` (cheaper, for refits that only need alpha).
 
     Returns
     -------
@@ -412,7 +417,11 @@ def align_constant_component(
         exact,
         spread_of,
         paper_variance_factor=2.0 if method == "paper" else None,
-        blocks=_blocks([len(centred[lb]) for lb in used], 1) if method == "full" else None,
+        blocks=(
+            _blocks([len(centred[lb]) for lb in used], 1)
+            if method == "full" and correlated
+            else None
+        ),
     )
     own = {lb: float(np.sqrt(np.mean((centred[lb] @ t[axes[lb]]) ** 2))) for lb in used}
     return _result(alpha, cov, exact, own, spread, points, skipped, method, "constant_component")
@@ -423,6 +432,8 @@ def align_rotation_axis(
     method: str = "full",
     exact: bool = True,
     min_rms_rate: float = 0.1,
+    *,
+    correlated: bool = True,
 ) -> AlignmentResult:
     """``T_R`` such that in phase i the rate has no component off axis i (eqs. 28-31).
 
@@ -443,6 +454,8 @@ def align_rotation_axis(
     min_rms_rate : float
         A phase is used only if the RMS of its rate along the dominant direction is at least this,
         rad/s (the platform turns).
+    correlated : bool
+        As for :func:`align_constant_component`.
 
     Returns
     -------
@@ -503,7 +516,11 @@ def align_rotation_axis(
         exact,
         spread_of,
         paper_variance_factor=1.0 if method == "paper" else None,
-        blocks=_blocks([len(chosen[lb]) for lb in used], 2) if method == "full" else None,
+        blocks=(
+            _blocks([len(chosen[lb]) for lb in used], 2)
+            if method == "full" and correlated
+            else None
+        ),
     )
     own = {lb: float(np.sqrt(np.mean((chosen[lb] @ t[off[lb]].T) ** 2))) for lb in used}
     return _result(alpha, cov, exact, own, spread, points, skipped, method, "rotation_axis")

@@ -561,7 +561,7 @@ def calibrate_alignment(
         raise ValueError(f"unknown step-2 method {method!r}; expected one of {sorted(alignments)}")
     chosen = alignments[method]
     sensitivity = alignment_sensitivity(
-        lambda ph: align_constant_component(ph, method=method, exact=exact),
+        lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
         phases,
         step1.upper,
         step1.bias,

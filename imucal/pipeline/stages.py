@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from imucal import errormodel, uncertainty
 from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
-from imucal.columns import ACC, AXES, GYR, MAG, TIME
+from imucal.columns import ACC, AXES, GYR, MAG, PARAMETER_STD_SUFFIX, TIME
 from imucal.fits import accelerometer, gyroscope
 from imucal.fits.alignment import (
     ALIGNMENT_RULE,
@@ -166,7 +166,10 @@ def align_acc(
         alignments[method].alpha_rad,
         alignments[method].covariance,
         alignment_sensitivity(
-            lambda ph: align_constant_component(ph, method=method, exact=exact), raw, upper, bias
+            lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
+            raw,
+            upper,
+            bias,
         ),
         exact,
     )
@@ -292,7 +295,10 @@ def align_gyr(
         name: align_rotation_axis(phases, method=name, exact=exact) for name in ALIGNMENT_METHODS
     }
     sensitivity = alignment_sensitivity(
-        lambda ph: align_rotation_axis(ph, method=method, exact=exact), raw, s, bias
+        lambda ph: align_rotation_axis(ph, method=method, exact=exact, correlated=False),
+        raw,
+        s,
+        bias,
     )
     return {
         "used": method,
@@ -767,9 +773,18 @@ def calibration_of_what_ran(artifacts: Mapping[str, Mapping]) -> dict:
 
 
 def apply_calibration(
-    table: pd.DataFrame, metadata: Mapping, calibration: ImuCalibration
+    table: pd.DataFrame,
+    metadata: Mapping,
+    calibration: ImuCalibration,
+    *,
+    parameter_std: bool = False,
 ) -> tuple[pd.DataFrame, dict]:
     """Calibrate the three sensors of an ingested recording to frame B.
+
+    With ``parameter_std`` the table gains, per calibrated column, the standard deviation that
+    the calibration's parameter covariance gives the sample
+    (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal; column name + ``_param_std``),
+    for sensors whose calibration has a covariance.
 
     Parameters
     ----------
@@ -804,7 +819,13 @@ def apply_calibration(
                 f"for {list(columns)}; expected one unit per sensor in the ingest metadata"
             )
         values = table[list(columns)].to_numpy(dtype=float)
-        out[list(columns)] = calibration.sensor(sensor).apply(values, unit=found.pop())
+        cal = calibration.sensor(sensor)
+        out[list(columns)] = cal.apply(values, unit=found.pop())
+        if parameter_std and cal.covariance is not None:
+            cov = uncertainty.calibrated_covariance(cal.matrix, cal.bias, cal.covariance, values)
+            std = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
+            for k, column in enumerate(columns):
+                out[column + PARAMETER_STD_SUFFIX] = std[:, k]
     return out, {**metadata, "calibrated": True}
 
 
