@@ -1,12 +1,14 @@
 """Sim-to-real gap diagnosis: where a recorded session departs from its twin, which
 unmodelled effect causes it, and how far adding the effect to the twin closes it.
 
-Modules: :mod:`.pipeline` (the calibration stages in process), :mod:`.twin` (the session's twin
-under the paper's model), :mod:`.statistics` (the locations of the gap map), :mod:`.null`
-(replicas, scores, Holm, total gap), :mod:`.effects` (estimators and signatures),
-:mod:`.attribution` (held-out forward selection), :mod:`.diagnosis` (diagnosis.json),
+Modules: :mod:`.twin` (the session's twin under the paper's model, full or static, and its
+replicas), :mod:`.statistics` (the locations of a full session's gap map), :mod:`.streams` (a
+static recording's streams and locations), :mod:`.null` (scores, Holm, total gap),
+:mod:`.effects` (the effect model, estimators and signatures), :mod:`.attribution` (held-out
+forward selection), :mod:`.diagnosis` (diagnosis.json: one assembly for both twins),
+:mod:`.static` (what a static recording can show: the partial session's diagnosis),
 :mod:`.figures` (report section), :mod:`.blind` (the blind check), :mod:`.stress` (the stress
-set), :mod:`.detection` (detection limits). See docs/gap.md.
+set), :mod:`.detection` (detection limits), :mod:`.checks` (scoring the checks). See docs/gap.md.
 """
 
 from imucal.gap.diagnosis import FORMAT_VERSION, diagnose

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from imucal.gap.effects import EffectModel
-from imucal.gap.null import NullModel, holm, run_replica, transform
-from imucal.gap.twin import Twin
+from imucal.gap.null import NullModel, holm, transform
+from imucal.gap.twin import StaticTwin, Twin
 
 
 @dataclass
@@ -99,10 +99,10 @@ def statistic_shift(pairs) -> dict:
     }
 
 
-def _shift(twin: Twin, effect, replicas, half, n_seeds: int) -> dict:
+def _shift(twin: Twin | StaticTwin, effect, replicas, half, n_seeds: int) -> dict:
     """:func:`statistic_shift` of ``effect`` on ``half`` over the first ``n_seeds`` replicas."""
     return statistic_shift(
-        (run_replica(twin, rep.seed, (effect,), (half,)).stats[half], rep.stats[half])
+        (twin.replica(rep.seed, (effect,), (half,)).stats[half], rep.stats[half])
         for rep in replicas[:n_seeds]
     )
 
@@ -117,8 +117,8 @@ def add_shifts(a: Mapping, b: Mapping) -> dict:
 
 
 def attribute(
-    twin: Twin,
-    fit,
+    twin: Twin | StaticTwin,
+    session,
     stats: Mapping,
     replicas: Sequence,
     null_full: NullModel,
@@ -129,8 +129,27 @@ def attribute(
     min_heldout_shrink: float,
     n_seeds: int,
     detect_z: float,
+    cannot_show: str = "the session cannot show this effect",
 ) -> tuple[list[Candidate], list[str], dict, dict]:
     """Forward selection of effects (see the module docstring).
+
+    Parameters
+    ----------
+    twin : Twin or StaticTwin
+    session : SessionFit or dict of str to Stream
+        What the estimators read (as :attr:`imucal.gap.twin.Replica.session`).
+    stats : dict
+        Half -> the session's statistics.
+    replicas : list of Replica
+    null_full, null_b : NullModel
+        Null of the whole session and of half B.
+    models : dict of str to EffectModel
+    alpha, min_heldout_shrink, detect_z : float
+        As :func:`select_forward`.
+    n_seeds : int
+        Replica seeds an effect is rendered with.
+    cannot_show : str
+        Note of an effect whose estimator finds nothing to estimate from.
 
     Returns
     -------
@@ -145,10 +164,10 @@ def attribute(
     cands = []
     for name, model in models.items():
         try:
-            est = model.estimate(fit, None)
-            est_a = model.estimate(fit, "A")
-            null_detect = [model.estimate(r.fit, None) for r in replicas] if est else []
-            why = "the session cannot show this effect"
+            est = model.estimate(session, None)
+            est_a = model.estimate(session, "A")
+            null_detect = [model.estimate(r.session, None) for r in replicas] if est else []
+            why = cannot_show
         except ValueError as err:  # the estimator needs what these data do not have
             est, why = None, f"the session cannot show this effect: {err}"
         if est is None:

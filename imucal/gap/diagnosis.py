@@ -8,7 +8,7 @@ with this pipeline (large misalignment under the exact rotation), with ``misalig
 
 A session whose calibration chain stops on its data (too few positions, a fit the samples do not
 support), or whose twin cannot be replicated, still gets a diagnosis: the static diagnosis of
-its ``static`` recording (:func:`imucal.gap.partial.diagnose_partial_session`), with the reason
+its ``static`` recording (:func:`imucal.gap.static.diagnose_partial_session`), with the reason
 in ``fallback``; readings clipped at a sensor's range are then ``noted`` as ``saturation``
 (with the fraction per sensor), since clipping shows in the readings without a twin.
 """
@@ -16,16 +16,16 @@ in ``fallback``; readings clipped at a sensor's range are then ``noted`` as ``sa
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
-from imucal.gap.attribution import attribute, confusable
-from imucal.gap.effects import library, misalignment_report
+from imucal.gap.attribution import Candidate, attribute, confusable
+from imucal.gap.effects import EffectModel, library, misalignment_report
 from imucal.gap.null import build_null, holm, run_replicas
-from imucal.gap.statistics import CATALOGUE, HALVES, clip_fractions, compute_statistics
-from imucal.gap.twin import build_twin
+from imucal.gap.statistics import HALVES, PROTOCOL_STATISTICS, clip_fractions, compute_statistics
+from imucal.gap.twin import Replica, StaticTwin, Twin, build_twin
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 
 FORMAT_VERSION = 1
@@ -33,12 +33,128 @@ LOCATION_FIELDS = ("stage", "sensor", "axis", "segment", "statistic")
 
 
 def _locations(keys, t, reject, only_significant: bool) -> list[dict]:
-    out = []
-    for k, z, r in zip(keys, t, reject, strict=True):
-        if not np.isfinite(z) or (only_significant and not r):
-            continue
-        out.append({**dict(zip(LOCATION_FIELDS, k, strict=True)), "z": float(z), "in_gap": bool(r)})
+    out = [
+        {**dict(zip(LOCATION_FIELDS, k, strict=True)), "z": float(z), "in_gap": bool(r)}
+        for k, z, r in zip(keys, t, reject, strict=True)
+        if np.isfinite(z) and (r or not only_significant)
+    ]
     return sorted(out, key=lambda d: -abs(d["z"]))
+
+
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def _effect_record(c: Candidate, model: EffectModel, keys, reject) -> dict:
+    return {
+        "name": c.name,
+        "params": c.params,
+        "gap_before": c.gap_before,
+        "gap_after": c.gap_after,
+        "shrink": c.shrink,
+        "heldout_shrink": c.heldout_shrink,
+        "heldout_deviance": c.heldout_deviance,
+        "accepted": c.accepted,
+        "detect": _finite_or_none(c.detect),
+        "detect_z": _finite_or_none(c.detect_z),
+        "evaluated": c.evaluated,
+        "signature_hits": [
+            dict(zip(LOCATION_FIELDS, k, strict=True))
+            for k, r in zip(keys, reject, strict=True)
+            if r and model.matches(k)
+        ],
+        "note": c.note,
+    }
+
+
+def _effect_order(c: Candidate) -> tuple:
+    """Accepted first, then by held-out shrink (an effect without one last)."""
+    shrink = c.heldout_shrink if c.heldout_shrink is not None else -np.inf
+    return (not c.accepted, -shrink)
+
+
+def scored_diagnosis(
+    twin: Twin | StaticTwin,
+    session,
+    stats: Mapping,
+    replicas: Sequence[Replica],
+    models: Mapping[str, EffectModel],
+    *,
+    dataset: str,
+    alpha: float,
+    min_heldout_shrink: float,
+    crn_seeds: int,
+    detect_z: float,
+    cannot_show: str = "the session cannot show this effect",
+) -> dict:
+    """Score a session against its twin's replicas and attribute its gap: the part of
+    diagnosis.json that the full and the static diagnosis share.
+
+    Parameters
+    ----------
+    twin : Twin or StaticTwin
+    session : SessionFit or dict of str to Stream
+        What the effect estimators read (:attr:`imucal.gap.twin.Replica.session`).
+    stats : dict
+        Half (None, 'A', 'B') -> the session's statistics.
+    replicas : list of Replica
+        The null's replicas (>= 5).
+    models : dict of str to EffectModel
+        The effect library.
+    dataset : str
+    alpha, min_heldout_shrink, crn_seeds, detect_z
+        As :func:`diagnose`.
+    cannot_show : str
+        Note of an effect whose estimator finds nothing to estimate from.
+
+    Returns
+    -------
+    dict
+        ``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``, ``explained``,
+        ``remaining``, ``confusable``, ``all_locations``, ``null``.
+    """
+    null_full = build_null(replicas, None, stats[None])
+    null_b = build_null(replicas, "B", stats["B"])
+    keys = null_full.keys
+    t_real = null_full.t(stats[None])
+    reject = holm(null_full.p_values(t_real), alpha)
+    loo = null_full.leave_one_out_gaps()
+    cands, explained, shift, _, rounds = attribute(
+        twin, session, stats, replicas, null_full, null_b, models,
+        alpha=alpha, min_heldout_shrink=min_heldout_shrink, n_seeds=crn_seeds,
+        detect_z=detect_z, cannot_show=cannot_show,
+    )  # fmt: skip
+    t_after = null_full.t(stats[None], shift)
+    reject_after = holm(null_full.p_values(t_after), alpha)
+    return {
+        "format_version": FORMAT_VERSION,
+        "dataset": dataset,
+        "gap": {
+            "total": null_full.gap(stats[None]),
+            "null_p95": float(np.percentile(loo, 95)),
+            "significant": bool(reject.any()),
+        },
+        "locations": _locations(keys, t_real, reject, True),
+        "effects": [
+            _effect_record(c, models[c.name], keys, reject)
+            for c in sorted(cands, key=_effect_order)
+        ],
+        "explained": explained,
+        "remaining": {
+            "total": null_full.gap(stats[None], shift),
+            "significant": bool(reject_after.any()),
+            "locations": _locations(keys, t_after, reject_after, True),
+        },
+        "confusable": confusable(rounds, explained, min_heldout_shrink),
+        "all_locations": _locations(keys, t_real, reject, False),
+        "null": {
+            "replicas": len(replicas),
+            "alpha": alpha,
+            "n_locations": len(keys),
+            "loo_gap_median": float(np.median(loo)),
+            "loo_false_alarm": float(np.mean(null_full.leave_one_out_flags(alpha))),
+        },
+    }
 
 
 def diagnose(
@@ -97,7 +213,7 @@ def diagnose(
         twin = build_twin(fit, fit.extra["options"])
         reps = run_replicas(twin, replicas, seed)
     except ValueError as err:
-        from imucal.gap.partial import diagnose_partial_session
+        from imucal.gap.static import diagnose_partial_session
 
         where = (
             "the session's twin cannot be replicated" if fit else "the calibration chain stopped"
@@ -117,71 +233,20 @@ def diagnose(
             result["saturation"] = {"clip_fraction": clipped}
         return result
     t_null = time.perf_counter()
-    null_full = build_null(reps, None)
-    null_b = build_null(reps, "B")
-    t_real = null_full.t(stats[None])
-    p = null_full.p_values(t_real)
-    reject = holm(p, alpha)
-    gap_before = null_full.gap(stats[None])
-    loo = null_full.leave_one_out_gaps()
-    p95 = float(np.percentile(loo, 95))
-    significant = bool(reject.any())
     models = library(exclude)
-    cands, explained, shift, _, rounds = attribute(
-        twin, fit, stats, reps, null_full, null_b, models,
-        alpha=alpha, min_heldout_shrink=min_heldout_shrink, n_seeds=crn_seeds, detect_z=detect_z,
+    result = scored_diagnosis(
+        twin, fit, stats, reps, models, dataset=dataset, alpha=alpha,
+        min_heldout_shrink=min_heldout_shrink, crn_seeds=crn_seeds, detect_z=detect_z,
     )  # fmt: skip
     misalignment = (
-        misalignment_report(fit, [r.fit for r in reps], detect_z)
+        misalignment_report(fit, [r.session for r in reps], detect_z)
         if "large_misalignment" in models
         else None
     )
-    t_after = null_full.t(stats[None], shift)
-    reject_after = holm(null_full.p_values(t_after), alpha)
-    effects = []
-    for c in sorted(cands, key=lambda c: (not c.accepted, -(c.heldout_shrink or -1e9))):
-        effects.append({
-            "name": c.name,
-            "params": c.params,
-            "gap_before": c.gap_before,
-            "gap_after": c.gap_after,
-            "shrink": c.shrink,
-            "heldout_shrink": c.heldout_shrink,
-            "heldout_deviance": c.heldout_deviance,
-            "accepted": c.accepted,
-            "detect": None if not np.isfinite(c.detect) else float(c.detect),
-            "detect_z": None if not np.isfinite(c.detect_z) else float(c.detect_z),
-            "evaluated": c.evaluated,
-            "signature_hits": [
-                dict(zip(LOCATION_FIELDS, k, strict=True))
-                for k, r in zip(null_full.keys, reject, strict=True)
-                if r and models[c.name].matches(k)
-            ],
-            "note": c.note,
-        })  # fmt: skip
     return {
-        "format_version": FORMAT_VERSION,
-        "dataset": dataset,
-        "gap": {"total": gap_before, "null_p95": p95, "significant": significant},
-        "locations": _locations(null_full.keys, t_real, reject, True),
-        "effects": effects,
-        "explained": explained,
-        "remaining": {
-            "total": null_full.gap(stats[None], shift),
-            "significant": bool(reject_after.any()),
-            "locations": _locations(null_full.keys, t_after, reject_after, True),
-        },
-        "confusable": confusable(rounds, explained, min_heldout_shrink),
+        **result,
         "noted": ["large_misalignment"] if misalignment and misalignment["present"] else [],
         "misalignment": misalignment,
-        "all_locations": _locations(null_full.keys, t_real, reject, False),
-        "null": {
-            "replicas": replicas,
-            "alpha": alpha,
-            "n_locations": len(null_full.keys),
-            "loo_gap_median": float(np.median(loo)),
-            "loo_false_alarm": float(np.mean(null_full.leave_one_out_flags(alpha))),
-        },  # fmt: skip
         "twin": twin.describe(),
         "pipeline_notes": list(fit.extra.get("notes", [])),
         "held_by_hand": list(fit.extra["options"].held_by_hand),
@@ -191,8 +256,8 @@ def diagnose(
             "crn_seeds": crn_seeds,
             "detect_z": detect_z,
             "exclude": list(exclude),
-            "statistics": {k: v.unit for k, v in CATALOGUE.items()},
-        },  # fmt: skip
+            "statistics": {k: v.unit for k, v in PROTOCOL_STATISTICS.items()},
+        },
         "timing_s": {
             "null": t_null - t0,
             "total": time.perf_counter() - t0,

@@ -21,9 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
-from imucal.gap.statistics import CATALOGUE, HALVES, Key, compute_statistics
-from imucal.gap.twin import Twin, render_replica, replica_options
-from imucal.pipeline.full import calibrate_session
+from imucal.gap.statistics import CATALOGUE, Key
+from imucal.gap.twin import Replica, StaticTwin, Twin
 
 
 def transform(key: Key, value: float) -> float:
@@ -34,28 +33,11 @@ def transform(key: Key, value: float) -> float:
     return float(value)
 
 
-@dataclass(frozen=True)
-class Replica:
-    """One twin replica: its seed, fit, and statistics per half (None, 'A', 'B')."""
-
-    seed: int
-    fit: object
-    stats: dict
-
-
-def run_replica(twin: Twin, seed: int, effects: tuple = (), halves: tuple = HALVES) -> Replica:
-    """Render, refit and measure one replica of the twin (with optional simulator effects),
-    its statistics on the given ``halves``."""
-    imu, reference = render_replica(twin, seed, effects)
-    fit = calibrate_session(imu, reference, replica_options(twin, effects))
-    return Replica(seed, fit, {h: compute_statistics(fit, h) for h in halves})
-
-
-def run_replicas(twin: Twin, n: int, seed: int) -> list[Replica]:
-    """``n`` replicas with seeds ``seed, seed + 1, ...``."""
+def run_replicas(twin: Twin | StaticTwin, n: int, seed: int) -> list[Replica]:
+    """``n`` replicas of either twin with seeds ``seed, seed + 1, ...``."""
     if n < 5:
         raise ValueError(f"the null needs at least 5 replicas for a spread, got {n}")
-    return [run_replica(twin, seed + i, ()) for i in range(n)]
+    return [twin.replica(seed + i) for i in range(n)]
 
 
 @dataclass(frozen=True)
@@ -146,11 +128,17 @@ class NullModel:
 
 
 def build_null(
-    replicas: Sequence[Replica], half: str | None, keys: Sequence[Key] | None = None
+    replicas: Sequence[Replica], half: str | None, session: Mapping[Key, float] | None = None
 ) -> NullModel:
-    """The null model of one half from replicas (keys: those every replica has, or given)."""
-    if keys is None:
-        keys = sorted(set.intersection(*(set(r.stats[half]) for r in replicas)), key=str)
+    """The null model of one half from replicas.
+
+    Its locations are those every replica has and, when the session's statistics of that
+    half are given, the session has too (a location the session lacks cannot be scored).
+    """
+    keys = set.intersection(*(set(r.stats[half]) for r in replicas))
+    if session is not None:
+        keys &= set(session)
+    keys = sorted(keys, key=str)
     values = np.array(
         [[transform(k, r.stats[half].get(k, np.nan)) for k in keys] for r in replicas]
     )

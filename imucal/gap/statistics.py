@@ -7,7 +7,7 @@ from the replicas. Each can also be computed on one half of the segments (``half
 ``'B'``: alternate positions, runs at alternate rates, the phases x/z against y, the first
 and second half of a long recording in time) for the held-out check of the attribution.
 
-Statistics (units in the names of :data:`CATALOGUE`):
+Statistics (units in :data:`CATALOGUE`; a static recording's own in :mod:`imucal.gap.streams`):
 
 * timing: fraction of lost packets from the counter, timestamp scatter about the packet
   clock, clipped fraction per sensor;
@@ -71,8 +71,8 @@ class StatisticInfo:
     floor: float = 0.0
 
 
-#: Statistic name -> scoring info.
-CATALOGUE = {
+#: Statistics of the full-protocol diagnosis: name -> scoring info.
+PROTOCOL_STATISTICS = {
     "loss_fraction": StatisticInfo("1", floor=2e-5),
     "stamp_scatter_s": StatisticInfo("s", log=True, floor=0.05),
     "clip_fraction": StatisticInfo("1", floor=2e-5),
@@ -99,6 +99,15 @@ CATALOGUE = {
     "norm_spread": StatisticInfo("1", log=True, floor=0.02),
     "platform_field": StatisticInfo("1", log=True, floor=0.02),
 }
+#: Statistics that only the streams of a static recording have (:mod:`imucal.gap.streams`;
+#: it also measures ``stamp_scatter_s``, the noise statistics and ``temp_slope``).
+STATIC_STATISTICS = {
+    "stamp_wander_s": StatisticInfo("s", log=True, floor=0.05),
+    "burst_fraction": StatisticInfo("1", floor=2e-3),
+    "long_gap_fraction": StatisticInfo("1", floor=2e-4),
+}
+#: Every statistic either diagnosis scores: name -> scoring info.
+CATALOGUE = {**PROTOCOL_STATISTICS, **STATIC_STATISTICS}
 
 #: Unit "up" directions a cube or V-block can hold (faces, edges, corners), shape (26, 3).
 NOMINAL_DIRECTIONS = np.array([v for v in product((-1, 0, 1), repeat=3) if any(v)], dtype=float)

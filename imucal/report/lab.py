@@ -776,7 +776,7 @@ def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
 
     diagnosis, *figures = [Path(p) for p in paths]
     d = _load_json(diagnosis, "gap diagnosis")
-    # a partial session's diagnosis (imucal.gap.partial) says what it could score, or why not
+    # a partial session's diagnosis (imucal.gap.static) says what it could score, or why not
     scope = {"scope": d.get("scope", "full"), "reason": d.get("reason", ""),
              "not_observable": d.get("not_observable", {})}  # fmt: skip
     if scope["scope"] == "none":

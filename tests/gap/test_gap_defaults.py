@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from imucal.gap.diagnosis import diagnose
-from imucal.gap.partial import diagnose_static
+from imucal.gap.static import diagnose_static
 
 SCHEMA = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "config.schema.yaml"
 

@@ -9,7 +9,6 @@ import pytest
 
 from imucal.gap import effects as gap_effects
 from imucal.gap.effects import EARTH_RATE_RAD_S, Estimate, earth_gate, misalignment_report
-from imucal.gap.null import run_replica
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import ProtocolConfig, make_effect, make_truth
@@ -118,8 +117,8 @@ def test_saturation_counts_the_clip_level(base, clean_fit):
     assert est.detect > 1e-3
     assert gap_effects.LIBRARY["saturation"].estimate(clean_fit, None).detect == 0.0
     key = ("ingest", "mag", "-", "all", "clip_fraction")
-    assert run_replica(twin, 15).stats[None][key] == 0.0
-    with_effect = run_replica(twin, 15, (make_effect("saturation", **est.params),))
+    assert twin.replica(15).stats[None][key] == 0.0
+    with_effect = twin.replica(15, (make_effect("saturation", **est.params),))
     assert with_effect.stats[None][key] == pytest.approx(est.detect, rel=0.3)
 
 

@@ -530,7 +530,7 @@ def test_unknown_std_entries_print_the_value_alone(artifacts):
 def test_gap_section_of_an_unscored_and_of_a_fallback_diagnosis(artifacts, tmp_path):
     """A diagnosis that scored nothing (no static recording) and one that fell back to the
     static recording both render, with the reason, what was noted and the hands."""
-    from imucal.gap.partial import unscored_diagnosis
+    from imucal.gap.static import unscored_diagnosis
 
     unscored = tmp_path / "unscored.json"
     unscored.write_text(

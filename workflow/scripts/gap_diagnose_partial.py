@@ -1,10 +1,10 @@
-"""Rule gap_diagnose_partial: the gap diagnosis of a partial session (imucal.gap.partial)."""
+"""Rule gap_diagnose_partial: the gap diagnosis of a partial session (imucal.gap.static)."""
 
 import logging
 from typing import TYPE_CHECKING
 
 from imucal.gap.figures import plot_effects, plot_gap_map
-from imucal.gap.partial import diagnose_partial_session
+from imucal.gap.static import diagnose_partial_session
 from imucal.io import read_json, read_recording, write_json
 from imucal.io.dataset import read_dataset
 

@@ -1,4 +1,4 @@
-"""The gap diagnosis of partial sessions on their static recording (imucal.gap.partial).
+"""The gap diagnosis of partial sessions on their static recording (imucal.gap.static).
 
 Simulated static sessions are rendered by the simulator (the static ``hold`` at 100 Hz acc/gyro
 and 75 Hz magnetometer, a temperature channel) with or without a known effect, written as an
@@ -13,13 +13,9 @@ import pandas as pd
 import pytest
 
 from imucal.columns import SENSOR_COLUMNS, TIME
-from imucal.gap.partial import (
-    StaticTwin,
-    diagnose_partial_session,
-    diagnose_static,
-    render_static,
-    split_streams,
-)
+from imucal.gap.static import diagnose_partial_session, diagnose_static
+from imucal.gap.streams import split_streams
+from imucal.gap.twin import StaticTwin, render_static
 from imucal.sim import make_effect, make_truth
 from imucal.sim.effects import stream_rng
 from imucal.sim.session import SENSITIVITY
