@@ -182,7 +182,12 @@ def align_acc(
         f"step 1: cube fit ({cube_fit['method']}); step 2: {method} "
         f"({'exact rotation' if exact else 'small-angle eq. 5'})",
         covariance,
-        {"cube": fit.to_dict(), "alignment": {"rule": ALIGNMENT_RULE}},
+        {
+            # the cube fit's covariance is its Cramer-Rao bound to first order (noise-weighted
+            # Jacobian at the solution): only the inflation sets it apart
+            "cube": {**fit.to_dict(), "std_over_crlb": float(np.sqrt(fit.inflation))},
+            "alignment": {"rule": ALIGNMENT_RULE},
+        },
     )
     return {
         "calibration": calibration.to_dict(),
@@ -537,8 +542,15 @@ def fit_gyr_table(
     trimmed = gyroscope.fit_rate_table(
         np.array([r.mean(axis=0) for r in inner]), rates, np.array([len(r) for r in inner])
     )
+    # the bound for the runs' own sample noise (pooled about each run's mean): how far the
+    # covariance from the residuals about the fit lies above the noise-limited one
+    within = np.sqrt(
+        sum(np.sum((r - r.mean(axis=0)) ** 2, axis=0) for r in runs) / sum(len(r) - 1 for r in runs)
+    )
+    crlb = gyroscope.rate_table_crlb(fit.matrix, rates, np.array([len(r) for r in runs]), within)
     artifact = plain(fit)
     artifact.update(
+        std_over_crlb=(np.sqrt(np.diag(fit.covariance)) / np.sqrt(np.diag(crlb))).tolist(),
         labels=list(rows["label"]),
         rates_rad_s=rates.tolist(),
         warnings=warnings,
@@ -668,7 +680,18 @@ def combine_gyr(
             f"rate table: vector fit (eq. 33), S' = upper-triangular factor; alignment: "
             f"{table_alignment['used']} (eqs. 28-31)",
             covariance,
-            {**quality, "ratetable": {"dof": table["dof"], "rule": RATE_TABLE_RULE}},
+            {
+                **quality,
+                "ratetable": {
+                    "dof": table["dof"],
+                    "rule": RATE_TABLE_RULE,
+                    **(
+                        {"std_over_crlb": float(np.median(table["std_over_crlb"]))}
+                        if "std_over_crlb" in table
+                        else {}
+                    ),
+                },
+            },
         )
         table_i = {"w. tools (this run)": tuple(table["bias"]), **table_i}
         table_ii = {"w. tools (this run)": tuple(np.diag(upper)), **table_ii}

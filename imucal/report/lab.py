@@ -530,6 +530,9 @@ def _quality_rows(quality: Mapping) -> list[dict]:
                     )
                 ),
                 "rule": q.get("rule", ""),
+                "crlb": (
+                    "" if q.get("std_over_crlb") is None else format_number(q["std_over_crlb"], 3)
+                ),
             }
         )
     return rows
