@@ -415,7 +415,13 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
         "accelerometer and gyroscope data",
     )
     directions, intervals = pose_intervals(s.tables[recording], s.poses(recording), acc)
-    fit = posetopose.fit_pose_to_pose(directions[:-1], directions[1:], intervals, _bias(s))
+    fit = posetopose.fit_pose_to_pose(
+        directions[:-1],
+        directions[1:],
+        intervals,
+        _bias(s),
+        bias_std_rad_s=stages.gyr_bias_value(s.done["gyr_bias"], "ls")[1],
+    )
     artifact = stages.plain(fit)
     artifact.update(recording=recording, calibration=fit.calibration.to_dict())
     return artifact
