@@ -23,6 +23,7 @@ include: "workflow/rules/noise.smk"
 include: "workflow/rules/partial.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/gap.smk"
+include: "workflow/rules/fleet.smk"
 include: "workflow/rules/benchmark.smk"
 
 

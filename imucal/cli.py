@@ -1,4 +1,4 @@
-"""The ``imucal`` command: subcommands ``simulate``, ``apply`` and ``export``."""
+"""The ``imucal`` command: subcommands ``simulate``, ``apply``, ``export`` and ``lookup``."""
 
 from __future__ import annotations
 
@@ -50,6 +50,12 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "--static-s", type=float, default=None, help="length of the static recording (s)"
     )
     p.add_argument("--name", default=None, help="dataset name (default: the folder name)")
+    p.add_argument(
+        "--truth-seed",
+        type=int,
+        default=None,
+        help="seed of the truth alone (default: --seed); sessions of one sensor unit share it",
+    )
     p.set_defaults(func=_run_simulate)
 
 
@@ -61,6 +67,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
         effects=tuple(args.effect),
         static_s=args.static_s,
         name=args.name,
+        truth_seed=args.truth_seed,
     )
     rows = {rec: len(log) for rec, log in session.logs.items()}
     print(f"wrote {args.out_dir}: dataset {session.name!r}, rows {rows}")
@@ -136,6 +143,30 @@ def _run_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_lookup(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "lookup",
+        help="the calibration of a sensor unit valid at a date, from a fleet's store",
+        description=(
+            "Print the path of the calibration of serial SERIAL valid at DATE: the unit's "
+            "latest session on or before it, from the store the fleet rule writes."
+        ),
+    )
+    p.add_argument("store", help="store index (results/fleet/store.json)")
+    p.add_argument("serial", help="sensor unit, as in the sample sheet")
+    p.add_argument("date", help="YYYY-MM-DD")
+    p.set_defaults(func=_run_lookup)
+
+
+def _run_lookup(args: argparse.Namespace) -> int:
+    from imucal.fleet import calibration_for
+    from imucal.io import read_json
+
+    entry = calibration_for(read_json(args.store), args.serial, args.date)
+    print(entry["calibration"])
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with all subcommands."""
     parser = argparse.ArgumentParser(
@@ -145,6 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simulate(sub)
     _add_apply(sub)
     _add_export(sub)
+    _add_lookup(sub)
     return parser
 
 

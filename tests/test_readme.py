@@ -112,6 +112,8 @@ PLANS: dict[str, Counter | str] = {
         uncertainty_chunk=20, uncertainty_table=2, uncertainty_benchmark=1
     ),
     "snakemake --report report.zip": NEEDS_FINISHED_RUN,
+    # the SLURM profile plans the default DAG (each rule a cluster job)
+    "snakemake --profile workflow/profiles/slurm": _DATASET + Counter(all=1),
 }
 
 #: Commands the README gives in parts ("`snakemake --cores 2 detection` ... or a reduced grid

@@ -11,6 +11,6 @@ forward selection), :mod:`.diagnosis` (diagnosis.json: one assembly for both twi
 set), :mod:`.detection` (detection limits), :mod:`.checks` (scoring the checks). See docs/gap.md.
 """
 
-from imucal.gap.diagnosis import FORMAT_VERSION, diagnose
+from imucal.gap.diagnosis import FORMAT_VERSION, DiagnosisSettings, diagnose
 
-__all__ = ["FORMAT_VERSION", "diagnose"]
+__all__ = ["FORMAT_VERSION", "DiagnosisSettings", "diagnose"]

@@ -1,20 +1,28 @@
 """The simulated checks of the diagnosis (blind, stress, detection): one way to score a run.
 
-Each check renders sessions with sealed answer keys, diagnoses them without the keys, and is
-scored by its own function once every diagnosis is done; :func:`score_check` unseals the keys,
-scores, adds the diagnosis run times and renders the check's page.
+Each check renders sessions with sealed answer keys (:func:`imucal.gap.blind.render_blind_session`),
+diagnoses them without the keys (:func:`diagnose_folder`: ingest, calibrate and diagnose, a
+failure recorded rather than raised), and is scored by its own function once every diagnosis is
+done; :func:`score_check` unseals the keys, scores, adds the diagnosis run times and renders the
+check's page.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import traceback
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from imucal.gap.blind import score_blind
+from imucal.constants import IMU_RECORDINGS
+from imucal.gap.blind import failed_diagnosis, score_blind
 from imucal.gap.detection import score_detection
+from imucal.gap.diagnosis import DiagnosisSettings, diagnose
 from imucal.gap.figures import render_blind_page, render_detection_page
 from imucal.gap.stress import render_stress_page, score_stress
+from imucal.ingest import ingest_recording
 from imucal.io import read_benchmark_seconds, read_json
+from imucal.io.dataset import read_dataset
+from imucal.pipeline.full import PipelineOptions, calibrate_session
 
 #: Check -> (scoring function of (diagnoses, keys, **options), page renderer of the score).
 CHECKS = {
@@ -57,3 +65,79 @@ def score_check(
     score = score_fn(by_session, keys, **options)
     score["diagnosis_seconds"] = read_benchmark_seconds(benchmarks)
     return score, render(score)
+
+
+def _where(err: BaseException) -> str:
+    """The innermost frame of the package in the error's traceback, ``module:line function``."""
+    frames = [f for f in traceback.extract_tb(err.__traceback__) if "imucal" in f.filename]
+    if not frames:
+        return ""
+    f = frames[-1]
+    module = Path(f.filename).as_posix().split("imucal/", 1)[-1]
+    return f"imucal/{module}:{f.lineno} {f.name}"
+
+
+def diagnose_folder(
+    folder: str | Path,
+    dataset: str,
+    *,
+    imucal_version: str,
+    settings: DiagnosisSettings,
+    pipeline: Mapping | None = None,
+) -> dict:
+    """Ingest a session folder, calibrate and diagnose it; record a failure instead of raising.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Dataset folder (``dataset.yaml``).
+    dataset : str
+        Session name.
+    imucal_version : str
+        Package version stamped on the ingested tables.
+    settings : DiagnosisSettings
+    pipeline : dict, optional
+        The workflow's pipeline settings (``exact_rotation``, ``lowpass_order``,
+        ``lowpass_cutoff_hz``; :meth:`PipelineOptions.of_dataset`).
+
+    Returns
+    -------
+    dict
+        The diagnosis (diagnosis.json) plus ``calibration`` (the pipeline's calibration,
+        :meth:`ImuCalibration.to_dict`, None when the pipeline failed or the data allow no
+        complete calibration: ``calibration_incomplete`` then says why). When anything raises:
+        :func:`~imucal.gap.blind.failed_diagnosis` with ``failed`` = ``"Type: message"``,
+        ``failed_in`` ('pipeline' or 'diagnosis'), ``where`` (innermost package frame) and
+        ``traceback``.
+
+    Notes
+    -----
+    The pipeline runs once on its own (for the calibration and to tell a pipeline failure from
+    a diagnosis failure) and once inside :func:`diagnose`: a few percent more time.
+    """
+    calibration = None
+    try:
+        info = read_dataset(folder)
+        tables = {
+            r: ingest_recording(path, r, info, imucal_version)[0]
+            for r, path in info.recordings.items()
+        }
+        imu = {r: t for r, t in tables.items() if r in IMU_RECORDINGS}
+        options = PipelineOptions.of_dataset(info, **(pipeline or {}))
+        try:
+            fit = calibrate_session(imu, tables.get("reference"), options)
+            calibration, incomplete = fit.calibration.to_dict(), None
+        except ValueError as err:  # the data allow no complete calibration: an outcome
+            incomplete = str(err)
+        result = diagnose(imu, tables.get("reference"), options, dataset=dataset, settings=settings)
+    except Exception as err:  # noqa: BLE001 (a check scores every failure as a crash)
+        result = failed_diagnosis(dataset, f"{type(err).__name__}: {err}")
+        result.update(
+            failed_in="pipeline" if calibration is None else "diagnosis",
+            where=_where(err),
+            traceback=traceback.format_exception(err),
+        )
+    else:
+        result["calibration_incomplete"] = incomplete
+    result["calibration"] = calibration
+    return result

@@ -4,7 +4,7 @@ Every effect of the diagnosis's library is rendered alone at magnitudes on a geo
 factors of its realistic default (:meth:`Effect.scaled`), each on several seeds. The sessions
 are rendered like the blind check's (:func:`imucal.gap.blind.render_blind_session`, the answer
 key sealed apart, names ``d000``, ``d001``, ... that do not reveal the effect), diagnosed by
-:func:`imucal.gap.stress.diagnose_folder` and scored by :func:`score_detection`: per effect and
+:func:`imucal.gap.checks.diagnose_folder` and scored by :func:`score_detection`: per effect and
 factor the fraction of sessions in which the diagnosis names the effect
 (:func:`imucal.gap.stress.is_named`), and per effect the **detection limit**, the smallest
 magnitude named in at least a given fraction of the sessions at it and at every larger one.
@@ -277,7 +277,7 @@ def score_detection(
     Parameters
     ----------
     diagnoses : dict
-        Session name -> diagnosis (:func:`imucal.gap.stress.diagnose_folder`).
+        Session name -> diagnosis (:func:`imucal.gap.checks.diagnose_folder`).
     keys : dict
         Session name -> sealed key (:func:`imucal.gap.blind.render_blind_session` of a
         :func:`detection_plan` spec).

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
 
 import numpy as np
 import pandas as pd
@@ -30,6 +31,65 @@ from imucal.pipeline.full import PipelineOptions, calibrate_session
 
 FORMAT_VERSION = 1
 LOCATION_FIELDS = ("stage", "sensor", "axis", "segment", "statistic")
+
+
+@dataclass(frozen=True)
+class DiagnosisSettings:
+    """Settings of a diagnosis: the config section ``gap`` (defaults are the schema's).
+
+    Attributes
+    ----------
+    replicas : int
+        Twin replicas in the null (>= 5).
+    alpha : float
+        Family-wise level of the location test (Holm), in (0, 1).
+    seed : int
+        First replica seed.
+    min_heldout_shrink : float
+        Smallest held-out shrink (0..1) for an effect to be accepted.
+    crn_seeds : int
+        Replica seeds an effect is rendered with to measure its shift of the statistics.
+    detect_z : float
+        Smallest |score| of an effect's estimate against the null for it to be evaluated.
+    exclude : tuple of str
+        Effects left out of the library (the unknown-effect check).
+    """
+
+    replicas: int = 20
+    alpha: float = 0.05
+    seed: int = 1000
+    min_heldout_shrink: float = 0.3
+    crn_seeds: int = 3
+    detect_z: float = 4.0
+    exclude: tuple = ()
+
+    def __post_init__(self) -> None:
+        if self.replicas < 5:
+            raise ValueError(
+                f"the null needs at least 5 replicas for a spread, got {self.replicas}"
+            )
+        if not 0 < self.alpha < 1:
+            raise ValueError(f"alpha is a probability in (0, 1), got {self.alpha}")
+        object.__setattr__(self, "exclude", tuple(self.exclude))
+
+    @classmethod
+    def from_config(cls, section: Mapping) -> DiagnosisSettings:
+        """Settings from a config section ``gap`` (a mapping with any of the fields)."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(section) - known)
+        if unknown:
+            raise ValueError(f"unknown diagnosis settings {unknown}; known: {sorted(known)}")
+        return cls(**section)
+
+    def describe(self) -> dict:
+        """The settings a diagnosis.json records (the replica count is under ``null``)."""
+        return {
+            "seed": self.seed,
+            "min_heldout_shrink": self.min_heldout_shrink,
+            "crn_seeds": self.crn_seeds,
+            "detect_z": self.detect_z,
+            "exclude": list(self.exclude),
+        }
 
 
 def _locations(keys, t, reject, only_significant: bool) -> list[dict]:
@@ -81,10 +141,7 @@ def scored_diagnosis(
     models: Mapping[str, EffectModel],
     *,
     dataset: str,
-    alpha: float,
-    min_heldout_shrink: float,
-    crn_seeds: int,
-    detect_z: float,
+    settings: DiagnosisSettings,
     cannot_show: str = "the session cannot show this effect",
 ) -> dict:
     """Score a session against its twin's replicas and attribute its gap: the part of
@@ -102,8 +159,8 @@ def scored_diagnosis(
     models : dict of str to EffectModel
         The effect library.
     dataset : str
-    alpha, min_heldout_shrink, crn_seeds, detect_z
-        As :func:`diagnose`.
+    settings : DiagnosisSettings
+        Its ``alpha``, ``min_heldout_shrink``, ``crn_seeds`` and ``detect_z``.
     cannot_show : str
         Note of an effect whose estimator finds nothing to estimate from.
 
@@ -113,6 +170,7 @@ def scored_diagnosis(
         ``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``, ``explained``,
         ``remaining``, ``confusable``, ``all_locations``, ``null``.
     """
+    alpha = settings.alpha
     null_full = build_null(replicas, None, stats[None])
     null_b = build_null(replicas, "B", stats["B"])
     keys = null_full.keys
@@ -121,8 +179,8 @@ def scored_diagnosis(
     loo = null_full.leave_one_out_gaps()
     cands, explained, shift, _, rounds = attribute(
         twin, session, stats, replicas, null_full, null_b, models,
-        alpha=alpha, min_heldout_shrink=min_heldout_shrink, n_seeds=crn_seeds,
-        detect_z=detect_z, cannot_show=cannot_show,
+        alpha=alpha, min_heldout_shrink=settings.min_heldout_shrink, n_seeds=settings.crn_seeds,
+        detect_z=settings.detect_z, cannot_show=cannot_show,
     )  # fmt: skip
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
@@ -145,7 +203,7 @@ def scored_diagnosis(
             "significant": bool(reject_after.any()),
             "locations": _locations(keys, t_after, reject_after, True),
         },
-        "confusable": confusable(rounds, explained, min_heldout_shrink),
+        "confusable": confusable(rounds, explained, settings.min_heldout_shrink),
         "all_locations": _locations(keys, t_real, reject, False),
         "null": {
             "replicas": len(replicas),
@@ -164,13 +222,7 @@ def diagnose(
     *,
     dataset: str,
     segments: pd.DataFrame | None = None,
-    replicas: int = 20,
-    alpha: float = 0.05,
-    seed: int = 1000,
-    min_heldout_shrink: float = 0.3,
-    crn_seeds: int = 3,
-    detect_z: float = 4.0,
-    exclude: tuple = (),
+    settings: DiagnosisSettings = DiagnosisSettings(),
 ) -> dict:
     """Diagnose the sim-to-real gap of one session.
 
@@ -184,20 +236,7 @@ def diagnose(
     dataset : str
     segments : DataFrame, optional
         The workflow's segments table (automatic segmentation when None).
-    replicas : int
-        Twin replicas in the null (>= 5).
-    alpha : float
-        Family-wise level of the location test (Holm).
-    seed : int
-        First replica seed.
-    min_heldout_shrink : float
-        Smallest held-out shrink (0..1) for an effect to be accepted.
-    crn_seeds : int
-        Replica seeds an effect is rendered with to measure its shift of the statistics.
-    detect_z : float
-        Smallest |score| of an effect's estimate against the null for it to be evaluated.
-    exclude : tuple of str
-        Effects left out of the library (the unknown-effect check).
+    settings : DiagnosisSettings
 
     Returns
     -------
@@ -211,7 +250,7 @@ def diagnose(
         fit = calibrate_session(imu, reference, options, segments)
         stats = {h: compute_statistics(fit, h) for h in HALVES}
         twin = build_twin(fit, fit.extra["options"])
-        reps = run_replicas(twin, replicas, seed)
+        reps = run_replicas(twin, settings.replicas, settings.seed)
     except ValueError as err:
         from imucal.gap.static import diagnose_partial_session
 
@@ -221,9 +260,7 @@ def diagnose(
         result = diagnose_partial_session(
             imu.get("static"), dataset=dataset,
             calibration=fit.calibration.to_dict() if fit else None,
-            sensitivity=options.sensitivity, gravity_m_s2=options.gravity_m_s2,
-            replicas=replicas, alpha=alpha, seed=seed, min_heldout_shrink=min_heldout_shrink,
-            crn_seeds=crn_seeds, detect_z=detect_z,
+            sensitivity=options.sensitivity, gravity_m_s2=options.gravity_m_s2, settings=settings,
         )  # fmt: skip
         result["fallback"] = f"{where} ({err}); the static recording alone is diagnosed"
         # clipping is seen in the readings themselves, with or without a twin
@@ -233,13 +270,10 @@ def diagnose(
             result["saturation"] = {"clip_fraction": clipped}
         return result
     t_null = time.perf_counter()
-    models = library(exclude)
-    result = scored_diagnosis(
-        twin, fit, stats, reps, models, dataset=dataset, alpha=alpha,
-        min_heldout_shrink=min_heldout_shrink, crn_seeds=crn_seeds, detect_z=detect_z,
-    )  # fmt: skip
+    models = library(settings.exclude)
+    result = scored_diagnosis(twin, fit, stats, reps, models, dataset=dataset, settings=settings)
     misalignment = (
-        misalignment_report(fit, [r.session for r in reps], detect_z)
+        misalignment_report(fit, [r.session for r in reps], settings.detect_z)
         if "large_misalignment" in models
         else None
     )
@@ -251,11 +285,7 @@ def diagnose(
         "pipeline_notes": list(fit.extra.get("notes", [])),
         "held_by_hand": list(fit.extra["options"].held_by_hand),
         "settings": {
-            "seed": seed,
-            "min_heldout_shrink": min_heldout_shrink,
-            "crn_seeds": crn_seeds,
-            "detect_z": detect_z,
-            "exclude": list(exclude),
+            **settings.describe(),
             "statistics": {k: v.unit for k, v in PROTOCOL_STATISTICS.items()},
         },
         "timing_s": {

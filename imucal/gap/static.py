@@ -26,7 +26,7 @@ from scipy.optimize import brentq, curve_fit
 
 from imucal.columns import SENSORS
 from imucal.constants import STANDARD_GRAVITY_M_S2
-from imucal.gap.diagnosis import FORMAT_VERSION, scored_diagnosis
+from imucal.gap.diagnosis import FORMAT_VERSION, DiagnosisSettings, scored_diagnosis
 from imucal.gap.effects import EffectModel, Estimate
 from imucal.gap.null import run_replicas
 from imucal.gap.statistics import HALVES, allan_deviation
@@ -204,12 +204,7 @@ def diagnose_static(
     calibration: Mapping | None = None,
     sensitivity: Mapping[str, float] | None = None,
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
-    replicas: int = 20,
-    alpha: float = 0.05,
-    seed: int = 1000,
-    min_heldout_shrink: float = 0.3,
-    crn_seeds: int = 3,
-    detect_z: float = 4.0,
+    settings: DiagnosisSettings = DiagnosisSettings(),
 ) -> dict:
     """The gap diagnosis of a partial session from its static recording.
 
@@ -223,8 +218,8 @@ def diagnose_static(
     sensitivity : dict, optional
         SI per count per sensor from dataset.yaml (estimated from the data where absent).
     gravity_m_s2 : float
-    replicas, alpha, seed, min_heldout_shrink, crn_seeds, detect_z
-        As :func:`imucal.gap.diagnosis.diagnose`.
+    settings : DiagnosisSettings
+        As for a full session; ``exclude`` leaves effects out of :data:`STATIC_LIBRARY`.
 
     Returns
     -------
@@ -235,10 +230,8 @@ def diagnose_static(
     Raises
     ------
     ValueError
-        If fewer than 5 replicas are asked for or the recording has no stream of 100 rows.
+        If the recording has no stream of 100 rows.
     """
-    if replicas < 5:
-        raise ValueError(f"the null needs at least 5 replicas for a spread, got {replicas}")
     t0 = time.perf_counter()
     streams = split_streams(table)
     if not streams:
@@ -247,24 +240,25 @@ def diagnose_static(
         )
     stats = {h: static_statistics(streams, h) for h in HALVES}
     twin = build_static_twin(streams, calibration, dict(sensitivity or {}), gravity_m_s2)
-    reps = run_replicas(twin, replicas, seed)
+    reps = run_replicas(twin, settings.replicas, settings.seed)
     t_null = time.perf_counter()
+    models = {k: m for k, m in STATIC_LIBRARY.items() if k not in settings.exclude}
     result = scored_diagnosis(
-        twin, streams, stats, reps, STATIC_LIBRARY, dataset=dataset, alpha=alpha,
-        min_heldout_shrink=min_heldout_shrink, crn_seeds=crn_seeds, detect_z=detect_z,
+        twin,
+        streams,
+        stats,
+        reps,
+        models,
+        dataset=dataset,
+        settings=settings,
         cannot_show="the session cannot show this effect (no such stream or channel)",
-    )  # fmt: skip
+    )
     return {
         **result,
         "scope": "static",
         "not_observable": dict(NOT_OBSERVABLE),
         "twin": twin.describe(),
-        "settings": {
-            "seed": seed,
-            "min_heldout_shrink": min_heldout_shrink,
-            "crn_seeds": crn_seeds,
-            "detect_z": detect_z,
-        },
+        "settings": settings.describe(),
         "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
     }
 
@@ -276,12 +270,7 @@ def diagnose_partial_session(
     calibration: Mapping | None,
     sensitivity: Mapping[str, float],
     gravity_m_s2: float,
-    replicas: int,
-    alpha: float,
-    seed: int,
-    min_heldout_shrink: float,
-    crn_seeds: int,
-    detect_z: float,
+    settings: DiagnosisSettings,
 ) -> dict:
     """The gap diagnosis of a partial session: its static recording, or why none is scored.
 
@@ -290,8 +279,7 @@ def diagnose_partial_session(
     static : DataFrame or None
         The ingested ``static`` recording, None when the session has none.
     dataset : str
-    calibration, sensitivity, gravity_m_s2, replicas, alpha, seed, min_heldout_shrink, \
-    crn_seeds, detect_z
+    calibration, sensitivity, gravity_m_s2, settings
         As in :func:`diagnose_static`.
 
     Returns
@@ -310,6 +298,5 @@ def diagnose_partial_session(
         return unscored_diagnosis(dataset, "the static recording has no stream of >= 100 samples")
     return diagnose_static(
         static, dataset=dataset, calibration=calibration, sensitivity=sensitivity,
-        gravity_m_s2=gravity_m_s2, replicas=replicas, alpha=alpha, seed=seed,
-        min_heldout_shrink=min_heldout_shrink, crn_seeds=crn_seeds, detect_z=detect_z,
+        gravity_m_s2=gravity_m_s2, settings=settings,
     )  # fmt: skip

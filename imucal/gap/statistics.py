@@ -29,6 +29,11 @@ Statistics (units in :data:`CATALOGUE`; a static recording's own in :mod:`imucal
   platform's vertical (outer) axis;
 * reference: clock offset at the start and drift;
 * temperature channel (when present): slopes of resting residuals on temperature.
+
+The module is long (about 900 lines) on purpose: it is the one definition of the gap map's
+locations, each a short function of the fitted session, and they share the rules of the halves
+and the resting rows; the effect estimators (:mod:`imucal.gap.effects`) reuse its helpers, so a
+statistic and the estimator that reads the same quantity cannot drift apart.
 """
 
 from __future__ import annotations

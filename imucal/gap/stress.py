@@ -5,7 +5,7 @@ platform phases: things the diagnosis has no model of, which should leave ``expl
 with *effects* of the diagnosis's library (harsh variants and the realistic library effects),
 each alone and in pairs, over several seeds. The sessions are rendered like the blind check's
 (:func:`imucal.gap.blind.render_blind_session`, the answer key sealed apart), diagnosed by
-:func:`diagnose_folder`, which records a session whose pipeline or diagnosis raises as failed
+:func:`imucal.gap.checks.diagnose_folder`, which records a session whose pipeline or diagnosis raises as failed
 with its error instead of losing the other sessions, and scored by :func:`score_stress`.
 docs/gap.md lists the magnitudes and their datasheet sources.
 """
@@ -13,21 +13,13 @@ docs/gap.md lists the magnitudes and their datasheet sources.
 from __future__ import annotations
 
 import re
-import traceback
 from collections.abc import Mapping
 from html import escape
 from itertools import combinations
-from pathlib import Path
 
 import numpy as np
 
 from imucal.columns import SENSORS
-from imucal.constants import IMU_RECORDINGS
-from imucal.gap.blind import failed_diagnosis
-from imucal.gap.diagnosis import diagnose
-from imucal.ingest import ingest_recording
-from imucal.io.dataset import read_dataset
-from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim.effects import CANONICAL, stream_rng
 
 #: Conditions: truth preset, protocol settings and protocol effects the diagnosis does not model.
@@ -139,89 +131,6 @@ def stress_plan(seed: int, seeds_alone: int, n_clean: int) -> list[dict]:
         session_seed = int(seed * 1000 + i)
         out.append({"name": f"s{i:0{width}d}", **_spec(sets[j], session_seed)})
     return out
-
-
-def _where(err: BaseException) -> str:
-    """The innermost frame of the package in the error's traceback, ``module:line function``."""
-    frames = [f for f in traceback.extract_tb(err.__traceback__) if "imucal" in f.filename]
-    if not frames:
-        return ""
-    f = frames[-1]
-    module = Path(f.filename).as_posix().split("imucal/", 1)[-1]
-    return f"imucal/{module}:{f.lineno} {f.name}"
-
-
-def diagnose_folder(
-    folder: str | Path,
-    dataset: str,
-    *,
-    imucal_version: str,
-    replicas: int,
-    alpha: float,
-    seed: int,
-    min_heldout_shrink: float,
-    crn_seeds: int,
-    detect_z: float,
-    exclude: tuple = (),
-) -> dict:
-    """Ingest a session folder, calibrate and diagnose it; record a failure instead of raising.
-
-    Parameters
-    ----------
-    folder : str or Path
-        Dataset folder (``dataset.yaml``).
-    dataset : str
-        Session name.
-    imucal_version : str
-        Package version stamped on the ingested tables.
-    replicas, alpha, seed, min_heldout_shrink, crn_seeds, detect_z, exclude
-        As :func:`imucal.gap.diagnosis.diagnose`.
-
-    Returns
-    -------
-    dict
-        The diagnosis (diagnosis.json) plus ``calibration`` (the pipeline's calibration,
-        :meth:`ImuCalibration.to_dict`, None when the pipeline failed or the data allow no
-        complete calibration: ``calibration_incomplete`` then says why). When anything raises:
-        :func:`~imucal.gap.blind.failed_diagnosis` with ``failed`` = ``"Type: message"``,
-        ``failed_in`` ('pipeline' or 'diagnosis'), ``where`` (innermost package frame) and
-        ``traceback``.
-
-    Notes
-    -----
-    The pipeline runs once on its own (for the calibration and to tell a pipeline failure from
-    a diagnosis failure) and once inside :func:`diagnose`: a few percent more time.
-    """
-    calibration = None
-    try:
-        info = read_dataset(folder)
-        tables = {
-            r: ingest_recording(path, r, info, imucal_version)[0]
-            for r, path in info.recordings.items()
-        }
-        imu = {r: t for r, t in tables.items() if r in IMU_RECORDINGS}
-        options = PipelineOptions.of_dataset(info)
-        try:
-            fit = calibrate_session(imu, tables.get("reference"), options)
-            calibration, incomplete = fit.calibration.to_dict(), None
-        except ValueError as err:  # the data allow no complete calibration: an outcome
-            incomplete = str(err)
-        result = diagnose(
-            imu, tables.get("reference"), options, dataset=dataset, replicas=replicas,
-            alpha=alpha, seed=seed, min_heldout_shrink=min_heldout_shrink,
-            crn_seeds=crn_seeds, detect_z=detect_z, exclude=tuple(exclude),
-        )  # fmt: skip
-    except Exception as err:  # noqa: BLE001 (the stress set scores every failure as a crash)
-        result = failed_diagnosis(dataset, f"{type(err).__name__}: {err}")
-        result.update(
-            failed_in="pipeline" if calibration is None else "diagnosis",
-            where=_where(err),
-            traceback=traceback.format_exception(err),
-        )
-    else:
-        result["calibration_incomplete"] = incomplete
-    result["calibration"] = calibration
-    return result
 
 
 def calibration_errors(calibration: Mapping, truth: Mapping) -> dict:

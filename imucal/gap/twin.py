@@ -42,7 +42,8 @@ from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
 from imucal.gap.statistics import HALVES, compute_statistics
 from imucal.gap.streams import STREAMS, Stream, static_statistics, white_std
-from imucal.ingest import counts_to_si
+from imucal.ingest import counts_to_si, reference_to_table
+from imucal.io.raw import MtManagerExport
 from imucal.pipeline.full import PipelineOptions, SessionFit, calibrate_session, calibrated
 from imucal.sim import ProtocolConfig, World, simulate_session
 from imucal.sim.effects import RecordingContext, stream_rng
@@ -50,6 +51,7 @@ from imucal.sim.motion import evaluate_motion
 from imucal.sim.packets import build_packet_log
 from imucal.sim.protocol import plan_static
 from imucal.sim.sensors import INT16_MAX, quantise, sensor_readings, true_signals
+from imucal.sim.session import REFERENCE_RATE_HZ
 from imucal.sim.truth import REFERENCE_NOISE, Truth
 
 #: Recordings the simulator renders, in protocol order.
@@ -392,25 +394,8 @@ def _replica_tables(session, twin: Twin) -> tuple[dict, pd.DataFrame | None]:
         imu[rec] = table
     reference = None
     if twin.has_reference:
-        from imucal.columns import (
-            REF_ACC,
-            REF_COUNTER,
-            REF_GYR,
-            REF_MAG,
-            REF_TICKS_PER_S,
-            REF_TIME_FINE,
-        )  # fmt: skip
-
-        src = session.reference
-        reference = pd.DataFrame(
-            {
-                TIME: src[REF_TIME_FINE].to_numpy(dtype=np.int64) / REF_TICKS_PER_S,
-                SEQ: src[REF_COUNTER].to_numpy(dtype=np.int64),
-                **{c: src[r].to_numpy(dtype=float) for c, r in zip(
-                    ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z", "mag_x", "mag_y", "mag_z"),
-                    (*REF_ACC, *REF_GYR, *REF_MAG), strict=True)},
-            }
-        )  # fmt: skip
+        export = MtManagerExport(session.reference, {}, REFERENCE_RATE_HZ, 1)
+        reference = reference_to_table(export)
     return imu, reference
 
 

@@ -16,6 +16,10 @@ Methods per sensor, best first (the first that runs gives the final calibration)
 - gyroscope: rate table (eq. 33) + ``T_R,gyr``; known-angle rotations (Ferraris); pose to pose
   (Tedaldi et al. 2014) in the accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
   the bias alone.
+
+The module is long (about 700 lines): one runner per stage of the registry that a partial
+session can take, each with its condition and reason when it does not apply, and the choice of
+the final calibration among them; they share the session's state (:class:`_Session`).
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
 from imucal.pipeline.outcome import not_run_reason
 from imucal.pipeline.registry import FINAL, STAGES, VALIDATE
+from imucal.segments.table import cut_finite, rows_of
 
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
 MAG_RECORDINGS = ("tumble", "rotation3d", "cube", "poses", "ferraris", "static")
@@ -112,17 +117,6 @@ def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
     return tuple(present)
 
 
-def _cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(t_s, values) per segment row, rows with a NaN in ``columns`` dropped."""
-    out = []
-    for r in rows.itertuples(index=False):
-        part = table.iloc[int(r.start_index) : int(r.end_index)]
-        values = part[list(columns)].to_numpy(dtype=float)
-        keep = np.isfinite(values).all(axis=1)
-        out.append((part[TIME].to_numpy(dtype=float)[keep], values[keep]))
-    return out
-
-
 def _need(condition: bool, reason: str) -> None:
     if not condition:
         raise NotApplicable(reason)
@@ -166,10 +160,7 @@ class _Session:
         return recording in self.tables and sensor in self.sensors[recording]
 
     def has_phases(self, recording: str = "rotation3d") -> bool:
-        return (
-            recording in self.tables
-            and not stages.segments_of(self.segments, recording, "phase").empty
-        )
+        return recording in self.tables and not rows_of(self.segments, recording, "phase").empty
 
     def need_phases(self, sensor: str) -> None:
         """Raise NotApplicable unless rotation3d has phases and ``sensor`` samples."""
@@ -183,7 +174,7 @@ class _Session:
         raise NotApplicable(why)
 
     def poses(self, recording: str) -> pd.DataFrame:
-        return stages.segments_of(self.segments, recording, "position", "static")
+        return rows_of(self.segments, recording, "position", "static")
 
 
 # -- magnetometer --------------------------------------------------------------------------
@@ -221,7 +212,7 @@ def _acc_known_orientation(s: _Session) -> dict:
     _need("up" in rows.columns, "the ferraris segments carry no 'up' direction")
     rows = rows[rows["up"].notna() & (rows["up"].astype(str) != "")]
     _need(len(rows) >= 4, f"{len(rows)} static faces with a known up direction, expected >= 4")
-    positions = [v for _, v in _cut(s.tables["ferraris"], rows, ACC)]
+    positions = [v for _, v in cut_finite(s.tables["ferraris"], rows, ACC)]
     directions = np.array([_axis_vector(str(u)) for u in rows["up"]])
     fit = ferraris.fit_known_orientations(
         positions, directions, s.gravity_m_s2, labels=[str(x) for x in rows["label"]]
@@ -256,7 +247,7 @@ def _pose_recording(s: _Session) -> str:
 def _acc_cube(s: _Session) -> dict:
     recording = _pose_recording(s)
     rows = s.poses(recording)
-    positions = [v for _, v in _cut(s.tables[recording], rows, ACC)]
+    positions = [v for _, v in cut_finite(s.tables[recording], rows, ACC)]
     fit = accelerometer.fit_cube(
         positions,
         s.gravity_m_s2,
@@ -295,8 +286,8 @@ def _static_gyr(s: _Session) -> list[np.ndarray]:
     )
     pieces = []
     for name in names:
-        rows = stages.segments_of(s.segments, name, "static", "position")
-        pieces += [v for _, v in _cut(s.tables[name], rows, GYR) if len(v) >= 2]
+        rows = rows_of(s.segments, name, "static", "position")
+        pieces += [v for _, v in cut_finite(s.tables[name], rows, GYR) if len(v) >= 2]
     return pieces
 
 
@@ -335,7 +326,7 @@ def _gyr_known_rotation(s: _Session) -> dict:
     recording, rows = None, None
     for name in ("ferraris", "rotation3d"):
         if s.with_sensor(name, "gyr"):
-            rows = stages.segments_of(s.segments, name, "phase")
+            rows = rows_of(s.segments, name, "phase")
             if "angle_deg" in rows.columns:
                 rows = rows[np.isfinite(rows["angle_deg"].astype(float))]
             if "angle_deg" in rows.columns and len(rows):
@@ -351,7 +342,7 @@ def _gyr_known_rotation(s: _Session) -> dict:
         [np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()]
     )
     fit = ferraris.fit_known_rotations(
-        _cut(s.tables[recording], rows, GYR),
+        cut_finite(s.tables[recording], rows, GYR),
         known,
         _bias(s),
         labels=[str(x) for x in rows["label"]],
@@ -381,7 +372,7 @@ def pose_intervals(
         From the last sample of pose k to the first of pose k + 1, rad/s readings.
     """
     directions = []
-    for _, v in _cut(table, rows, ACC):
+    for _, v in cut_finite(table, rows, ACC):
         mean = errormodel.apply(acc.matrix, acc.bias, v).mean(axis=0)
         directions.append(mean / np.linalg.norm(mean))
     t = table[TIME].to_numpy(dtype=float)

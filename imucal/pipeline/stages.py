@@ -5,6 +5,10 @@ low-pass filtered) tables, calls the fits of :mod:`imucal.fits.accelerometer`,
 :mod:`imucal.fits.gyroscope` and :mod:`imucal.fits.alignment`, and returns a JSON-ready artifact (and
 figures, never saved here). Stages exchange their results through these artifacts, so one stage
 can be rerun on new data.
+
+The module is long (about 730 lines) because it has one function per rule of the paper's
+stage-per-rule path; the in-process chain (:mod:`imucal.pipeline.full`) and the partial path
+(:mod:`imucal.pipeline.partial`) call the same functions, so a stage is written once.
 """
 
 from __future__ import annotations
@@ -29,7 +33,8 @@ from imucal.fits.alignment import (
 from imucal.fits.propagation import alignment_sensitivity, upper_bias_covariance
 from imucal.pipeline.outcome import not_run_reason
 from imucal.plots import inertial as inertial_plots
-from imucal.segments.segmentation import is_clipped
+from imucal.segments.detector import is_clipped
+from imucal.segments.table import cut, rows_of
 
 #: The paper's Tables I and II (gyroscope bias in rad/s, scale), reference rows of tables.csv.
 PAPER_TABLE_I = {"paper w. tools": (0.0027, 0.1605, 0.0660), "paper LS": (-0.0022, 0.1608, 0.0679)}
@@ -63,19 +68,6 @@ def plain(obj):
     if isinstance(obj, np.generic):
         return obj.item()
     return obj
-
-
-def segments_of(segments: pd.DataFrame, recording: str, *kinds: str) -> pd.DataFrame:
-    """Rows of ``segments`` of ``recording`` whose kind is one of ``kinds``, in time order."""
-    rows = segments[(segments["recording"] == recording) & segments["kind"].isin(kinds)]
-    return rows.sort_values("start_index")
-
-
-def _cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[np.ndarray]:
-    return [
-        table.iloc[int(r.start_index) : int(r.end_index)][list(columns)].to_numpy(dtype=float)
-        for r in rows.itertuples(index=False)
-    ]
 
 
 def _saturated(values: np.ndarray, limit: float) -> np.ndarray:
@@ -117,8 +109,8 @@ def fit_acc_cube(
     figures : dict of str to Figure
         'acc_cube': |a| - g per position before/after (paper Fig. 10).
     """
-    rows = segments_of(segments, "cube", "position")
-    positions = _cut(cube, rows, ACC)
+    rows = rows_of(segments, "cube", "position")
+    positions = cut(cube, rows, ACC)
     fit = accelerometer.fit_cube(
         positions,
         gravity_m_s2,
@@ -223,11 +215,11 @@ def estimate_gyr_bias(
     )
     pieces, times = [], []
     for name in names:
-        rows = segments_of(segments, name, "static")
+        rows = rows_of(segments, name, "static")
         if name == "cube":
-            rows = pd.concat([rows, segments_of(segments, name, "position")])
-        pieces += _cut(static_tables[name], rows, GYR)
-        times += _cut(static_tables[name], rows, (TIME,))
+            rows = pd.concat([rows, rows_of(segments, name, "position")])
+        pieces += cut(static_tables[name], rows, GYR)
+        times += cut(static_tables[name], rows, (TIME,))
     if not pieces:
         raise ValueError(
             f"no static segment found in the recordings {names}; the gyroscope bias needs a "
@@ -314,7 +306,7 @@ def align_gyr(
 
 
 def _adjacent_static(segments: pd.DataFrame, phase: pd.Series) -> tuple[pd.Series, pd.Series]:
-    static = segments_of(segments, "rotation3d", "static")
+    static = rows_of(segments, "rotation3d", "static")
     before = static[static["end_index"] <= phase.start_index]
     after = static[static["start_index"] >= phase.end_index]
     if before.empty or after.empty:
@@ -441,7 +433,7 @@ def estimate_gyr_scale(
     if not measuring:
         raise ValueError("eq. 36 needs a calibrated magnetometer or accelerometer; got neither")
     noise = np.asarray(bias["noise_std_rad_s"], dtype=float)
-    phases = segments_of(segments, "rotation3d", "phase")
+    phases = rows_of(segments, "rotation3d", "phase")
     gyr = rotation3d[list(GYR)].to_numpy(dtype=float)
     clipped = [
         r.label
@@ -518,10 +510,10 @@ def fit_gyr_table(
     figures : dict of str to Figure
         'gyr_table': magnitude errors per run before/after (paper Fig. 15).
     """
-    rows = segments_of(segments, "ratetable", "run")
+    rows = rows_of(segments, "ratetable", "run")
     if rows.empty:
         raise ValueError("no rate-table run was segmented (the segmentation notes say why)")
-    runs = _cut(ratetable, rows, GYR)
+    runs = cut(ratetable, rows, GYR)
     keep, warnings = [], []
     for label, run in zip(rows["label"], runs, strict=True):
         n_sat = int(_saturated(run, saturation_limit_rad_s).sum())
@@ -874,7 +866,7 @@ def validate_session(
 
     calibrated, _ = apply_calibration(rotation3d, metadata, calibration)
     static_mask = np.zeros(len(rotation3d), dtype=bool)
-    for r in segments_of(segments, "rotation3d", "static").itertuples(index=False):
+    for r in rows_of(segments, "rotation3d", "static").itertuples(index=False):
         static_mask[int(r.start_index) : int(r.end_index)] = True
     result = validation.validate(
         calibrated, rotation3d, reference, static_mask, min_rate_rad_s, n_windows

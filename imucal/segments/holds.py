@@ -1,6 +1,6 @@
 """Static holds of a hand-held pose session: a threshold that adapts to the tremor.
 
-The noise-derived detector (:mod:`imucal.segments.segmentation`) calls a window quiet when its variance is
+The noise-derived detector (:mod:`imucal.segments.detector`) calls a window quiet when its variance is
 what white sensor noise alone would give. A pose held by hand for a few seconds is not quiet in
 that sense: the hand's tremor (about 0.5 deg at 4-12 Hz) adds variance, and such a hold is
 rejected. The cube fit (eq. 32) does not need a noise-only hold, only the mean specific force of
@@ -12,7 +12,7 @@ variances (m^2/s^4). The *base* is the median statistic of the windows of an ini
 interval ``T_init`` (the longest static interval the noise-derived detector finds; in the
 method the module rests on a table for ``T_init`` before the poses). Without one, the base is
 the ``NOISE_QUANTILE`` quantile of all windows (the quietest windows, as in the noise seed of
-:func:`imucal.segments.segmentation.find_quiet_windows`). For each multiple ``k`` of
+:func:`imucal.segments.detector.find_quiet_windows`). For each multiple ``k`` of
 ``HOLD_MULTIPLES`` a window is still when its statistic is at most ``k`` times the base, and a
 hold is a run of still windows of at least ``min_static_s`` (the samples they cover; runs whose
 samples overlap, split by fewer loud windows than a window's length, are one hold, and so are
@@ -37,7 +37,7 @@ needs, a hold whose mean is a fixed orientation, is what the accelerometer shows
 during a hold moves the specific force and raises the accelerometer variance too.
 
 **First choice.** The noise-derived detector stays the first choice (its holds are rest, not
-held). :func:`imucal.segments.segmentation.segment_poses` calls :func:`find_holds` only when it finds
+held). :func:`imucal.segments.protocol.segment_poses` calls :func:`find_holds` only when it finds
 fewer than ``MIN_HOLDS`` holds, and keeps its own holds when no multiple gives enough.
 
 The residual uses standard gravity: the hold means do not depend on it, and the local value
@@ -59,12 +59,12 @@ from scipy import stats
 
 from imucal.fits.accelerometer import MIN_POSITIONS, fit_cube
 from imucal.io.readers import STANDARD_GRAVITY_M_S2
-from imucal.segments.segmentation import (
+from imucal.segments.detector import (
     NOISE_QUANTILE,
     DetectorSettings,
-    _window_samples,
-    _windows_to_intervals,
     moving_variance,
+    window_samples,
+    windows_to_intervals,
 )
 
 #: Multiples of the base variance tried (imu_tk: 2 to 10; larger ones for strong tremor).
@@ -268,7 +268,7 @@ def find_holds(
         raise ValueError(f"acc has shape {acc.shape}; expected ({t.size}, 3) like t_s")
     if not all(np.isfinite(k) and k > 0 for k in multiples):
         raise ValueError(f"multiples {multiples}: expected positive numbers")
-    window = _window_samples(t, settings.window_s)
+    window = window_samples(t, settings.window_s)
     stat = hold_variance(acc, window)
     if base_interval is None:
         base = float(np.quantile(stat, NOISE_QUANTILE))
@@ -286,7 +286,7 @@ def find_holds(
     for k in multiples:
         intervals = [
             (a, b)
-            for a, b in merge_overlapping(_windows_to_intervals(stat <= k * base, window))
+            for a, b in merge_overlapping(windows_to_intervals(stat <= k * base, window))
             if t[b - 1] - t[a] >= settings.min_static_s
         ]
         intervals = merge_same_direction(intervals, acc, SAME_HOLD_DEG)

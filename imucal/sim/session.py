@@ -341,6 +341,7 @@ def simulate(
     effects: tuple[Effect, ...] = (),
     static_s: float | None = None,
     name: str | None = None,
+    truth_seed: int | None = None,
 ) -> Session:
     """Render a preset session and write it to ``folder`` (what ``imucal simulate`` does).
 
@@ -356,6 +357,9 @@ def simulate(
         Length of the static recording (s); default that of :class:`ProtocolConfig`.
     name : str, optional
         Dataset name; default the folder name, lower-cased, other characters as ``_``.
+    truth_seed : int, optional
+        Seed of the truth (the sensor unit's parameters) when it is not ``seed``: sessions of
+        one unit share it and differ in ``seed`` (noise, protocol timing).
 
     Returns
     -------
@@ -364,7 +368,7 @@ def simulate(
     folder = Path(folder)
     if name is None:
         name = re.sub(r"[^a-z0-9_]", "_", folder.resolve().name.lower())
-    truth = make_truth(preset, stream_rng(seed, "truth"))
+    truth = make_truth(preset, stream_rng(seed if truth_seed is None else truth_seed, "truth"))
     config = ProtocolConfig() if static_s is None else ProtocolConfig(static_s=static_s)
     session = simulate_session(
         truth, seed, config, preset_effects(preset, tuple(effects)), name=name

@@ -14,7 +14,7 @@ from imucal.columns import ACC, GYR, TIME
 from imucal.fits.accelerometer import cube_crlb, fit_cube, heldout_errors, make_calibration
 from imucal.io.dataset import read_dataset
 from imucal.plots.inertial import plot_cube_magnitude_errors
-from imucal.segments.segmentation import segment_cube
+from imucal.segments.protocol import segment_cube
 from imucal.sim.protocol import CUBE_UP_B
 
 G = 9.81

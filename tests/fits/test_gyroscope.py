@@ -23,7 +23,7 @@ from imucal.fits.gyroscope import (
     rate_table_crlb,
 )
 from imucal.io.dataset import read_dataset
-from imucal.segments.segmentation import segment_ratetable
+from imucal.segments.ratetable import segment_ratetable
 from imucal.sim.protocol import CUBE_UP_B
 
 CONFORMANCE = (

@@ -197,7 +197,7 @@ def test_conformance_session(conformance_dir, with_cube):
     truth = json.loads((conformance_dir / "truth.json").read_text())["mag"]
     t, m = conformance_mag(conformance_dir, "rotation3d")
     extra = {"cube": conformance_mag(conformance_dir, "cube")[1]} if with_cube else None
-    # phase windows of this session read off the gyroscope until imucal.segments.segmentation exists
+    # phase windows of this session read off its gyroscope by hand: the test is of the fit alone
     windows = {"x": (12.5, 27.5), "y": (39.0, 53.5), "z": (64.5, 76.0)}
     phases = {k: m[(t >= a) & (t < b)] for k, (a, b) in windows.items()}
     fit = fit_ellipsoid(m, extra_samples=extra)

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from imucal.columns import SENSOR_COLUMNS, TIME
+from imucal.gap import DiagnosisSettings
 from imucal.gap.static import diagnose_partial_session, diagnose_static
 from imucal.gap.streams import split_streams
 from imucal.gap.twin import StaticTwin, render_static
@@ -47,7 +48,7 @@ def _session(seed: int, effects: tuple = ()) -> pd.DataFrame:
 def _diagnose(table: pd.DataFrame) -> dict:
     return diagnose_static(
         table, dataset="sim", calibration=None, sensitivity=SENSITIVITY, gravity_m_s2=9.81,
-        replicas=REPLICAS, seed=500,
+        settings=DiagnosisSettings(replicas=REPLICAS, seed=500),
     )  # fmt: skip
 
 
@@ -99,8 +100,8 @@ def test_temperature_drift_is_found_on_the_temperature_channel():
 
 def test_a_session_without_static_recording_says_why():
     d = diagnose_partial_session(
-        None, dataset="x", calibration=None, sensitivity={}, gravity_m_s2=9.81, replicas=5,
-        alpha=0.05, seed=0, min_heldout_shrink=0.3, crn_seeds=2, detect_z=4.0,
+        None, dataset="x", calibration=None, sensitivity={}, gravity_m_s2=9.81,
+        settings=DiagnosisSettings(replicas=5, seed=0, crn_seeds=2),
     )  # fmt: skip
     assert d["explained"] == [] and d["locations"] == [] and d["scope"] == "none"
     assert "no static recording" in d["reason"]
@@ -108,4 +109,6 @@ def test_a_session_without_static_recording_says_why():
 
 def test_too_few_replicas_are_refused():
     with pytest.raises(ValueError, match="at least 5 replicas"):
-        diagnose_static(_session(1), dataset="x", replicas=3)
+        DiagnosisSettings(replicas=3)
+    with pytest.raises(ValueError, match=r"unknown diagnosis settings \['replica'\]"):
+        DiagnosisSettings.from_config({"replica": 20})

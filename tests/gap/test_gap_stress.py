@@ -7,12 +7,13 @@ import json
 import numpy as np
 import pytest
 
+from imucal.gap import DiagnosisSettings
 from imucal.gap.blind import failed_diagnosis, render_blind_session, spec_effects
+from imucal.gap.checks import diagnose_folder
 from imucal.gap.stress import (
     CONDITIONS,
     HARSH,
     REALISTIC_EFFECTS,
-    diagnose_folder,
     score_stress,
     stress_plan,
 )
@@ -89,10 +90,8 @@ def test_a_stress_spec_renders_with_its_preset_protocol_and_effects(plan, tmp_pa
 
 
 def test_a_session_that_cannot_be_read_is_recorded_as_a_crash(tmp_path):
-    result = diagnose_folder(
-        tmp_path / "missing", "s99", imucal_version="0", replicas=5, alpha=0.05, seed=1,
-        min_heldout_shrink=0.3, crn_seeds=2, detect_z=4.0,
-    )  # fmt: skip
+    settings = DiagnosisSettings(replicas=5, seed=1, crn_seeds=2)
+    result = diagnose_folder(tmp_path / "missing", "s99", imucal_version="0", settings=settings)
     assert result["failed"].startswith("FileNotFoundError")
     assert result["failed_in"] == "pipeline" and result["calibration"] is None
     assert result["explained"] == [] and "dataset.yaml" in "".join(result["traceback"])

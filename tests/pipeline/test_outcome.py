@@ -126,7 +126,7 @@ def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_satura
     scale can be fitted and the full twin cannot be built, yet the diagnosis ends, on the
     static recording, with the reason and 'saturation' noted from the readings."""
     from imucal.constants import IMU_RECORDINGS
-    from imucal.gap import diagnose
+    from imucal.gap import DiagnosisSettings, diagnose
     from imucal.ingest import ingest_recording
     from imucal.io.dataset import read_dataset
     from imucal.pipeline.full import PipelineOptions
@@ -144,7 +144,7 @@ def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_satura
         if r in IMU_RECORDINGS
     }
     options = PipelineOptions.of_dataset(info)
-    result = diagnose(imu, None, options, dataset="clipped", replicas=5)
+    result = diagnose(imu, None, options, dataset="clipped", settings=DiagnosisSettings(replicas=5))
     assert "the calibration chain stopped" in result["fallback"]
     assert result["noted"] == ["saturation"]
     assert set(result["saturation"]["clip_fraction"]) == {"gyr"}

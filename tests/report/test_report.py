@@ -553,3 +553,17 @@ def test_gap_section_of_an_unscored_and_of_a_fallback_diagnosis(artifacts, tmp_p
         assert parse(html).errors == []
         for text in texts:
             assert text in html, text
+
+
+def test_workflow_commit_is_the_checkout_head_or_unknown(tmp_path) -> None:
+    import subprocess
+
+    from imucal.report.provenance import workflow_commit
+
+    assert workflow_commit(tmp_path) == "unknown"  # not a git checkout
+    here = Path(__file__).parent
+    head = subprocess.run(
+        ["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True, text=True
+    )
+    if head.returncode == 0:
+        assert workflow_commit(here) == head.stdout.strip()

@@ -9,13 +9,10 @@ from scipy import stats
 from scipy.spatial.transform import Rotation, Slerp
 
 from imucal.columns import ACC, GYR, TIME
+from imucal.segments.detector import DetectorSettings, find_static_intervals
 from imucal.segments.holds import MIN_HOLDS, find_holds
-from imucal.segments.segmentation import (
-    DetectorSettings,
-    find_static_intervals,
-    segment_dataset,
-    segment_poses,
-)
+from imucal.segments.protocol import segment_poses
+from imucal.segments.segmentation import segment_dataset
 from imucal.sim.protocol import CUBE_UP_B
 
 FS_HZ = 100.0

@@ -10,18 +10,12 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from imucal.columns import ACC, GYR, MAG, TIME
+from imucal.columns import ACC, GYR, MAG, SEGMENT_COLUMNS, TIME
 from imucal.io.dataset import read_dataset
-from imucal.segments.segmentation import (
-    SEGMENT_COLUMNS,
-    DetectorSettings,
-    find_quiet_windows,
-    find_static_intervals,
-    segment_cube,
-    segment_dataset,
-    segment_ratetable,
-    segment_rotation3d,
-)
+from imucal.segments.detector import DetectorSettings, find_quiet_windows, find_static_intervals
+from imucal.segments.protocol import segment_cube, segment_rotation3d
+from imucal.segments.ratetable import segment_ratetable
+from imucal.segments.segmentation import segment_dataset
 
 FS = 100.0
 G = 9.81

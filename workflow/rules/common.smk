@@ -8,6 +8,7 @@ from snakemake.utils import validate
 
 import imucal
 from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
+from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.partial import is_full_protocol
 from imucal.pipeline.registry import full_protocol_artifacts
@@ -28,6 +29,13 @@ REAL_DATASETS = {
     for real in REAL_CONFIGS.values()
     for name, folder in real.get("datasets", {}).items()
 }
+#: The sessions of a fleet's sample sheet (config `fleet.sessions`, target `fleet`).
+FLEET_SHEET = (
+    read_sample_sheet(config["fleet"]["sessions"]) if config["fleet"]["sessions"] else None
+)
+SHEET_DATASETS = (
+    {} if FLEET_SHEET is None else dict(zip(FLEET_SHEET["dataset"], FLEET_SHEET["path"]))
+)
 #: Package version as a param of every fit rule: an upgrade of imucal reruns them.
 IMUCAL_VERSION = imucal.__version__
 
@@ -39,16 +47,19 @@ wildcard_constraints:
 
 def folder_of(name):
     """Folder of a dataset (config `datasets`, else the public recordings of config/real)."""
-    folders = {**REAL_DATASETS, **config["datasets"]}
+    folders = {**REAL_DATASETS, **SHEET_DATASETS, **config["datasets"]}
     if name not in folders:
-        raise ValueError(f"dataset {name!r} is neither in config 'datasets' nor in config/real")
+        raise ValueError(
+            f"dataset {name!r} is neither in config 'datasets', nor in config/real, nor in the "
+            "fleet's sample sheet"
+        )
     return str(Path(folders[name]))
 
 
 #: Config sections a config/real file may set for its datasets alone.
 DATASET_SECTIONS = ("segmentation", "noise")
 #: Config sections of the checks (blind, stress, detection), not of one dataset's run.
-CHECK_SECTIONS = ("datasets", "blind", "stress", "detection")
+CHECK_SECTIONS = ("datasets", "blind", "stress", "detection", "fleet")
 
 
 def dataset_config(name, section):
@@ -96,7 +107,9 @@ def full_protocol(name):
 
 #: The configured and public datasets: a lab report is one of theirs (reports/blind.html and
 #: reports/stress.html are the checks' pages, not datasets).
-ALL_DATASETS_PATTERN = "|".join(sorted({**REAL_DATASETS, **config["datasets"]})) or "(?!)"
+ALL_DATASETS_PATTERN = (
+    "|".join(sorted({**REAL_DATASETS, **SHEET_DATASETS, **config["datasets"]})) or "(?!)"
+)
 
 
 def datasets_pattern(full):
@@ -107,7 +120,7 @@ def datasets_pattern(full):
     for its outputs then fails on that dataset alone, with the reader's message.
     """
     names = []
-    for name in sorted({**REAL_DATASETS, **config["datasets"]}):
+    for name in sorted({**REAL_DATASETS, **SHEET_DATASETS, **config["datasets"]}):
         try:
             on_path = full_protocol(name) == full
         except (FileNotFoundError, ValueError):
@@ -251,11 +264,15 @@ def noise_input(wildcards):
     return {"recording": f"results/{wildcards.dataset}/ingest/{recording}.parquet"}
 
 
+def calibration_path(name):
+    """calibration.json of the path a session takes (full protocol or partial)."""
+    path = "calibration.json" if full_protocol(name) else "partial/calibration.json"
+    return f"results/{name}/{path}"
+
+
 def calibration_of(wildcards):
-    """calibration.json of the path the session takes (full protocol or partial)."""
-    d = wildcards.dataset
-    path = "calibration.json" if full_protocol(d) else "partial/calibration.json"
-    return f"results/{d}/{path}"
+    """Input function: the dataset's calibration.json (:func:`calibration_path`)."""
+    return calibration_path(wildcards.dataset)
 
 
 #: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/.
@@ -308,22 +325,6 @@ def mag_step1_inputs(wildcards):
 
 def field_norm(wildcards):
     return dataset_info(wildcards).field_norm
-
-
-def _git_commit():
-    import subprocess
-
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True
-        )
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return out.stdout.strip()
-
-
-#: Commit of the workflow checkout, for the report's provenance.
-GIT_COMMIT = _git_commit()
 
 
 def reference_input(wildcards):
@@ -381,56 +382,88 @@ def report_inputs(wildcards):
     return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
 
 
-#: The blind check's hidden plan (imucal.gap.blind); rules see only names and exclusions.
-from imucal.gap.blind import blind_plan, public_plan
+#: The checks of the diagnosis (imucal.gap.blind, .stress, .detection): their sessions are
+#: planned when a check's target is asked for, not when the workflow is parsed.
+@lru_cache(maxsize=None)
+def check_plan(check):
+    """The sealed plan of a check: one spec per session (effects, truth preset, protocol)."""
+    settings = config[check]
+    if check == "blind":
+        from imucal.gap.blind import blind_plan
 
-_BLIND = config["blind"]
-_BLIND_PLAN = blind_plan(
-    _BLIND["seed"], _BLIND["seeds_per_effect"], _BLIND["n_null"], _BLIND["unknown"]
-)
-BLIND_SESSIONS = [s["name"] for s in _BLIND_PLAN]
-_BLIND_EXCLUDE = public_plan(_BLIND_PLAN)
+        return blind_plan(
+            settings["seed"],
+            settings["seeds_per_effect"],
+            settings["n_null"],
+            settings["unknown"],
+        )
+    if check == "stress":
+        from imucal.gap.stress import stress_plan
 
+        return stress_plan(settings["seed"], settings["seeds_alone"], settings["n_clean"])
+    from imucal.gap.detection import detection_plan
 
-def blind_spec(wildcards):
-    """The hidden spec of one blind session (only the render rule takes it)."""
-    return next(s for s in _BLIND_PLAN if s["name"] == wildcards.session)
-
-
-def blind_exclude(wildcards):
-    """Effects left out of the diagnosis's library for one blind session."""
-    return _BLIND_EXCLUDE[wildcards.session]
-
-
-#: The stress set (imucal.gap.stress): sessions at the harsh end of consumer MEMS parts.
-from imucal.gap.stress import stress_plan
-
-_STRESS = config["stress"]
-_STRESS_PLAN = stress_plan(_STRESS["seed"], _STRESS["seeds_alone"], _STRESS["n_clean"])
-STRESS_SESSIONS = [s["name"] for s in _STRESS_PLAN]
-
-
-def stress_spec(wildcards):
-    """The sealed spec of one stress session (only the render rule takes it)."""
-    return next(s for s in _STRESS_PLAN if s["name"] == wildcards.session)
+    return detection_plan(
+        settings["seed"],
+        settings["factors"],
+        settings["seeds_per_level"],
+        settings["effects"] or None,
+    )
 
 
-#: The detection sweep (imucal.gap.detection): each library effect alone over a grid of factors.
-from imucal.gap.detection import detection_plan
+def check_spec(check):
+    """Param function: the sealed spec of one session of a check (only its render rule)."""
 
-_DETECTION = config["detection"]
-_DETECTION_PLAN = detection_plan(
-    _DETECTION["seed"],
-    _DETECTION["factors"],
-    _DETECTION["seeds_per_level"],
-    _DETECTION["effects"] or None,
-)
-DETECTION_SESSIONS = [s["name"] for s in _DETECTION_PLAN]
+    def spec(wildcards):
+        for session in check_plan(check):
+            if session["name"] == wildcards.session:
+                return session
+        raise ValueError(f"{wildcards.session!r} is not a session of the {check} check's plan")
+
+    return spec
 
 
-def detection_spec(wildcards):
-    """The sealed spec of one detection session (only the render rule takes it)."""
-    return next(s for s in _DETECTION_PLAN if s["name"] == wildcards.session)
+def check_files(check, pattern):
+    """Input function: ``pattern`` for every session of a check."""
+
+    def files(wildcards):
+        return expand(pattern, session=[s["name"] for s in check_plan(check)])
+
+    return files
+
+
+def diagnosis_settings(check=None):
+    """Param function: the diagnosis settings (config `gap`); a check diagnoses with its own
+    number of replicas, and the blind check leaves each session's unknown effects out."""
+
+    def settings(wildcards):
+        values = dict(config["gap"])
+        if check is not None:
+            values["replicas"] = config[check]["replicas"]
+        if check == "blind":
+            from imucal.gap.blind import public_plan
+
+            values["exclude"] = public_plan(check_plan("blind"))[wildcards.session]
+        return values
+
+    return settings
+
+
+#: The pipeline settings a diagnosis refits its twin's replicas with (config, not dataset.yaml).
+PIPELINE_SETTINGS = {
+    "exact_rotation": config["exact_rotation"],
+    "lowpass_order": config["lowpass"]["order"],
+    "lowpass_cutoff_hz": config["lowpass"]["cutoff_hz"],
+}
+
+
+def fleet_calibrations(wildcards):
+    """The calibration of every session of the fleet's sample sheet, by dataset."""
+    if FLEET_SHEET is None:
+        raise ValueError(
+            "the fleet target needs a sample sheet: set config fleet.sessions (docs/fleet.md)"
+        )
+    return {name: calibration_path(name) for name in FLEET_SHEET["dataset"]}
 
 
 # The Monte-Carlo check of the reported uncertainty (rules in benchmark.smk).

@@ -10,6 +10,7 @@
 rule gap_diagnose:
     input:
         unpack(ingested),
+        dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
         calibration="results/{dataset}/calibration.json",
     output:
@@ -25,17 +26,8 @@ rule gap_diagnose:
     conda:
         "../envs/imucal.yaml"
     params:
-        folder=dataset_folder,
-        replicas=config["gap"]["replicas"],
-        alpha=config["gap"]["alpha"],
-        seed=config["gap"]["seed"],
-        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
-        crn_seeds=config["gap"]["crn_seeds"],
-        detect_z=config["gap"]["detect_z"],
-        exclude=config["gap"]["exclude"],
-        exact_rotation=config["exact_rotation"],
-        lowpass_order=config["lowpass"]["order"],
-        lowpass_cutoff_hz=config["lowpass"]["cutoff_hz"],
+        settings=diagnosis_settings(),
+        pipeline=PIPELINE_SETTINGS,
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_diagnose.py"
@@ -46,6 +38,7 @@ rule gap_diagnose:
 rule gap_diagnose_partial:
     input:
         unpack(gap_partial_inputs),
+        dataset_yaml=dataset_yaml,
     output:
         diagnosis="results/{dataset}/gap/diagnosis.json",
         gap_map="results/{dataset}/gap/gap_map.png",
@@ -59,13 +52,7 @@ rule gap_diagnose_partial:
     conda:
         "../envs/imucal.yaml"
     params:
-        folder=dataset_folder,
-        replicas=config["gap"]["replicas"],
-        alpha=config["gap"]["alpha"],
-        seed=config["gap"]["seed"],
-        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
-        crn_seeds=config["gap"]["crn_seeds"],
-        detect_z=config["gap"]["detect_z"],
+        settings=diagnosis_settings(),
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_diagnose_partial.py"
@@ -88,7 +75,7 @@ rule blind_render:
     conda:
         "../envs/imucal.yaml"
     params:
-        spec=blind_spec,
+        spec=check_spec("blind"),
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_blind_render.py"
@@ -106,26 +93,18 @@ rule blind_diagnose:
     conda:
         "../envs/imucal.yaml"
     params:
-        exclude=blind_exclude,
-        replicas=config["blind"]["replicas"],
-        alpha=config["gap"]["alpha"],
-        seed=config["gap"]["seed"],
-        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
-        crn_seeds=config["gap"]["crn_seeds"],
-        detect_z=config["gap"]["detect_z"],
-        exact_rotation=config["exact_rotation"],
-        lowpass_order=config["lowpass"]["order"],
-        lowpass_cutoff_hz=config["lowpass"]["cutoff_hz"],
+        settings=diagnosis_settings("blind"),
+        pipeline=PIPELINE_SETTINGS,
         imucal_version=IMUCAL_VERSION,
     script:
-        "../scripts/gap_blind_diagnose.py"
+        "../scripts/gap_check_diagnose.py"
 
 
 rule blind_score:
     input:
-        diagnoses=expand("results/blind/diagnoses/{session}.json", session=BLIND_SESSIONS),
-        sealed=expand("results/blind/sealed/{session}.json", session=BLIND_SESSIONS),
-        benchmarks=expand("results/blind/benchmarks/diagnose/{session}.tsv", session=BLIND_SESSIONS),
+        diagnoses=check_files("blind", "results/blind/diagnoses/{session}.json"),
+        sealed=check_files("blind", "results/blind/sealed/{session}.json"),
+        benchmarks=check_files("blind", "results/blind/benchmarks/diagnose/{session}.tsv"),
     output:
         score="results/blind/score.json",
         html="reports/blind.html",
@@ -148,7 +127,7 @@ rule blind:
 
 
 # The stress set renders with the blind check's script (the spec carries truth preset, protocol
-# and effects); its diagnosis records a failure instead of failing the rule.
+# and effects); every check's diagnosis records a failure instead of failing the rule.
 rule stress_render:
     output:
         folder=directory("results/stress/data/{session}"),
@@ -160,7 +139,7 @@ rule stress_render:
     conda:
         "../envs/imucal.yaml"
     params:
-        spec=stress_spec,
+        spec=check_spec("stress"),
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_blind_render.py"
@@ -178,24 +157,18 @@ rule stress_diagnose:
     conda:
         "../envs/imucal.yaml"
     params:
-        replicas=config["stress"]["replicas"],
-        alpha=config["gap"]["alpha"],
-        seed=config["gap"]["seed"],
-        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
-        crn_seeds=config["gap"]["crn_seeds"],
-        detect_z=config["gap"]["detect_z"],
+        settings=diagnosis_settings("stress"),
+        pipeline=PIPELINE_SETTINGS,
         imucal_version=IMUCAL_VERSION,
     script:
-        "../scripts/gap_stress_diagnose.py"
+        "../scripts/gap_check_diagnose.py"
 
 
 rule stress_score:
     input:
-        diagnoses=expand("results/stress/diagnoses/{session}.json", session=STRESS_SESSIONS),
-        sealed=expand("results/stress/sealed/{session}.json", session=STRESS_SESSIONS),
-        benchmarks=expand(
-            "results/stress/benchmarks/diagnose/{session}.tsv", session=STRESS_SESSIONS
-        ),
+        diagnoses=check_files("stress", "results/stress/diagnoses/{session}.json"),
+        sealed=check_files("stress", "results/stress/sealed/{session}.json"),
+        benchmarks=check_files("stress", "results/stress/benchmarks/diagnose/{session}.tsv"),
     output:
         score="results/stress/score.json",
         html="reports/stress.html",
@@ -217,8 +190,8 @@ rule stress:
         "reports/stress.html",
 
 
-# The detection sweep renders with the blind check's script and diagnoses with the stress set's
-# (a crash is recorded and names nothing).
+# The detection sweep renders with the blind check's script (a crash is recorded and names
+# nothing).
 rule detection_render:
     output:
         folder=directory("results/detection/data/{session}"),
@@ -230,7 +203,7 @@ rule detection_render:
     conda:
         "../envs/imucal.yaml"
     params:
-        spec=detection_spec,
+        spec=check_spec("detection"),
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_blind_render.py"
@@ -248,24 +221,18 @@ rule detection_diagnose:
     conda:
         "../envs/imucal.yaml"
     params:
-        replicas=config["detection"]["replicas"],
-        alpha=config["gap"]["alpha"],
-        seed=config["gap"]["seed"],
-        min_heldout_shrink=config["gap"]["min_heldout_shrink"],
-        crn_seeds=config["gap"]["crn_seeds"],
-        detect_z=config["gap"]["detect_z"],
+        settings=diagnosis_settings("detection"),
+        pipeline=PIPELINE_SETTINGS,
         imucal_version=IMUCAL_VERSION,
     script:
-        "../scripts/gap_stress_diagnose.py"
+        "../scripts/gap_check_diagnose.py"
 
 
 rule detection_score:
     input:
-        diagnoses=expand("results/detection/diagnoses/{session}.json", session=DETECTION_SESSIONS),
-        sealed=expand("results/detection/sealed/{session}.json", session=DETECTION_SESSIONS),
-        benchmarks=expand(
-            "results/detection/benchmarks/diagnose/{session}.tsv", session=DETECTION_SESSIONS
-        ),
+        diagnoses=check_files("detection", "results/detection/diagnoses/{session}.json"),
+        sealed=check_files("detection", "results/detection/sealed/{session}.json"),
+        benchmarks=check_files("detection", "results/detection/benchmarks/diagnose/{session}.tsv"),
     output:
         score="results/detection/score.json",
         html="reports/detection.html",

@@ -64,7 +64,6 @@ rule report:
         "../envs/imucal.yaml"
     params:
         settings=run_settings,
-        git_commit=GIT_COMMIT,
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/report.py"

@@ -5,6 +5,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.report import build_report_context, render_report
+from imucal.report.provenance import workflow_commit
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -28,7 +29,7 @@ context = build_report_context(
     ),  # noqa: SIM118
     benchmarks=list(snakemake.input.benchmarks),
     config=dict(snakemake.params.settings),
-    git_commit=snakemake.params.git_commit,
+    git_commit=workflow_commit(snakemake.scriptdir),
     imucal_version=snakemake.params.imucal_version,
     gap=list(snakemake.input.gap) if "gap" in snakemake.input.keys() else None,  # noqa: SIM118
     noise=list(snakemake.input.noise) if "noise" in snakemake.input.keys() else None,  # noqa: SIM118

@@ -10,7 +10,7 @@ import sys
 import time
 
 from imucal.constants import IMU_RECORDINGS
-from imucal.gap import diagnose
+from imucal.gap import DiagnosisSettings, diagnose
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.full import PipelineOptions, calibrate_session
@@ -25,7 +25,8 @@ def main(folder: str, replicas: int = 20) -> None:
     calibrate_session(imu, tables.get("reference"), options)
     base = time.perf_counter() - t0
     t0 = time.perf_counter()
-    result = diagnose(imu, tables.get("reference"), options, dataset=info.name, replicas=replicas)
+    settings = DiagnosisSettings(replicas=replicas)
+    result = diagnose(imu, tables.get("reference"), options, dataset=info.name, settings=settings)
     total = time.perf_counter() - t0
     print(f"fit alone {base:.2f} s; diagnosis ({replicas} replicas) {total:.1f} s "
           f"(null {result['timing_s']['null']:.1f} s); ratio {total / base:.0f}; "
