@@ -155,9 +155,10 @@ def calibrate_session(
         segments,
         gravity_m_s2=options.gravity_m_s2,
         saturation_limit_m_s2=options.limit("acc"),
+        figures=False,
     )
     acc = stages.align_acc(low, segments, cube, exact=exact)
-    bias, _ = stages.estimate_gyr_bias(imu, segments)
+    bias, _ = stages.estimate_gyr_bias(imu, segments, figures=False)
     o, _ = stages.gyr_bias_value(bias, "ls")
     align = stages.align_gyr(low, segments, o, exact=exact)
     notes = []
@@ -175,7 +176,10 @@ def calibrate_session(
     if "ratetable" in imu:
         try:
             table, _ = stages.fit_gyr_table(
-                imu["ratetable"], segments, saturation_limit_rad_s=options.limit("gyr")
+                imu["ratetable"],
+                segments,
+                saturation_limit_rad_s=options.limit("gyr"),
+                figures=False,
             )
             table_align = stages.align_gyr(
                 low, segments, table["bias"], table["upper"], exact=exact
@@ -261,9 +265,18 @@ def reference_alignment(
 
 
 def calibrated(fit: SessionFit, recording: str, sensor: str) -> np.ndarray:
-    """Calibrated values (frame B, SI) of one sensor of one recording, shape (n, 3)."""
+    """Calibrated values (frame B, SI) of one sensor of one recording, shape (n, 3).
+
+    Computed once per fit (the diagnosis's statistics ask for the same recording many times)
+    and returned read-only, so that no caller can change what the next one gets.
+    """
     from imucal.columns import sensor_columns
 
-    values = fit.imu[recording][list(sensor_columns(sensor))].to_numpy(dtype=float)
-    cal = fit.calibration.sensor(sensor)
-    return cal.apply(values, unit=cal.unit)
+    cache = fit.extra.setdefault("calibrated", {})
+    if (recording, sensor) not in cache:
+        values = fit.imu[recording][list(sensor_columns(sensor))].to_numpy(dtype=float)
+        cal = fit.calibration.sensor(sensor)
+        out = cal.apply(values, unit=cal.unit)
+        out.flags.writeable = False
+        cache[(recording, sensor)] = out
+    return cache[(recording, sensor)]

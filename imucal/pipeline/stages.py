@@ -87,6 +87,7 @@ def fit_acc_cube(
     gravity_m_s2: float,
     saturation_limit_m_s2: float,
     method: str = "means",
+    figures: bool = True,
 ) -> tuple[dict, dict[str, Figure]]:
     """Accelerometer step 1 (eq. 32) on the static cube positions.
 
@@ -101,6 +102,8 @@ def fit_acc_cube(
         ``range_counts * sensitivity`` of the accelerometer; samples at it are excluded.
     method : {'means', 'samples'}
         See :func:`imucal.fits.accelerometer.fit_cube`.
+    figures : bool
+        Draw the figure (the in-process chain does not need it).
 
     Returns
     -------
@@ -120,6 +123,8 @@ def fit_acc_cube(
     )
     artifact = plain(fit)
     artifact["gravity_m_s2"] = gravity_m_s2
+    if not figures:
+        return artifact, {}
     return artifact, {"acc_cube": inertial_plots.plot_cube_magnitude_errors(fit)}
 
 
@@ -190,7 +195,7 @@ def align_acc(
 
 
 def estimate_gyr_bias(
-    static_tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame
+    static_tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame, *, figures: bool = True
 ) -> tuple[dict, dict[str, Figure]]:
     """Gyroscope bias (eqs. 34-35 and the plain mean) from the static recording.
 
@@ -201,6 +206,8 @@ def estimate_gyr_bias(
     static_tables : dict of str to DataFrame
         Ingested recordings by name; 'static' is used when present, else 'rotation3d' and 'cube'.
     segments : DataFrame
+    figures : bool
+        Draw the figure (the in-process chain does not need it).
 
     Returns
     -------
@@ -228,6 +235,8 @@ def estimate_gyr_bias(
     bias = gyroscope.estimate_bias(pieces)
     artifact = plain(bias)
     artifact["source"] = names
+    if not figures:
+        return artifact, {}
     t = np.concatenate([x[:, 0] for x in times])
     rates = np.vstack(pieces)
     figure = inertial_plots.plot_gyro_bias(t, rates, bias.bias_ls_rad_s)
@@ -497,11 +506,13 @@ def fit_gyr_table(
     segments: pd.DataFrame,
     *,
     saturation_limit_rad_s: float,
+    figures: bool = True,
 ) -> tuple[dict, dict[str, Figure]]:
     """Rate-table step 1 (eq. 33, vector form): full matrix and bias from the run means.
 
     Runs with saturated samples are left out with a warning; the fit is refused (by
-    :func:`imucal.fits.gyroscope.fit_rate_table`) only when too few runs remain.
+    :func:`imucal.fits.gyroscope.fit_rate_table`) only when too few runs remain. ``figures``
+    False skips the figure (the in-process chain does not need it).
 
     Returns
     -------
@@ -550,6 +561,8 @@ def fit_gyr_table(
             [(trimmed.matrix - fit.matrix).ravel(), trimmed.bias - fit.bias]
         ).tolist(),
     )
+    if not figures:
+        return artifact, {}
     figure = inertial_plots.plot_rate_table_errors(fit, list(rows["label"]))
     return artifact, {"gyr_table": figure}
 

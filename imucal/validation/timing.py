@@ -192,6 +192,10 @@ def _coarse_offset(t_m: np.ndarray, w_m: np.ndarray, t_r: np.ndarray, w_r: np.nd
     return grid_r[0] - grid_m[0] + lag * dt
 
 
+#: Relative precision of the smoothing parameter of :func:`_smooth_reference`.
+LAMBDA_TOLERANCE = 0.01
+
+
 def _smooth_reference(t: np.ndarray, w: np.ndarray, excerpt: int = 1500) -> BSpline:
     """Smoothing spline through the reference's ``|omega|^2``.
 
@@ -200,7 +204,9 @@ def _smooth_reference(t: np.ndarray, w: np.ndarray, excerpt: int = 1500) -> BSpl
     follows the discrepancy principle: the residual variance equals the noise variance, which
     is estimated from second differences (``var(y[i-1] - 2 y[i] + y[i+1]) = 6 sigma^2`` for
     white noise on a signal that is smooth at the sampling rate). It is searched on the
-    ``excerpt`` consecutive samples of largest variance (the motion) to keep the cost low.
+    ``excerpt`` consecutive samples of largest variance (the motion) to keep the cost low, to
+    :data:`LAMBDA_TOLERANCE` in ``lam``: the noise variance that sets it is estimated from at most
+    ``excerpt`` samples, uncertain by several percent.
     """
     if t.size > excerpt:
         csum = np.cumsum(np.concatenate([[0.0], w]))
@@ -215,7 +221,7 @@ def _smooth_reference(t: np.ndarray, w: np.ndarray, excerpt: int = 1500) -> BSpl
     period = np.median(np.diff(ts))
     # bisection on log(lam); lam ~ h^4 / period for an equivalent kernel of width h (s)
     lo, hi = np.log((0.1 * period) ** 4 / period), np.log(10.0**4 / period)
-    for _ in range(30):
+    while hi - lo > np.log1p(LAMBDA_TOLERANCE):
         mid = 0.5 * (lo + hi)
         fit = make_smoothing_spline(ts, ws, lam=np.exp(mid))
         if np.mean((fit(ts) - ws) ** 2) > noise_var:
