@@ -1,24 +1,28 @@
-"""Ingest: raw logs to SI-unit tables with their checks and summary (``recording``), the packet
-counter and receive timestamps (``timebase``).
+"""Ingest: raw logs to SI-unit tables (``recording``), the checks of their content carried over
+batches (``checks``), the summary (``summary``), the packet counter and receive timestamps
+(``timebase``).
 """
 
+from imucal.ingest.checks import CountRange, LogChecks, check_count_range, check_log
 from imucal.ingest.recording import (
-    MAX_LISTED_GAPS,
     REF_TICK_MODULUS,
-    check_log,
     counts_to_si,
     ingest_recording,
+    ingest_to_parquet,
     reference_to_table,
-    summarize_dataset,
-    summarize_recording,
 )
+from imucal.ingest.summary import MAX_LISTED_GAPS, summarize_dataset, summarize_recording
 
 __all__ = [
     "MAX_LISTED_GAPS",
     "REF_TICK_MODULUS",
+    "CountRange",
+    "LogChecks",
+    "check_count_range",
     "check_log",
     "counts_to_si",
     "ingest_recording",
+    "ingest_to_parquet",
     "reference_to_table",
     "summarize_dataset",
     "summarize_recording",

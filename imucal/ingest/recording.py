@@ -1,22 +1,21 @@
-"""Ingest of a raw log: checks of time and packet order, conversion to SI, summary.
+"""Ingest of a raw log: read, check (:mod:`imucal.ingest.checks`) and convert to SI units.
 
 A raw log has one row per received packet. Packets the radio lost leave a jump in the 16-bit
 packet counter ``seq``; they are counted and reported, never invented (no row is added, no value
-is filled in). The counter wraps at 65536, which is ambiguous in a long silence; the receiver
-time ``t_s`` resolves it (:func:`resolve_packet_steps`).
-
-The module (about 520 lines) holds ingestion end to end, checks, conversion and the summary,
-because the summary reports exactly what the checks found.
+is filled in). A native CSV is ingested in batches of bounded memory (:func:`ingest_to_parquet`);
+the summary of an ingested table is in :mod:`imucal.ingest.summary`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.compute as pc
 
 from imucal import io
 from imucal.columns import (
@@ -37,7 +36,8 @@ from imucal.columns import (
     TIME,
 )
 from imucal.constants import REFERENCE
-from imucal.ingest.timebase import describe_timestamps, resolve_packet_steps, unwrap_counter
+from imucal.ingest.checks import CountRange, LogChecks, check_count_range, check_log
+from imucal.ingest.timebase import unwrap_counter
 from imucal.io import readers
 from imucal.io.dataset import Dataset
 
@@ -45,97 +45,13 @@ __all__ = [
     "check_log",
     "counts_to_si",
     "ingest_recording",
+    "ingest_to_parquet",
     "reference_to_table",
-    "resolve_packet_steps",
-    "summarize_dataset",
-    "summarize_recording",
     "unwrap_counter",
 ]
 
-#: The summary lists at most this many gaps (all are counted).
-MAX_LISTED_GAPS = 100
 #: ``SampleTimeFine`` of the MT Manager export is an unsigned 32-bit tick counter.
 REF_TICK_MODULUS = 2**32
-
-
-# --------------------------------------------------------------------------------------------
-# Checks
-
-
-def check_log(table: pd.DataFrame, source: str | Path, first_line: int) -> None:
-    """Refuse a log whose time or packet order breaks the contract.
-
-    Parameters
-    ----------
-    table : DataFrame, shape (n, k)
-        With ``t_s`` (s) and ``seq`` columns, one row per packet as read from the file.
-    source : str or Path
-        File name for the messages.
-    first_line : int
-        Line number of row 0 in ``source`` (row ``i`` is on line ``first_line + i``).
-
-    Raises
-    ------
-    RawDataError
-        Fewer than two rows, ``t_s`` not finite, going backwards or not advancing at all,
-        ``seq`` outside ``[0, 65535]``, a duplicated ``seq`` (same counter as the row before)
-        or an out-of-order ``seq``. The message names the first offending line.
-    """
-    t_s = table[TIME].to_numpy(dtype=float)
-    seq = table[SEQ].to_numpy()
-    n = len(t_s)
-    if n < 2:
-        raise io.RawDataError(source, first_line, f"{n} data row", "at least two rows")
-    bad = np.flatnonzero(~np.isfinite(t_s))
-    if bad.size:
-        raise io.RawDataError(
-            source,
-            first_line + bad[0],
-            f"t_s is {float(t_s[bad[0]])}",
-            "a finite receiver time in s",
-        )
-    back = np.flatnonzero(np.diff(t_s) < 0)
-    if back.size:
-        i = back[0] + 1
-        raise io.RawDataError(
-            source,
-            first_line + i,
-            f"t_s {float(t_s[i])!r} s is earlier than {float(t_s[i - 1])!r} s "
-            f"on line {first_line + i - 1}",
-            "non-decreasing receiver time t_s",
-        )
-    if t_s[-1] == t_s[0]:
-        raise io.RawDataError(
-            source,
-            None,
-            f"t_s stays at {float(t_s[0])!r} s on all {n} rows",
-            "a receiver time that advances",
-        )
-    bad = np.flatnonzero((seq < 0) | (seq >= SEQ_MODULUS))
-    if bad.size:
-        raise io.RawDataError(
-            source,
-            first_line + bad[0],
-            f"seq {seq[bad[0]]}",
-            f"a 16-bit packet counter in 0..{SEQ_MODULUS - 1}",
-        )
-    advance, _ = resolve_packet_steps(seq, t_s)
-    bad = np.flatnonzero(advance <= 0)
-    if bad.size:
-        i = bad[0] + 1
-        if advance[bad[0]] == 0:
-            found = f"seq {seq[i]} repeats the seq of line {first_line + i - 1} (duplicated packet)"
-        else:
-            found = (
-                f"seq {seq[i]} goes back from {seq[i - 1]} on line {first_line + i - 1} "
-                "(out-of-order packet)"
-            )
-        raise io.RawDataError(
-            source,
-            first_line + i,
-            found,
-            "each packet once, in order (seq increasing modulo 65536)",
-        )
 
 
 # --------------------------------------------------------------------------------------------
@@ -163,25 +79,34 @@ def counts_to_si(counts: pd.DataFrame, sensitivity: Mapping[str, float]) -> pd.D
     ValueError
         If a sensitivity is missing, not finite or not positive.
     """
+    factors = _factors(sensitivity)
     data: dict[str, np.ndarray] = {
         TIME: counts[TIME].to_numpy(dtype=float),
         SEQ: counts[SEQ].to_numpy(dtype=np.int64),
     }
     for sensor, columns in SENSOR_COLUMNS.items():
+        for name in columns:
+            values = np.array(counts[name], dtype=float)  # a copy: scaled in place below
+            values *= factors[sensor]
+            data[name] = values
+    for name in counts.columns:
+        if name not in RAW_COLUMNS:
+            data[name] = counts[name].to_numpy()
+    return pd.DataFrame(data, copy=False)
+
+
+def _factors(sensitivity: Mapping[str, float]) -> dict[str, float]:
+    """SI unit per count by sensor, checked (see :func:`counts_to_si`)."""
+    out = {}
+    for sensor in SENSOR_COLUMNS:
         factor = sensitivity.get(sensor)
         if factor is None or not np.isfinite(factor) or factor <= 0:
             raise ValueError(
                 f"sensitivity of {sensor!r} is {factor!r}; expected a positive "
                 f"number of {SI_UNITS[sensor]} per count"
             )
-        for name in columns:
-            values = np.array(counts[name], dtype=float)  # a copy: scaled in place below
-            values *= float(factor)
-            data[name] = values
-    for name in counts.columns:
-        if name not in RAW_COLUMNS:
-            data[name] = counts[name].to_numpy()
-    return pd.DataFrame(data, copy=False)
+        out[sensor] = float(factor)
+    return out
 
 
 def reference_to_table(export: io.MtManagerExport) -> pd.DataFrame:
@@ -255,25 +180,12 @@ def ingest_recording(
     ValueError
         If ``recording`` is not a recording of the dataset, or ``path`` is not its file.
     FileNotFoundError, RawDataError, DeclarationError
-        From the readers and :func:`check_log`.
+        From the readers, :func:`check_log` and :func:`check_count_range` (raw counts, of a
+        native CSV or a declared recording in ``counts``, beyond ``range_counts``).
     """
-    if recording not in dataset.recordings:
-        raise ValueError(
-            f"unknown recording {recording!r}; dataset {dataset.name!r} has "
-            f"{sorted(dataset.recordings)}"
-        )
-    metadata: dict[str, Any] = {
-        "dataset": dataset.name,
-        "recording": recording,
-        "source": str(path),
-        "imucal_version": imucal_version,
-    }
+    _check_recording(path, recording, dataset)
+    metadata: dict[str, Any] = _base_metadata(path, recording, dataset, imucal_version)
     if recording in dataset.readers:
-        if Path(path).resolve() != Path(dataset.recordings[recording]).resolve():
-            raise ValueError(
-                f"{path}: not the file of the declared recording {recording!r}; expected "
-                f"{dataset.recordings[recording]}"
-            )
         table, declared = _ingest_declared(recording, dataset)
         metadata.update(declared)
     elif recording == REFERENCE:
@@ -289,27 +201,161 @@ def ingest_recording(
             sha256=io.sha256_file(path),
         )
     else:
-        counts = io.read_imu_csv(path)
-        table = counts_to_si(counts, dataset.sensitivity)
-        check_log(table, path, 2)
-        metadata.update(
-            format=io.IMU_CSV_FORMAT,
-            sensitivity=dict(dataset.sensitivity),
-            first_line=2,
-            sha256=io.sha256_file(path),
+        batches: list[Mapping[str, pa.Array | np.ndarray]] = []
+        stream = io.ImuCsvStream(path)
+        metadata.update(_ingest_imu_csv(stream, dataset, batches.append))
+        table = pd.DataFrame(
+            {
+                name: np.concatenate([_numpy(batch[name]) for batch in batches])
+                for name in _ingested_columns(stream)
+            },
+            copy=False,
         )
-    sensors = [s for s, cols in SENSOR_COLUMNS.items() if cols[0] in table.columns]
-    extra = [c for c in table.columns if c not in (TIME, SEQ) and c not in _SENSOR_COLUMN_NAMES]
-    units = {TIME: "s"}
-    if SEQ in table.columns:
-        units[SEQ] = "1"
-    units.update({c: SI_UNITS[s] for s in sensors for c in SENSOR_COLUMNS[s]})
-    units.update({c: "as in the source" for c in extra})
-    metadata.update(units=units, sensors=sensors, has_seq=SEQ in table.columns, extra_columns=extra)
+    metadata.update(_column_metadata(list(table.columns)))
     return table, metadata
 
 
-_SENSOR_COLUMN_NAMES = {c for cols in SENSOR_COLUMNS.values() for c in cols}
+def ingest_to_parquet(
+    path: str | Path,
+    recording: str,
+    dataset: Dataset,
+    imucal_version: str,
+    out: str | Path,
+    batch_bytes: int = io.BATCH_BYTES,
+) -> dict:
+    """Ingest one raw recording of a dataset into a parquet file (the ingest rule).
+
+    A native IMU CSV is streamed: read in batches of ``batch_bytes``, checked, converted and
+    written as parquet row groups, so memory stays bounded whatever the length of the log
+    (24 h at 1 kHz: 86 M rows). The reference and declared recordings are read whole
+    (:func:`ingest_recording`). Either way the file equals
+    ``write_recording(*ingest_recording(...))``: the same rows, columns, metadata and errors.
+
+    Parameters
+    ----------
+    path, recording, dataset, imucal_version
+        As :func:`ingest_recording`.
+    out : str or Path
+        Target ``.parquet`` file, written atomically: on any error no file is left.
+    batch_bytes : int
+        Bytes of the CSV parsed per batch (the rows of a batch are one parquet row group).
+
+    Returns
+    -------
+    dict
+        The metadata written with the table (:func:`ingest_recording`), plus nothing else.
+
+    Raises
+    ------
+    ValueError, FileNotFoundError, RawDataError, DeclarationError
+        As :func:`ingest_recording`. A problem in a native CSV is raised after the whole file
+        was read (the error names the first problem, as for the whole table).
+    """
+    _check_recording(path, recording, dataset)
+    if recording in dataset.readers or recording == REFERENCE:
+        table, metadata = ingest_recording(path, recording, dataset, imucal_version)
+        io.write_recording(table, out, metadata)
+        return metadata
+    stream = io.ImuCsvStream(path, batch_bytes)
+    columns = _ingested_columns(stream)
+    dtypes = {name: np.int64 if name == SEQ else np.float64 for name in columns}
+    with io.RecordingWriter(out, dtypes) as writer:
+        metadata = _base_metadata(path, recording, dataset, imucal_version)
+        metadata.update(_ingest_imu_csv(stream, dataset, writer.write))
+        metadata.update(_column_metadata(columns))
+        writer.close(metadata)
+    return metadata
+
+
+def _ingest_imu_csv(
+    stream: io.ImuCsvStream,
+    dataset: Dataset,
+    sink: Callable[[Mapping[str, pa.Array | np.ndarray]], None],
+) -> dict:
+    """Check and convert a native CSV batch by batch; ``sink`` takes each batch's SI columns.
+
+    Every check runs over the whole file before anything is returned: format problems first
+    (raised by the stream), then time and packet order, then the count range. Once a problem
+    is found no more batches go to ``sink``.
+    """
+    factors = _factors(dataset.sensitivity)
+    order = LogChecks(stream.path, first_line=2)
+    limits = CountRange(stream.path, dataset.count_range, first_line=2)
+    extra = stream.extra_columns
+    for batch in stream:
+        order.update(batch.column(TIME).to_numpy(), batch.column(SEQ).to_numpy())
+        limits.update({c: batch.column(c) for c in _SENSOR_COLUMN_NAMES}, batch.num_rows)
+        if order.failed or limits.failed:
+            continue
+        si: dict[str, pa.Array | np.ndarray] = {TIME: batch.column(TIME), SEQ: batch.column(SEQ)}
+        for sensor, names in SENSOR_COLUMNS.items():
+            for name in names:
+                # counts * sensitivity (one rounding, as counts_to_si); an empty cell stays null
+                si[name] = pc.multiply(pc.cast(batch.column(name), pa.float64()), factors[sensor])
+        for name in extra:
+            si[name] = batch.column(name).to_numpy(zero_copy_only=False)
+        sink(si)
+    order.finish()
+    limits.finish()
+    return {
+        "format": io.IMU_CSV_FORMAT,
+        "sensitivity": dict(dataset.sensitivity),
+        "first_line": 2,
+        "sha256": stream.sha256,
+    }
+
+
+def _ingested_columns(stream: io.ImuCsvStream) -> list[str]:
+    """Columns of an ingested native CSV: time, counter, sensors, then extras in file order."""
+    return [
+        TIME,
+        SEQ,
+        *(c for cols in SENSOR_COLUMNS.values() for c in cols),
+        *stream.extra_columns,
+    ]
+
+
+def _numpy(values: pa.Array | np.ndarray) -> np.ndarray:
+    """An ingested column as numpy (a float null is NaN: no sample)."""
+    return values if isinstance(values, np.ndarray) else values.to_numpy(zero_copy_only=False)
+
+
+def _column_metadata(columns: list[str]) -> dict:
+    """``units``, ``sensors``, ``has_seq`` and ``extra_columns`` of an ingested table."""
+    sensors = [s for s, cols in SENSOR_COLUMNS.items() if cols[0] in columns]
+    extra = [c for c in columns if c not in (TIME, SEQ) and c not in _SENSOR_COLUMN_NAMES]
+    units = {TIME: "s"}
+    if SEQ in columns:
+        units[SEQ] = "1"
+    units.update({c: SI_UNITS[s] for s in sensors for c in SENSOR_COLUMNS[s]})
+    units.update({c: "as in the source" for c in extra})
+    return {"units": units, "sensors": sensors, "has_seq": SEQ in columns, "extra_columns": extra}
+
+
+def _check_recording(path: str | Path, recording: str, dataset: Dataset) -> None:
+    if recording not in dataset.recordings:
+        raise ValueError(
+            f"unknown recording {recording!r}; dataset {dataset.name!r} has "
+            f"{sorted(dataset.recordings)}"
+        )
+    if recording in dataset.readers:
+        if Path(path).resolve() != Path(dataset.recordings[recording]).resolve():
+            raise ValueError(
+                f"{path}: not the file of the declared recording {recording!r}; expected "
+                f"{dataset.recordings[recording]}"
+            )
+
+
+def _base_metadata(path: str | Path, recording: str, dataset: Dataset, version: str) -> dict:
+    return {
+        "dataset": dataset.name,
+        "recording": recording,
+        "source": str(path),
+        "imucal_version": version,
+    }
+
+
+_SENSOR_COLUMN_NAMES = tuple(c for cols in SENSOR_COLUMNS.values() for c in cols)
 
 
 def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, dict]:
@@ -326,6 +372,8 @@ def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, di
     table = rec.table
     first_line = rec.metadata.get("first_line")
     files = rec.metadata["files"]
+    for i, entry in enumerate(readers.declared_entries(dataset.readers[recording])):
+        _check_declared_counts(entry, f"{where} (file {i + 1})", dataset.count_range)
     if SEQ in table.columns:
         check_log(table, files[0]["path"] if len(files) == 1 else where, first_line or 0)
     meta: dict[str, Any] = {
@@ -357,6 +405,33 @@ def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, di
     return table, meta
 
 
+def _check_declared_counts(
+    entry: Mapping[str, Any], where: str, limits: Mapping[str, tuple[int, int]]
+) -> None:
+    """The raw counts (``counts - zero_counts``, in the file's own axes) of a declared
+    one-file entry in ``counts`` within the ADC's range; the file is read again for them, in
+    its own row order so that the error names its line (its sample for MATLAB and HDF5)."""
+    sensors = [s for s, unit in (entry.get("units") or {}).items() if unit == "counts"]
+    if not sensors:
+        return
+    wanted = {c for s in sensors for c in SENSOR_COLUMNS[s]}
+    raw_entry = {
+        **{k: v for k, v in entry.items() if k not in ("axes", "sort_by_time", "zero_counts")},
+        "columns": {t: c for t, c in entry["columns"].items() if t in wanted},
+        "units": dict.fromkeys(sensors, "counts"),
+        "sensitivity": dict.fromkeys(sensors, 1.0),
+        "zero_counts": {s: z for s, z in (entry.get("zero_counts") or {}).items() if s in sensors},
+        "rate_hz": 1.0,  # rows in file order; their times are not needed here
+    }
+    counts = readers.read_entry(raw_entry, where=where, field_norm_t=1.0)
+    check_count_range(
+        counts.table,
+        entry["file"],
+        {s: limits[s] for s in sensors},
+        counts.metadata["first_line"],
+    )
+
+
 def _declared_sensitivity(declaration: Mapping[str, Any]) -> dict:
     """Sensitivities (SI per count) of the entries of a declaration, by sensor."""
     entries = [declaration]
@@ -366,159 +441,3 @@ def _declared_sensitivity(declaration: Mapping[str, Any]) -> dict:
         entries += list(entry.get("parts", [])) + list(entry.get("streams", []))
         out.update(entry.get("sensitivity") or {})
     return out
-
-
-# --------------------------------------------------------------------------------------------
-# Summary
-
-
-def summarize_recording(table: pd.DataFrame, metadata: Mapping[str, Any]) -> dict:
-    """Summarise an ingested recording: duration, rates, time steps, lost packets, sensors.
-
-    Parameters
-    ----------
-    table : DataFrame, shape (n, k)
-        Ingested recording (``t_s`` in s, ``seq`` when there is a counter, the columns of the
-        sensors present, NaN on rows without a sample of that sensor).
-    metadata : mapping
-        Its metadata (``source``, ``format``, ``sha256``, ``first_line``, ``extra_columns``, and
-        for a declared recording ``files``, ``source_units``, ``parts``).
-
-    Returns
-    -------
-    dict
-        ``rows``, ``t_start_s``, ``t_end_s``, ``duration_s``, ``rate_hz`` (packet rate,
-        lost packets included; without a counter the received rate), ``received_rate_hz``,
-        the time-step statistics of :func:`imucal.ingest.timebase.describe_timestamps`
-        (``dt_median_s``, ``dt_mean_s``, ``dt_max_s``, ``effective_rate_hz`` = rows /
-        duration, ``non_increasing_steps``, ``irregular``, ``nominal_period_s``),
-        ``has_seq``, ``lost_packets`` (from ``seq`` across wraps; None without a counter),
-        ``lost_fraction``, ``n_gaps``, ``gaps`` (the first :data:`MAX_LISTED_GAPS`: ``line``,
-        ``t_s``, ``dt_s``, ``seq_before``, ``seq``, ``lost``), ``duplicated_rows``,
-        ``out_of_order_rows``, ``sensors`` (present), ``samples`` and ``sample_rate_hz`` per
-        sensor, ``mag_samples``, ``mag_rate_hz``, ``notes`` (what could not be checked),
-        ``extra_columns`` and the source's ``source``, ``format``, ``sha256``, ``files``,
-        ``source_units``, ``parts``. Unknown values are None, never NaN.
-
-    Notes
-    -----
-    Packets lost before the first or after the last received row leave no jump in ``seq``
-    and cannot be counted; without ``seq`` no lost packet can be counted at all.
-    """
-    t_s = table[TIME].to_numpy(dtype=float)
-    first_line = metadata.get("first_line")
-    n = len(t_s)
-    duration = float(t_s[-1] - t_s[0]) if n else 0.0
-    has_seq = SEQ in table.columns
-    notes = []
-    summary: dict[str, Any] = {
-        "source": metadata.get("source"),
-        "format": metadata.get("format"),
-        "sha256": metadata.get("sha256"),
-        "rows": n,
-        "t_start_s": float(t_s[0]) if n else None,
-        "t_end_s": float(t_s[-1]) if n else None,
-        "duration_s": duration,
-        "received_rate_hz": (n - 1) / duration if duration > 0 else None,
-        **describe_timestamps(t_s),
-        "has_seq": has_seq,
-    }
-    if has_seq:
-        seq = table[SEQ].to_numpy(dtype=np.int64)
-        advance, _ = resolve_packet_steps(seq, t_s)
-        forward = advance[advance > 0]
-        lost = np.where(advance > 1, advance - 1, 0)
-        gap_steps = np.flatnonzero(advance > 1)
-        line0 = 0 if first_line is None else int(first_line)
-        gaps = [
-            {
-                "line": int(line0 + i + 1) if first_line is not None else None,
-                "t_s": float(t_s[i + 1]),
-                "dt_s": float(t_s[i + 1] - t_s[i]),
-                "seq_before": int(seq[i]),
-                "seq": int(seq[i + 1]),
-                "lost": int(lost[i]),
-            }
-            for i in gap_steps[:MAX_LISTED_GAPS]
-        ]
-        lost_total = int(lost.sum())
-        summary.update(
-            rate_hz=float(forward.sum()) / duration if duration > 0 else None,
-            lost_packets=lost_total,
-            lost_fraction=lost_total / (n + lost_total) if n else None,
-            n_gaps=int(gap_steps.size),
-            gaps=gaps,
-            duplicated_rows=int(np.count_nonzero(advance == 0)),
-            out_of_order_rows=int(np.count_nonzero(advance < 0)),
-        )
-    else:
-        notes.append("no packet counter (seq): lost packets cannot be counted")
-        summary.update(
-            rate_hz=summary["received_rate_hz"],
-            lost_packets=None,
-            lost_fraction=None,
-            n_gaps=None,
-            gaps=[],
-            duplicated_rows=None,
-            out_of_order_rows=None,
-        )
-    if summary["irregular"]:
-        notes.append(
-            "irregular timestamps (receive times in bursts): kept as they are; the nominal "
-            "period is the effective one"
-        )
-    sensors = [s for s, cols in SENSOR_COLUMNS.items() if cols[0] in table.columns]
-    absent = [s for s in SENSOR_COLUMNS if s not in sensors]
-    if absent:
-        notes.append(f"sensors absent from this recording: {', '.join(absent)}")
-    samples: dict[str, int] = {}
-    sample_rate: dict[str, float | None] = {}
-    for sensor in sensors:
-        has = ~np.isnan(table[SENSOR_COLUMNS[sensor][0]].to_numpy(dtype=float))
-        t_own = t_s[has]
-        span = float(t_own[-1] - t_own[0]) if t_own.size >= 2 else 0.0
-        samples[sensor] = int(has.sum())
-        sample_rate[sensor] = (t_own.size - 1) / span if span > 0 else None
-    summary.update(
-        sensors=sensors,
-        samples=samples,
-        sample_rate_hz=sample_rate,
-        mag_samples=samples.get("mag", 0),
-        mag_rate_hz=sample_rate.get("mag"),
-        extra_columns=list(metadata.get("extra_columns", [])),
-        notes=notes,
-    )
-    for key in ("files", "source_units", "parts", "sections"):
-        if key in metadata:
-            summary[key] = metadata[key]
-    return summary
-
-
-def summarize_dataset(
-    recordings: Mapping[str, tuple[pd.DataFrame, Mapping[str, Any]]], dataset: str
-) -> dict:
-    """Summary of all ingested recordings of a dataset (the ``summary.json`` of the ingest).
-
-    Parameters
-    ----------
-    recordings : mapping
-        Recording name -> (ingested table, metadata), as from :func:`imucal.io.read_recording`.
-    dataset : str
-        Dataset name.
-
-    Returns
-    -------
-    dict
-        ``{'dataset': ..., 'recordings': {name: summarize_recording(...)}}`` plus the total
-        ``lost_packets`` of the recordings with a packet counter and ``sensors`` (present in
-        some recording).
-    """
-    per_recording = {name: summarize_recording(t, m) for name, (t, m) in recordings.items()}
-    return {
-        "dataset": dataset,
-        "lost_packets": sum(s["lost_packets"] or 0 for s in per_recording.values()),
-        "sensors": [
-            s for s in SENSOR_COLUMNS if any(s in r["sensors"] for r in per_recording.values())
-        ],
-        "recordings": per_recording,
-    }

@@ -63,16 +63,62 @@ def resolve_packet_steps(
     t_s = np.asarray(t_s, dtype=float)
     d = np.mod(np.diff(seq), modulus)
     dt = np.diff(t_s)
-    ordinary = (d >= 1) & (d < modulus // 2) & (dt <= ORDINARY_STEP_S)
+    ordinary = ordinary_steps(d, dt, modulus)
     elapsed = dt[ordinary].sum()
     rate_hz = float(d[ordinary].sum() / elapsed) if elapsed > 0 else float("nan")
-    # Only a step that went back or lasted long can differ from d (cheap on long logs); an
-    # ordinary step keeps d for any packet rate below modulus / 2 / ORDINARY_STEP_S (32 kHz).
+    # Only a step that went back or lasted long can differ from d (cheap on long logs).
     advance = d.copy()
     odd = np.flatnonzero(~ordinary)
-    expected = dt[odd] * rate_hz if np.isfinite(rate_hz) else np.zeros(odd.size)
-    advance[odd] += np.round((expected - d[odd]) / modulus).astype(np.int64) * modulus
+    advance[odd] = resolve_odd_steps(d[odd], dt[odd], rate_hz, modulus)
     return advance, rate_hz
+
+
+def ordinary_steps(d: np.ndarray, dt: np.ndarray, modulus: int = SEQ_MODULUS) -> np.ndarray:
+    """Steps whose advance is the counter difference itself (mask, shape (m,)).
+
+    Parameters
+    ----------
+    d : ndarray of int64, shape (m,)
+        Counter differences modulo ``modulus``, ``(seq[i+1] - seq[i]) mod modulus``.
+    dt : ndarray, shape (m,)
+        Time steps, s.
+    modulus : int
+        The counter wraps at this value.
+
+    Returns
+    -------
+    ndarray of bool, shape (m,)
+        Forward by less than half the modulus in at most :data:`ORDINARY_STEP_S`. Such a step
+        keeps ``d`` for any packet rate below ``modulus / 2 / ORDINARY_STEP_S`` (32 kHz for
+        ``seq``); their packets and time estimate the packet rate (:func:`resolve_packet_steps`).
+    """
+    return (d >= 1) & (d < modulus // 2) & (dt <= ORDINARY_STEP_S)
+
+
+def resolve_odd_steps(
+    d: np.ndarray, dt: np.ndarray, rate_hz: float, modulus: int = SEQ_MODULUS
+) -> np.ndarray:
+    """Advance of the steps that are not ordinary: the ``d + k modulus`` nearest to the time.
+
+    Parameters
+    ----------
+    d : ndarray of int64, shape (m,)
+        Counter differences modulo ``modulus``.
+    dt : ndarray, shape (m,)
+        Their time steps, s.
+    rate_hz : float
+        Packet rate from the ordinary steps (NaN when unknown: then the elapsed time predicts
+        no packet).
+    modulus : int
+        The counter wraps at this value.
+
+    Returns
+    -------
+    ndarray of int64, shape (m,)
+        Packets advanced (0: a repeated counter; negative: the counter went back).
+    """
+    expected = dt * rate_hz if np.isfinite(rate_hz) else np.zeros(d.size)
+    return d + np.round((expected - d) / modulus).astype(np.int64) * modulus
 
 
 def unwrap_counter(

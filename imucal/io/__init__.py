@@ -6,8 +6,10 @@ what the pipeline writes and reads back. Only this layer touches files.
 """
 
 from imucal.io.raw import (
+    BATCH_BYTES,
     IMU_CSV_FORMAT,
     MT_MANAGER_FORMAT,
+    ImuCsvStream,
     MtManagerExport,
     RawDataError,
     read_imu_csv,
@@ -15,6 +17,7 @@ from imucal.io.raw import (
 )
 from imucal.io.store import (
     METADATA_KEY,
+    RecordingWriter,
     read_benchmark_seconds,
     read_calibration,
     read_json,
@@ -31,11 +34,14 @@ from imucal.io.store import (
 )
 
 __all__ = [
+    "BATCH_BYTES",
     "IMU_CSV_FORMAT",
+    "ImuCsvStream",
     "METADATA_KEY",
     "MT_MANAGER_FORMAT",
     "MtManagerExport",
     "RawDataError",
+    "RecordingWriter",
     "read_benchmark_seconds",
     "read_calibration",
     "read_imu_csv",

@@ -44,7 +44,8 @@ class Dataset:
         SI unit per raw count of the native IMU CSV, keys 'acc', 'gyr', 'mag' (empty when no
         recording is a native CSV).
     range_counts : dict
-        Saturation limit of the raw counts per sensor.
+        Saturation limit of the raw counts per sensor: ``|counts| >=`` it is clipped (for a
+        declared ``[lowest, highest]`` pair the smaller of ``-lowest`` and ``highest``).
     recordings : dict
         Recording name -> its (first) file, absolute. For a declared recording the other files
         are in ``readers``; :meth:`recording_files` lists all.
@@ -61,6 +62,10 @@ class Dataset:
         The ``sections`` declaration (``file`` absolute), or None.
     yaml_path : Path or None
         The ``dataset.yaml`` file (for messages).
+    count_range : dict
+        Sensor -> ``(lowest, highest)`` raw count its ADC can output (``range_counts``: ``n``
+        is ``(-n, n)``, a pair as declared). Readings at a limit are clipped samples; counts
+        beyond it are refused at ingest.
     """
 
     name: str
@@ -76,6 +81,7 @@ class Dataset:
     field_norm_t: float | None = None
     sections: dict | None = None
     yaml_path: Path | None = None
+    count_range: dict = field(default_factory=dict)
 
     def has(self, recording: str) -> bool:
         return recording in self.recordings
@@ -160,13 +166,14 @@ def read_dataset(folder: str | Path) -> Dataset:
         raise ValueError(
             f"{path}: key 'segments': recording(s) {unknown} not in recordings {sorted(recordings)}"
         )
+    count_range = _count_range(schema, cfg["range_counts"], f"{path}: key 'range_counts")
     return Dataset(
         name=cfg["name"],
         folder=folder,
         gravity_m_s2=float(cfg["gravity_m_s2"]),
         field_norm=float(cfg["field_norm"]),
         sensitivity={k: float(v) for k, v in cfg.get("sensitivity", {}).items()},
-        range_counts={k: int(cfg["range_counts"].get(k, 32767)) for k in ("acc", "gyr", "mag")},
+        range_counts={k: min(-lo, hi) for k, (lo, hi) in count_range.items()},
         recordings=recordings,
         ratetable=cfg.get("ratetable"),
         segments=manual,
@@ -174,7 +181,26 @@ def read_dataset(folder: str | Path) -> Dataset:
         field_norm_t=float(cfg["field_norm_t"]) if "field_norm_t" in cfg else None,
         sections=sections,
         yaml_path=path,
+        count_range=count_range,
     )
+
+
+def _count_range(schema: dict, declared: dict, where: str) -> dict[str, tuple[int, int]]:
+    """``range_counts`` as ``(lowest, highest)`` count per sensor (``n``: ``(-n, n)``)."""
+    out = {}
+    for sensor, sub in schema["properties"]["range_counts"]["properties"].items():
+        value = declared.get(sensor, sub["default"])
+        if isinstance(value, int):
+            out[sensor] = (-value, value)
+            continue
+        lo, hi = (int(v) for v in value)
+        if not lo < 0 < hi:
+            raise ValueError(
+                f"{where}/{sensor}': [{lo}, {hi}]; expected [lowest, highest] with "
+                "lowest < 0 < highest"
+            )
+        out[sensor] = (lo, hi)
+    return out
 
 
 def _resolve(folder: Path, file: str) -> Path:

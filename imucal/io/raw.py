@@ -4,14 +4,20 @@ The data contract is ``docs/data-format.md``. Readers check the *format* of a fi
 cells, which cells may be empty) and report any problem as one :class:`RawDataError` naming
 the file, the 1-based line number as a text editor shows it, and what was expected. Checks of
 the *content* (time order, packet counter) live in :mod:`imucal.ingest`.
+
+The module (about 630 lines) keeps both native formats together because they share the
+reading machinery (header, pyarrow options, locating the bad line, the cell checks), which
+the IMU CSV also runs batch by batch (:class:`ImuCsvStream`).
 """
 
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable, Mapping
+import hashlib
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -32,6 +38,11 @@ from imucal.columns import (
     SEQ,
     TIME,
 )
+
+#: Bytes of a raw log parsed per batch by :class:`ImuCsvStream` (pyarrow's block size), about
+#: 70 000 rows of the IMU CSV. pyarrow reads a bounded number of blocks ahead (some 30), so the
+#: memory held is a few hundred MB whatever the length of the recording.
+BATCH_BYTES = 1 << 22
 
 #: Format names recorded in the metadata.
 IMU_CSV_FORMAT = "imu-csv"
@@ -118,17 +129,102 @@ def read_imu_csv(path: str | Path) -> pd.DataFrame:
         truncated last line), a cell that is not a number (or not an integer count), an empty
         cell where a value is required, a magnetometer row with one or two of three cells, or a
         sensor column that is empty on every row.
+
+    See Also
+    --------
+    ImuCsvStream : the same file in batches of bounded memory, with its SHA-256.
     """
-    path = _existing(path, "raw IMU recording (CSV)")
-    names = _header_names(path, line=1, delimiter=",", expected=f"the header {_RAW_HEADER_TEXT}")
-    _require_columns(
-        path, 1, names, RAW_COLUMNS, f"the header {_RAW_HEADER_TEXT} (extra columns may follow)"
-    )
-    types = {name: pa.float64() for name in names if name != _TRAILING}
-    types.update({SEQ: pa.int64(), **{c: pa.int64() for c in (*ACC, *GYR, *MAG)}})
-    table = _read_delimited(path, names, types, delimiter=",", skip_rows=1, first_line=2)
-    _check_presence(path, table, first_line=2, required=(TIME, SEQ, *ACC, *GYR), triple=MAG)
-    return _to_frame(table, float_columns=MAG)
+    batches = list(ImuCsvStream(path))
+    return _to_frame(pa.Table.from_batches(batches), float_columns=MAG)
+
+
+class ImuCsvStream:
+    """A raw IMU log in the native CSV format, read in batches (``pyarrow.csv.open_csv``).
+
+    Iterating yields the data rows as ``pyarrow.RecordBatch`` of raw counts in file order:
+    ``t_s`` (float64, s), ``seq`` (int64), ``acc_*``/``gyr_*``/``mag_*`` (int64 counts, null
+    where a magnetometer cell is empty), extra columns (float64). Row ``i`` of the file (counted
+    over all batches) is line ``i + 2``. The format checks of :func:`read_imu_csv` are carried
+    across batches, and the SHA-256 of the file's bytes is computed as they are read.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    batch_bytes : int
+        Bytes parsed per batch (:data:`BATCH_BYTES`); the memory held is a few batches.
+
+    Attributes
+    ----------
+    path : Path
+    names : list of str
+        The header's column names.
+    rows : int
+        Data rows read so far.
+    sha256 : str or None
+        Hex SHA-256 of the whole file once the iteration has ended, else None.
+
+    Raises
+    ------
+    FileNotFoundError, RawDataError
+        As :func:`read_imu_csv`: header problems when created; problems of the rows when the
+        iteration ends. The file is always read to its end before a row's problem is raised,
+        so the error is the one :func:`read_imu_csv` reports for the whole file (a cell that
+        cannot be read, then a blank line, a column empty on every row, an empty required
+        cell, a partial magnetometer row), whatever the batch size. After the first problem no
+        more batches are yielded.
+    """
+
+    def __init__(self, path: str | Path, batch_bytes: int = BATCH_BYTES) -> None:
+        self.path = _existing(path, "raw IMU recording (CSV)")
+        self.batch_bytes = int(batch_bytes)
+        self.names = _header_names(
+            self.path, line=1, delimiter=",", expected=f"the header {_RAW_HEADER_TEXT}"
+        )
+        _require_columns(
+            self.path,
+            1,
+            self.names,
+            RAW_COLUMNS,
+            f"the header {_RAW_HEADER_TEXT} (extra columns may follow)",
+        )
+        types = {name: pa.float64() for name in self.names if name != _TRAILING}
+        types.update({SEQ: pa.int64(), **{c: pa.int64() for c in (*ACC, *GYR, *MAG)}})
+        self.types = types
+        self.rows = 0
+        self.sha256: str | None = None
+
+    @property
+    def extra_columns(self) -> list[str]:
+        """Columns after the required eleven (e.g. ``temp_c``), in file order."""
+        return [n for n in self.names if n not in RAW_COLUMNS and n != _TRAILING]
+
+    def __iter__(self) -> Iterator[pa.RecordBatch]:
+        presence = _Presence(self.path, first_line=2, required=(TIME, SEQ, *ACC, *GYR), triple=MAG)
+        self.rows = 0
+        with self.path.open("rb") as raw:
+            hashed = _HashingReader(raw)
+            for batch in _read_delimited_batches(
+                self.path,
+                hashed,
+                self.names,
+                self.types,
+                delimiter=",",
+                skip_rows=1,
+                first_line=2,
+                batch_bytes=self.batch_bytes,
+            ):
+                presence.update(batch, self.rows)
+                self.rows += batch.num_rows
+                if not presence.failed:
+                    yield batch
+            hashed.drain()
+        if self.rows == 0:
+            raise RawDataError(
+                self.path, 2, "no data rows after the header", "at least one row of samples"
+            )
+        presence.finish(self.rows)
+        self.sha256 = hashed.digest.hexdigest()
 
 
 # --------------------------------------------------------------------------------------------
@@ -309,6 +405,163 @@ def _read_delimited(
     return table
 
 
+class _HashingReader:
+    """A binary file whose bytes update a SHA-256 as they are read (one pass over the file)."""
+
+    def __init__(self, f: Any) -> None:
+        self._f = f
+        self.digest = hashlib.sha256()
+        self.closed = False
+
+    def read(self, size: int = -1) -> bytes:
+        data = self._f.read(size)
+        self.digest.update(data)
+        return data
+
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return False
+
+    def close(self) -> None:
+        self.closed = True
+
+    def drain(self) -> None:
+        """Hash whatever the parser left unread (nothing, when it read to the end)."""
+        while self.read(1 << 22):
+            pass
+
+
+def _read_delimited_batches(
+    path: Path,
+    source: _HashingReader,
+    names: list[str],
+    types: dict[str, pa.DataType],
+    delimiter: str,
+    skip_rows: int,
+    first_line: int,
+    batch_bytes: int,
+) -> Iterator[pa.RecordBatch]:
+    """:func:`_read_delimited` in batches; a batch that cannot be parsed is located and raised."""
+    read_options = pacsv.ReadOptions(
+        column_names=names, skip_rows=skip_rows, block_size=batch_bytes
+    )
+    parse_options = pacsv.ParseOptions(
+        delimiter=delimiter, quote_char=False, ignore_empty_lines=False
+    )
+    convert_options = pacsv.ConvertOptions(
+        column_types=types,
+        include_columns=[n for n in names if n != _TRAILING],
+        null_values=[""],
+        strings_can_be_null=False,
+    )
+    try:
+        reader = pacsv.open_csv(
+            pa.PythonFile(source, mode="r"), read_options, parse_options, convert_options
+        )
+        for batch in reader:
+            if batch.num_rows:
+                yield batch
+    except pa.ArrowInvalid as err:
+        _locate_bad_line(path, names, types, delimiter, first_line)
+        raise RawDataError(
+            path, None, f"unreadable ({err})", "the format of docs/data-format.md"
+        ) from None
+
+
+class _Presence:
+    """The cell checks of :func:`_check_presence` carried over batches, in the same order."""
+
+    def __init__(
+        self, path: Path, first_line: int, required: tuple[str, ...], triple: tuple[str, ...]
+    ) -> None:
+        self.path = path
+        self.first_line = first_line
+        self.required = required
+        self.triple = triple
+        self.blank: int | None = None
+        self.filled = dict.fromkeys((*required, *triple), 0)
+        self.first_empty: dict[str, int] = {}
+        self.partial: tuple[int, list[str]] | None = None
+
+    @property
+    def failed(self) -> bool:
+        """A problem was found (it is raised by :meth:`finish`, after the whole file)."""
+        return self.blank is not None or bool(self.first_empty) or self.partial is not None
+
+    def update(self, batch: pa.RecordBatch, start: int) -> None:
+        """Check the rows ``start .. start + len(batch) - 1`` of the file."""
+        if self.blank is None:
+            row = _blank_row(batch)
+            if row is not None:
+                self.blank = start + row
+        n = batch.num_rows
+        for name in (*self.required, *self.triple):
+            nulls = batch.column(name).null_count
+            self.filled[name] += n - nulls
+            if nulls and name in self.required and name not in self.first_empty:
+                self.first_empty[name] = start + _first_true(batch.column(name).is_null())
+        if self.partial is None:
+            nulls = [batch.column(c).is_null() for c in self.triple]
+            some = pc.or_(pc.or_(nulls[0], nulls[1]), nulls[2])
+            every = pc.and_(pc.and_(nulls[0], nulls[1]), nulls[2])
+            partial = pc.and_(some, pc.invert(every))
+            if pc.any(partial).as_py():
+                row = _first_true(partial)
+                empty = [c for c, m in zip(self.triple, nulls) if m[row].as_py()]
+                self.partial = (start + row, empty)
+
+    def finish(self, rows: int) -> None:
+        """Raise the first problem in the order of :func:`_check_presence`."""
+        path, first_line = self.path, self.first_line
+        if self.blank is not None:
+            raise RawDataError(
+                path,
+                first_line + self.blank,
+                "an empty line",
+                "one row of samples per line (no blank lines)",
+            )
+        last_line = first_line + rows - 1
+        for name in (*self.required, *self.triple):
+            if self.filled[name] == 0:
+                raise RawDataError(
+                    path,
+                    None,
+                    f"column {name!r} is empty on every row (lines {first_line}-{last_line})",
+                    "values in it (a sensor that delivered no sample at all cannot be calibrated)",
+                )
+        for name in self.required:
+            if name in self.first_empty:
+                raise RawDataError(
+                    path,
+                    first_line + self.first_empty[name],
+                    f"column {name!r} is empty",
+                    "a value on every row",
+                )
+        if self.partial is not None:
+            row, empty = self.partial
+            raise RawDataError(
+                path,
+                first_line + row,
+                f"{', '.join(empty)} empty but not the other {'/'.join(self.triple)} cells",
+                "all three magnetometer cells filled (fresh sample) or all three empty",
+            )
+
+
+def _blank_row(batch: pa.RecordBatch | pa.Table) -> int | None:
+    """First row of ``batch`` whose every cell is null (a blank line), or None."""
+    if batch.column(0).null_count == 0:
+        return None
+    all_null = None
+    for column in batch.columns:
+        mask = column.is_null()
+        all_null = mask if all_null is None else pc.and_(all_null, mask)
+    if all_null is not None and pc.any(all_null).as_py():
+        return _first_true(all_null)
+    return None
+
+
 def _locate_bad_line(
     path: Path, names: list[str], types: dict[str, pa.DataType], delimiter: str, first_line: int
 ) -> None:
@@ -350,14 +603,8 @@ def _locate_bad_line(
 
 
 def _check_blank_lines(path: Path, table: pa.Table, first_line: int) -> None:
-    if table.column(0).null_count == 0:  # a blank line leaves every column null
-        return
-    all_null = None
-    for column in table.columns:
-        mask = column.is_null()
-        all_null = mask if all_null is None else pc.and_(all_null, mask)
-    if all_null is not None and pc.any(all_null).as_py():
-        row = _first_true(all_null)
+    row = _blank_row(table)
+    if row is not None:
         raise RawDataError(
             path, first_line + row, "an empty line", "one row of samples per line (no blank lines)"
         )
@@ -371,35 +618,9 @@ def _check_presence(
     triple: tuple[str, str, str],
 ) -> None:
     """Required columns have a value on every row; the three ``triple`` cells go together."""
-    n = table.num_rows
-    last_line = first_line + n - 1
-    for name in (*required, *triple):
-        if table[name].null_count == n:
-            raise RawDataError(
-                path,
-                None,
-                f"column {name!r} is empty on every row (lines {first_line}-{last_line})",
-                "values in it (a sensor that delivered no sample at all cannot be calibrated)",
-            )
-    for name in required:
-        if table[name].null_count:
-            row = _first_true(table[name].is_null())
-            raise RawDataError(
-                path, first_line + row, f"column {name!r} is empty", "a value on every row"
-            )
-    nulls = [table[c].is_null() for c in triple]
-    some = pc.or_(pc.or_(nulls[0], nulls[1]), nulls[2])
-    every = pc.and_(pc.and_(nulls[0], nulls[1]), nulls[2])
-    partial = pc.and_(some, pc.invert(every))
-    if pc.any(partial).as_py():
-        row = _first_true(partial)
-        empty = [c for c, m in zip(triple, nulls) if m[row].as_py()]
-        raise RawDataError(
-            path,
-            first_line + row,
-            f"{', '.join(empty)} empty but not the other {'/'.join(triple)} cells",
-            "all three magnetometer cells filled (fresh sample) or all three empty",
-        )
+    presence = _Presence(path, first_line, required, triple)
+    presence.update(table, 0)
+    presence.finish(table.num_rows)
 
 
 def _first_true(mask: pa.ChunkedArray | pa.Array) -> int:

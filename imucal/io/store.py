@@ -11,6 +11,7 @@ import json
 import os
 import tempfile
 from collections.abc import Callable, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -57,9 +58,103 @@ def write_recording(table: pd.DataFrame, path: str | Path, metadata: Mapping[str
         JSON-serialisable description, stored as parquet key-value metadata ``imucal``.
     """
     arrow = pa.Table.from_pandas(table, preserve_index=False)
-    blob = json.dumps(to_jsonable(metadata), sort_keys=True).encode()
-    arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}), METADATA_KEY: blob})
+    arrow = arrow.replace_schema_metadata(
+        {**(arrow.schema.metadata or {}), METADATA_KEY: _metadata_blob(metadata)}
+    )
     _write_atomic(path, lambda tmp: pq.write_table(arrow, tmp))
+
+
+class RecordingWriter:
+    """Write an ingested recording batch by batch, as parquet row groups, atomically.
+
+    The file reads back exactly as one written by :func:`write_recording` from the whole
+    table: same columns and types, nulls where the table has NaN, the same ``pandas`` and
+    ``imucal`` schema metadata. The metadata is known only at the end (the SHA-256 of a raw
+    file is computed as it is read), so it goes into the parquet footer as key-value metadata,
+    which is where :func:`read_recording` finds it; no ``ARROW:schema`` copy of the schema is
+    stored (every column is a plain float64 or int64).
+
+    Use as a context manager: the rows go to a temporary file beside ``path``, which is renamed
+    to ``path`` by :meth:`close`; leaving the ``with`` block without calling it (an exception)
+    removes the temporary file, so no partial file is ever left under the target's name.
+
+    A batch is encoded and written in a background thread while the caller prepares the next
+    one (pyarrow releases the GIL), so reading and writing overlap; at most one batch is in
+    flight, and an error of the write is raised by the next :meth:`write` or :meth:`close`.
+
+    Parameters
+    ----------
+    path : str or Path
+        Target ``.parquet`` file; its folder is created.
+    dtypes : mapping
+        Column name -> numpy dtype (``float64`` or ``int64``), in column order.
+    """
+
+    def __init__(self, path: str | Path, dtypes: Mapping[str, Any]) -> None:
+        self.path = Path(path)
+        self.rows = 0
+        empty = pd.DataFrame({name: np.empty(0, dtype=kind) for name, kind in dtypes.items()})
+        schema = pa.Schema.from_pandas(empty, preserve_index=False)
+        self._pandas = (schema.metadata or {}).get(b"pandas")
+        self.schema = schema.remove_metadata()
+        self._tmp = ""
+        self._writer: pq.ParquetWriter | None = None
+        self._thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="parquet-writer")
+        self._pending: Future | None = None
+
+    def __enter__(self) -> RecordingWriter:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, self._tmp = tempfile.mkstemp(
+            prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent
+        )
+        os.close(fd)
+        try:
+            self._writer = pq.ParquetWriter(self._tmp, self.schema, store_schema=False)
+        except BaseException:
+            self._thread.shutdown()
+            Path(self._tmp).unlink(missing_ok=True)
+            raise
+        return self
+
+    def write(self, columns: Mapping[str, np.ndarray | pa.Array]) -> None:
+        """Append rows: one array per column of ``dtypes``, equal lengths; NaN becomes null."""
+        arrays = [
+            pa.array(columns[field.name], type=field.type, from_pandas=True)
+            if isinstance(columns[field.name], np.ndarray)
+            else columns[field.name]
+            for field in self.schema
+        ]
+        batch = pa.RecordBatch.from_arrays(arrays, schema=self.schema)
+        self._wait()
+        self._pending = self._thread.submit(self._writer.write_batch, batch)
+        self.rows += batch.num_rows
+
+    def close(self, metadata: Mapping[str, Any]) -> None:
+        """Store ``metadata`` (as :func:`write_recording` does) and move the file in place."""
+        self._wait()
+        keys = {METADATA_KEY: _metadata_blob(metadata)}
+        if self._pandas is not None:
+            keys = {b"pandas": self._pandas, **keys}
+        self._writer.add_key_value_metadata(keys)
+        self._writer.close()
+        os.replace(self._tmp, self.path)
+
+    def _wait(self) -> None:
+        """Wait for the batch in flight; raise its error."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
+
+    def __exit__(self, kind: object, error: object, trace: object) -> None:
+        self._thread.shutdown(wait=True)
+        if kind is not None or Path(self._tmp).exists():
+            if self._writer is not None and self._writer.is_open:
+                self._writer.close()
+            Path(self._tmp).unlink(missing_ok=True)
+
+
+def _metadata_blob(metadata: Mapping[str, Any]) -> bytes:
+    return json.dumps(to_jsonable(metadata), sort_keys=True).encode()
 
 
 def read_recording(path: str | Path) -> tuple[pd.DataFrame, dict]:

@@ -1,7 +1,9 @@
 """Bad input: one clear error naming the file, the line and the expectation; no parquet left.
 
-Each case breaks one thing in an otherwise valid small session and runs the ingest exactly as
-the rule script does (read_dataset -> ingest_recording -> write_recording).
+Each case breaks one thing in an otherwise valid small session and runs the ingest in memory
+(read_dataset -> ingest_recording -> write_recording) and as the rule script does
+(ingest_to_parquet), streamed in batches of :data:`TINY_BATCH` bytes (two rows, so a batch
+boundary falls next to every line): both must raise the same message.
 """
 
 from __future__ import annotations
@@ -15,13 +17,15 @@ from pathlib import Path
 import pytest
 
 from imucal.columns import RAW_COLUMNS
-from imucal.ingest import ingest_recording
+from imucal.ingest import ingest_recording, ingest_to_parquet
 from imucal.io import RawDataError, write_recording
 from imucal.io.dataset import read_dataset
 
 REPO = Path(__file__).resolve().parents[2]
 HEADER = ",".join(RAW_COLUMNS)
 ROWS = 40
+#: Bytes per batch of the streamed ingest in these tests: two lines of the log.
+TINY_BATCH = 128
 
 DATASET_YAML = """\
 name: broken
@@ -70,18 +74,24 @@ def session(tmp_path: Path) -> Path:
 
 
 def ingest_fails(folder: Path, recording: str = "rotation3d") -> str:
-    """Ingest as the rule does; return the error message; check no parquet was left."""
+    """Ingest in memory and streamed; return the error message (the same for both); check that
+    no parquet was left."""
     out = folder.parent / "results" / f"{recording}.parquet"
-    with pytest.raises((RawDataError, FileNotFoundError, ValueError)) as info:
-        dataset = read_dataset(folder)
-        table, metadata = ingest_recording(
-            dataset.recordings[recording], recording, dataset, imucal_version="test"
-        )
-        write_recording(table, out, metadata)
-    assert not out.parent.exists() or list(out.parent.iterdir()) == []
-    message = str(info.value)
-    assert "\n" not in message  # one message, one line
-    return message
+    messages = []
+    for streamed in (False, True):
+        with pytest.raises((RawDataError, FileNotFoundError, ValueError)) as info:
+            dataset = read_dataset(folder)
+            raw = dataset.recordings[recording]
+            if streamed:
+                ingest_to_parquet(raw, recording, dataset, "test", out, batch_bytes=TINY_BATCH)
+            else:
+                table, metadata = ingest_recording(raw, recording, dataset, imucal_version="test")
+                write_recording(table, out, metadata)
+        assert not out.parent.exists() or list(out.parent.iterdir()) == []
+        messages.append(str(info.value))
+    assert messages[0] == messages[1]
+    assert "\n" not in messages[0]  # one message, one line
+    return messages[0]
 
 
 def write(folder: Path, lines: list[str], name: str = "rotation3d.csv", end: str = "\n") -> Path:
@@ -194,6 +204,68 @@ def test_duplicated_seq(session: Path) -> None:
         "rotation3d.csv, line 13: seq 10 repeats the seq of line 12 (duplicated packet); "
         "expected each packet once, in order (seq increasing modulo 65536)"
     )
+
+
+def test_out_of_order_seq(session: Path) -> None:
+    lines = log_lines()
+    lines[7] = lines[7].replace(",6,", ",4,", 1)  # row 6 carries seq 4, after 5
+    write(session, lines)
+    message = ingest_fails(session)
+    assert message.endswith(
+        "rotation3d.csv, line 8: seq 4 goes back from 5 on line 7 (out-of-order packet); "
+        "expected each packet once, in order (seq increasing modulo 65536)"
+    )
+
+
+def test_seq_beyond_16_bits(session: Path) -> None:
+    lines = log_lines()
+    lines[25] = lines[25].replace(",24,", ",65536,", 1)
+    write(session, lines)
+    message = ingest_fails(session)
+    assert message.endswith(
+        "rotation3d.csv, line 26: seq 65536; expected a 16-bit packet counter in 0..65535"
+    )
+
+
+def test_time_not_finite(session: Path) -> None:
+    lines = log_lines()
+    lines[33] = lines[33].replace("0.3200,", "inf,", 1)
+    write(session, lines)
+    message = ingest_fails(session)
+    assert message.endswith(
+        "rotation3d.csv, line 34: t_s is inf; expected a finite receiver time in s"
+    )
+
+
+def test_blank_line(session: Path) -> None:
+    lines = log_lines()
+    lines[5] = ""
+    write(session, lines)
+    message = ingest_fails(session)
+    assert message.endswith(
+        "rotation3d.csv, line 6: an empty line; expected one row of samples per line "
+        "(no blank lines)"
+    )
+
+
+def test_one_mag_cell_missing(session: Path) -> None:
+    lines = log_lines()
+    lines[21] = lines[21].replace(",355,", ",,", 1)  # row 20: mag_y empty, mag_x, mag_z filled
+    write(session, lines)
+    message = ingest_fails(session)
+    assert message.endswith(
+        "rotation3d.csv, line 22: mag_y empty but not the other mag_x/mag_y/mag_z cells; "
+        "expected all three magnetometer cells filled (fresh sample) or all three empty"
+    )
+
+
+def test_a_sensor_without_samples_is_reported_before_a_later_order_problem(session: Path) -> None:
+    # Two problems: the whole-file one is reported, as when the table is checked at once.
+    lines = [HEADER] + [",".join(line.split(",")[:8]) + ",,," for line in log_lines()[1:]]
+    lines[30] = lines[30].replace("0.2900,", "0.2000,", 1)
+    write(session, lines)
+    message = ingest_fails(session)
+    assert f"rotation3d.csv: column 'mag_x' is empty on every row (lines 2-{ROWS + 1})" in message
 
 
 def test_all_mag_cells_empty(session: Path) -> None:

@@ -1,11 +1,11 @@
-"""Rule ingest: one raw or declared recording -> checked parquet in SI units (imucal.ingest)."""
+"""Rule ingest: one raw or declared recording -> checked parquet in SI units (imucal.ingest;
+a native CSV is streamed in batches)."""
 
 import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.ingest import ingest_recording
-from imucal.io import write_recording
+from imucal.ingest import ingest_to_parquet
 from imucal.io.dataset import read_dataset
 
 if TYPE_CHECKING:
@@ -16,14 +16,19 @@ log = logging.getLogger(__name__)
 try:
     dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
     raw = dataset.recordings[snakemake.wildcards.recording]  # the others: snakemake.input.raw
-    table, metadata = ingest_recording(
+    metadata = ingest_to_parquet(
         raw,
         recording=snakemake.wildcards.recording,
         dataset=dataset,
         imucal_version=snakemake.params.imucal_version,
+        out=snakemake.output.table,
     )
-    write_recording(table, snakemake.output.table, metadata)
-    log.info("%s: %d rows -> %s", list(snakemake.input.raw), len(table), snakemake.output.table)
+    log.info(
+        "%s -> %s (sha256 %s)",
+        list(snakemake.input.raw),
+        snakemake.output.table,
+        metadata["sha256"],
+    )
 except Exception:
     log.exception("ingest of %s failed", snakemake.input.raw)
     raise
