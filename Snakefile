@@ -25,6 +25,7 @@ include: "workflow/rules/reference.smk"
 include: "workflow/rules/report.smk"
 include: "workflow/rules/gap.smk"
 include: "workflow/rules/fleet.smk"
+include: "workflow/rules/benchmark.smk"
 
 
 rule all:

@@ -13,6 +13,7 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.columns import SENSORS, SI_UNITS
+from imucal.uncertainty import PARAMETERS
 
 #: Version of the calibration file format written by this package.
 FORMAT_VERSION = 1
@@ -56,6 +57,12 @@ class SensorCalibration:
         'xi_rad' (3), 'alpha_rad' (3).
     method : str
         Which method variant produced it (free text for the report).
+    covariance : ndarray, shape (21, 21), or None
+        Covariance of :data:`imucal.uncertainty.PARAMETERS` (bias, matrix row by row, scale,
+        xi, alpha), None where unknown. Optional in the file: older files have none.
+    quality : dict
+        Goodness of fit of the stages behind it: stage -> ``GoodnessOfFit.to_dict()`` (or the
+        stage's own statement of how its covariance was scaled). Optional in the file.
     """
 
     sensor: str
@@ -64,6 +71,8 @@ class SensorCalibration:
     unit: str
     std: dict = field(default_factory=dict)
     method: str = ""
+    covariance: np.ndarray | None = None
+    quality: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.sensor not in SENSORS:
@@ -73,6 +82,15 @@ class SensorCalibration:
         unknown = set(self.std) - set(_STD_KEYS)
         if unknown:
             raise ValueError(f"{self.sensor}.std has unknown keys {sorted(unknown)}")
+        if self.covariance is not None:
+            c = np.asarray(self.covariance, dtype=float)
+            n = len(PARAMETERS)
+            if c.shape != (n, n) or not np.all(np.isfinite(c)):
+                raise ValueError(
+                    f"{self.sensor}.covariance must be a finite ({n}, {n}) matrix over "
+                    f"{PARAMETERS}, got shape {c.shape}"
+                )
+            object.__setattr__(self, "covariance", c)
 
     @property
     def decomposition(self) -> errormodel.Decomposition:
@@ -105,6 +123,12 @@ class SensorCalibration:
             "unit_out": self.unit,
             "std": {k: np.asarray(v).tolist() for k, v in self.std.items()},
             "method": self.method,
+            **(
+                {"covariance": {"parameters": list(PARAMETERS), "matrix": self.covariance.tolist()}}
+                if self.covariance is not None
+                else {}
+            ),
+            **({"quality": self.quality} if self.quality else {}),
         }
 
     @classmethod
@@ -118,7 +142,25 @@ class SensorCalibration:
                 f"this package works in {SI_UNITS[sensor]!r}"
             )
         std = {k: np.asarray(v, dtype=float) for k, v in d.get("std", {}).items()}
-        return cls(sensor, d["bias"], d["matrix"], d["unit_in"], std, d.get("method", ""))
+        covariance = None
+        if d.get("covariance") is not None:
+            names = tuple(d["covariance"].get("parameters", ()))
+            if names != PARAMETERS:
+                raise ValueError(
+                    f"covariance of {sensor!r} is over the parameters {list(names)}; "
+                    f"expected {list(PARAMETERS)}"
+                )
+            covariance = np.asarray(d["covariance"]["matrix"], dtype=float)
+        return cls(
+            sensor,
+            d["bias"],
+            d["matrix"],
+            d["unit_in"],
+            std,
+            d.get("method", ""),
+            covariance,
+            dict(d.get("quality", {})),
+        )
 
 
 @dataclass(frozen=True)

@@ -85,6 +85,12 @@ def _add_apply(sub: argparse._SubParsersAction) -> None:
     p.add_argument("calibration", help="calibration.json (results/{dataset}/calibration.json)")
     p.add_argument("recording", help="ingested recording (parquet with imucal metadata)")
     p.add_argument("out", help="output parquet (written atomically)")
+    p.add_argument(
+        "--parameter-std",
+        action="store_true",
+        help="add per column the std of the calibrated value from the calibration's parameter "
+        "covariance (columns acc_x_param_std, ...; the reading's own noise not included)",
+    )
     p.set_defaults(func=_run_apply)
 
 
@@ -93,7 +99,9 @@ def _run_apply(args: argparse.Namespace) -> int:
     from imucal.pipeline.stages import apply_calibration
 
     table, metadata = read_recording(args.recording)
-    calibrated, metadata = apply_calibration(table, metadata, read_calibration(args.calibration))
+    calibrated, metadata = apply_calibration(
+        table, metadata, read_calibration(args.calibration), parameter_std=args.parameter_std
+    )
     write_recording(calibrated, args.out, metadata)
     print(f"wrote {args.out}: {len(calibrated)} rows calibrated with {args.calibration}")
     return 0

@@ -18,6 +18,9 @@ GYR = ("gyr_x", "gyr_y", "gyr_z")
 MAG = ("mag_x", "mag_y", "mag_z")
 
 SENSOR_COLUMNS = {"acc": ACC, "gyr": GYR, "mag": MAG}
+#: Standard deviation of a calibrated value from the calibration's parameter covariance
+#: (``imucal apply --parameter-std``): the column's name with this suffix, same unit.
+PARAMETER_STD_SUFFIX = "_param_std"
 
 #: Header of the native raw CSV format, in this order (extra columns may follow).
 RAW_COLUMNS = (TIME, SEQ, *ACC, *GYR, *MAG)

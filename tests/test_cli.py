@@ -60,3 +60,34 @@ def test_apply_calibrates_and_refuses_a_second_time(tmp_path, capsys):
     assert status == 2
     assert "already calibrated" in capsys.readouterr().err
     assert not (tmp_path / "twice.parquet").exists()
+
+
+def test_apply_adds_the_parameter_std_columns(tmp_path):
+    """--parameter-std: a bias-only covariance gives every sample the std of matrix @ d(bias)."""
+    n = 20
+    rng = np.random.default_rng(1)
+    table = {TIME: np.arange(n) / 100.0}
+    for cols in (ACC, GYR, MAG):
+        table.update({c: rng.normal(size=n) for c in cols})
+    units = {
+        **dict.fromkeys(ACC, "m/s^2"),
+        **dict.fromkeys(GYR, "rad/s"),
+        **dict.fromkeys(MAG, "normalised"),
+    }
+    write_recording(pd.DataFrame(table), tmp_path / "in.parquet", {"units": units, "source": "x"})
+    matrix = errormodel.compose([1.01, 0.99, 1.02], [0.01, 0.0, -0.01], [0.0, 0.02, 0.0])
+    cov = np.zeros((21, 21))
+    cov[:3, :3] = np.diag([1e-4, 4e-4, 9e-4])
+    acc = SensorCalibration("acc", [0.1, -0.1, 0.2], matrix, "m/s^2", {}, "t", cov)
+    others = {
+        s: SensorCalibration(s, [0.0, 0.0, 0.0], np.eye(3), unit, {}, "t")
+        for s, unit in (("gyr", "rad/s"), ("mag", "normalised"))
+    }
+    write_calibration(ImuCalibration(acc=acc, **others), tmp_path / "cal.json")
+    args = [str(tmp_path / p) for p in ("cal.json", "in.parquet", "out.parquet")]
+    assert main(["apply", *args, "--parameter-std"]) == 0
+    out, _ = read_recording(tmp_path / "out.parquet")
+    expected = np.sqrt(np.diag(matrix @ cov[:3, :3] @ matrix.T))
+    for k, column in enumerate(ACC):
+        np.testing.assert_allclose(out[column + "_param_std"], expected[k], rtol=1e-9)
+    assert "gyr_x_param_std" not in out.columns  # no covariance, no column

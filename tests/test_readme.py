@@ -109,6 +109,10 @@ PLANS: dict[str, Counter | str] = {
     "snakemake --cores 2 detection": Counter(
         detection_render=830, detection_diagnose=830, detection_score=1, detection=1
     ),
+    # 200 simulated sessions in chunks of 20, clean and with simulator effects
+    "snakemake --cores 1 uncertainty_benchmark": Counter(
+        uncertainty_chunk=20, uncertainty_table=2, uncertainty_benchmark=1
+    ),
     "snakemake --report report.zip": NEEDS_FINISHED_RUN,
     # the SLURM profile plans the default DAG (each rule a cluster job)
     "snakemake --profile workflow/profiles/slurm": _DATASET + Counter(all=1),

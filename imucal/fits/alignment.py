@@ -48,8 +48,10 @@ class AlignmentResult:
     alpha_rad : ndarray, shape (3,)
         Rotation vector (exact) or small angles (eq. 5) in rad.
     std_alpha_rad : ndarray, shape (3,)
-        From ``sigma^2 (J^T J)^-1`` with ``sigma^2`` from the residuals; counts the noise of the
-        phase samples only, not the uncertainty of step 1.
+        'full': the sandwich covariance of the residuals, which allows for their correlation in
+        time (:func:`sandwich_covariance`); 'paper': ``sigma^2 (J^T J)^-1`` with ``sigma^2`` from
+        the spread over the phases. Counts the noise of the phase samples only, not the
+        uncertainty of step 1 (:mod:`imucal.fits.propagation` adds it).
     covariance : ndarray, shape (3, 3)
         Covariance of ``alpha_rad``.
     residual_rms : dict of str to float
@@ -138,6 +140,15 @@ def _require_two(used: dict, skipped: dict, condition: str) -> None:
     )
 
 
+def _blocks(lengths: list[int], per_sample: int) -> list[np.ndarray]:
+    """Row indices (n_i, per_sample) of each phase's samples in the concatenated residuals."""
+    out, start = [], 0
+    for n in lengths:
+        out.append(start + np.arange(n * per_sample).reshape(n, per_sample))
+        start += n * per_sample
+    return out
+
+
 def _wahba(body: list[np.ndarray], axes: list[int], weights: list[float]) -> np.ndarray:
     """Rotation R maximising sum w_i e_axis_i . (R n_i) (Wahba's problem, SVD solution)."""
     b = np.zeros((3, 3))
@@ -154,10 +165,80 @@ def _rotvec(matrix: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(matrix).as_rotvec()
 
 
-def _solve(residuals, alpha0: np.ndarray, n_nuisance: int, what: str, sigma2=None):
+#: How the 'full' alignment's covariance allows for correlated residuals (for the stage JSONs).
+ALIGNMENT_RULE = (
+    "sandwich covariance (Newey-West, Bartlett window of 3x the lag where the residuals' "
+    "autocorrelation drops below 0.05) scaled by the residuals"
+)
+#: Largest lag of the residuals' autocorrelation searched for its first drop, as a fraction
+#: of a phase's samples.
+MAX_LAG_FRACTION = 0.1
+#: The autocorrelation has "dropped" below this value.
+CORRELATION_FLOOR = 0.05
+#: The Bartlett window of the sandwich covariance spans this many times the drop lag.
+WINDOW_PER_LAG = 3
+
+
+def correlation_lag(residuals: np.ndarray) -> int:
+    """First lag at which the autocorrelation of ``residuals`` (shape (n, k)) drops below
+    :data:`CORRELATION_FLOOR` (0 for white residuals), searched up to
+    :data:`MAX_LAG_FRACTION` of n."""
+    r = np.asarray(residuals, dtype=float).reshape(len(residuals), -1)
+    r = r - r.mean(axis=0)
+    var = float(np.sum(r * r))
+    if var <= 0:
+        return 0
+    for lag in range(1, max(1, int(MAX_LAG_FRACTION * len(r))) + 1):
+        if float(np.sum(r[lag:] * r[:-lag])) / var < CORRELATION_FLOOR:
+            return lag - 1
+    return max(1, int(MAX_LAG_FRACTION * len(r)))
+
+
+def sandwich_covariance(jac: np.ndarray, r: np.ndarray, blocks: list[np.ndarray]) -> np.ndarray:
+    """Covariance of least-squares parameters with serially correlated residuals.
+
+    ``(J^T J)^-1 M (J^T J)^-1`` with ``M`` the Newey-West (Bartlett-window) estimate of the
+    covariance of the score ``sum_t J_t^T r_t``, per block of consecutive samples (a phase);
+    the window is :data:`WINDOW_PER_LAG` times the lag where the residuals' autocorrelation
+    drops (:func:`correlation_lag`). White residuals give the plain ``sigma^2 (J^T J)^-1``
+    (heteroscedasticity-robust form); low-pass filtered ones, whose neighbours share noise, a
+    larger covariance.
+
+    Parameters
+    ----------
+    jac : ndarray, shape (m, p)
+        Jacobian of the residuals at the solution.
+    r : ndarray, shape (m,)
+        Residuals at the solution.
+    blocks : list of ndarray of int, each shape (n_i, k)
+        Row indices of the residuals of each sample (k rows per sample), samples in time order.
+
+    Returns
+    -------
+    ndarray, shape (p, p)
+    """
+    p = jac.shape[1]
+    meat = np.zeros((p, p))
+    n_rows = 0
+    for rows in blocks:
+        scores = np.einsum("nk,nkp->np", r[rows], jac[rows])
+        window = WINDOW_PER_LAG * correlation_lag(r[rows])
+        meat += scores.T @ scores
+        for lag in range(1, min(window, len(scores) - 1) + 1):
+            cross = scores[lag:].T @ scores[:-lag]
+            meat += (1 - lag / (window + 1)) * (cross + cross.T)
+        n_rows += rows.size
+    bread = np.linalg.inv(jac.T @ jac)
+    # small-sample factor as in sigma^2 = r.r / dof
+    return n_rows / max(n_rows - p, 1) * bread @ meat @ bread
+
+
+def _solve(residuals, alpha0: np.ndarray, n_nuisance: int, what: str, sigma2=None, blocks=None):
     """LM over alpha; covariance ``sigma^2 (J^T J)^-1``; refuse a singular problem.
 
-    ``sigma2`` (variance of one residual) is estimated from the residuals when not given.
+    ``sigma2`` (variance of one residual) is estimated from the residuals when not given. With
+    ``blocks`` (row indices per sample, per phase) the covariance is the sandwich of
+    :func:`sandwich_covariance`, for residuals correlated in time.
     """
     res = least_squares(residuals, alpha0, method="lm")
     if not res.success or not np.all(np.isfinite(res.x)):
@@ -173,6 +254,8 @@ def _solve(residuals, alpha0: np.ndarray, n_nuisance: int, what: str, sigma2=Non
             f"{what}: the alignment angles are not identifiable from these phases "
             f"(J^T J condition number {cond:.3g}, expected < 1e12)"
         )
+    if blocks is not None:
+        return res.x, sandwich_covariance(res.jac, r, blocks) * (r.size - 3) / dof
     if sigma2 is None:
         sigma2 = float(r @ r) / dof
     return res.x, sigma2 * np.linalg.inv(jtj)
@@ -188,13 +271,15 @@ def _fit_angles(
     exact,
     spread_of,
     paper_variance_factor=None,
+    blocks=None,
 ):
     """Solve the alignment angles from the Wahba start; return alpha, covariance, T_R, spread.
 
     With ``paper_variance_factor`` (the paper's few points per phase), the few degrees of
     freedom estimate the noise poorly: the variance of one equation is taken instead as the
     factor times the mean squared spread over all samples of the phases, and the covariance is
-    recomputed with it.
+    recomputed with it. ``blocks`` (all samples) makes the covariance the sandwich of
+    :func:`sandwich_covariance`.
     """
     labels = list(normals)
     start = _rotvec(
@@ -204,7 +289,7 @@ def _fit_angles(
             [weights[lb] for lb in labels],
         )
     )
-    alpha, cov = _solve(residuals, start, n_nuisance, what)
+    alpha, cov = _solve(residuals, start, n_nuisance, what, blocks=blocks)
     t = rotation_matrix(alpha, exact)
     spread = spread_of(t)
     if paper_variance_factor is not None:
@@ -234,6 +319,8 @@ def align_constant_component(
     method: str = "full",
     exact: bool = True,
     min_sweep: float = 0.1,
+    *,
+    correlated: bool = True,
 ) -> AlignmentResult:
     """``T_R`` such that in phase i the i-th calibrated component stays constant (eqs. 25-27).
 
@@ -258,6 +345,9 @@ def align_constant_component(
         ``min_sweep``, with ``lambda_2`` the middle eigenvalue of their covariance (the circle
         radius relative to the norm for a full turn). The accelerometer's phase about the vertical
         axis (gravity does not move) fails this and is skipped and reported.
+    correlated : bool
+        'full': the covariance allows for residuals correlated in time (sandwich); False
+        gives the plain ``sigma^2 (J^T J)^-1`` (cheaper, for refits that only need alpha).
 
     Returns
     -------
@@ -327,6 +417,11 @@ def align_constant_component(
         exact,
         spread_of,
         paper_variance_factor=2.0 if method == "paper" else None,
+        blocks=(
+            _blocks([len(centred[lb]) for lb in used], 1)
+            if method == "full" and correlated
+            else None
+        ),
     )
     own = {lb: float(np.sqrt(np.mean((centred[lb] @ t[axes[lb]]) ** 2))) for lb in used}
     return _result(alpha, cov, exact, own, spread, points, skipped, method, "constant_component")
@@ -337,6 +432,8 @@ def align_rotation_axis(
     method: str = "full",
     exact: bool = True,
     min_rms_rate: float = 0.1,
+    *,
+    correlated: bool = True,
 ) -> AlignmentResult:
     """``T_R`` such that in phase i the rate has no component off axis i (eqs. 28-31).
 
@@ -357,6 +454,8 @@ def align_rotation_axis(
     min_rms_rate : float
         A phase is used only if the RMS of its rate along the dominant direction is at least this,
         rad/s (the platform turns).
+    correlated : bool
+        As for :func:`align_constant_component`.
 
     Returns
     -------
@@ -417,6 +516,11 @@ def align_rotation_axis(
         exact,
         spread_of,
         paper_variance_factor=1.0 if method == "paper" else None,
+        blocks=(
+            _blocks([len(chosen[lb]) for lb in used], 2)
+            if method == "full" and correlated
+            else None
+        ),
     )
     own = {lb: float(np.sqrt(np.mean((chosen[lb] @ t[off[lb]].T) ** 2))) for lb in used}
     return _result(alpha, cov, exact, own, spread, points, skipped, method, "rotation_axis")

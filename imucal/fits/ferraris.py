@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imucal import errormodel
+from imucal import errormodel, uncertainty
 from imucal.calibration import SensorCalibration
 
 #: Up direction in frame B of the six Ferraris faces (``p``: axis up, ``a``: axis down).
@@ -305,13 +305,16 @@ def fit_known_orientations(
     bias = theta[9:]
     matrix = np.linalg.inv(a_inv)
     _check_proper(matrix, "accelerometer", "the up directions (labels p/a swapped?)")
-    cov_m = _propagate(lambda a: np.linalg.inv(a.reshape(3, 3)), a_inv.ravel(), cov[:9, :9])
+    covariance = None
     if dof > 0:
-        std = {
-            "bias": np.sqrt(np.diag(cov[9:, 9:])),
-            "matrix": np.sqrt(np.clip(np.diag(cov_m), 0, None)).reshape(3, 3),
-            **_decomposition_std(matrix, cov_m),
-        }
+        # (o, K = A^-1) from (A row-major, o), then scale, xi, alpha (delta method)
+        cov_bias_matrix = uncertainty.propagate(
+            lambda t: np.concatenate([t[9:], np.linalg.inv(t[:9].reshape(3, 3)).ravel()]),
+            theta,
+            cov,
+        )
+        covariance = uncertainty.calibration_covariance(bias, matrix, cov_bias_matrix)
+        std = uncertainty.std_of(covariance)
     else:
         std = {}
     calibration = SensorCalibration(
@@ -321,6 +324,7 @@ def fit_known_orientations(
         "m/s^2",
         std,
         f"known orientations ({n_pos} positions, {weighting} weights)",
+        covariance,
     )
     calibrated = errormodel.apply(matrix, bias, means)
     return KnownOrientationFit(
@@ -492,6 +496,7 @@ def fit_known_rotations(
     matrix = solve(raw.ravel())
     _check_proper(matrix, "gyroscope", "the signs of known_angles_rad (clockwise is negative)")
     std: dict[str, np.ndarray] = {}
+    covariance = None
     if noise_std_rad_s is not None:
         noise = np.asarray(noise_std_rad_s, dtype=float).reshape(3)
         cov_b = (
@@ -508,8 +513,26 @@ def fit_known_rotations(
         }
         if bias_std_rad_s is not None:
             std["bias"] = np.asarray(bias_std_rad_s, dtype=float).reshape(3)
+            # the bias enters the matrix through cov_raw; its cross-covariance with the matrix:
+            # d vec(K) / d o  =  d solve / d raw . d raw / d o  (raw = integral - o * duration)
+            j_raw = uncertainty.numerical_jacobian(lambda t: solve(t).ravel(), raw.ravel())
+            j_bias = -j_raw @ np.kron(durations[:, None], np.eye(3))
+            cov_b = np.diag(std["bias"] ** 2)
+            cov12 = np.zeros((12, 12))
+            cov12[:3, :3] = cov_b
+            cov12[3:, 3:] = cov_m
+            cov12[3:, :3] = j_bias @ cov_b
+            cov12[:3, 3:] = (j_bias @ cov_b).T
+            covariance = uncertainty.calibration_covariance(bias, matrix, cov12)
+            std = uncertainty.std_of(covariance)
     calibration = SensorCalibration(
-        "gyr", bias, matrix, "rad/s", std, f"known rotation angles ({n_rot} sections)"
+        "gyr",
+        bias,
+        matrix,
+        "rad/s",
+        std,
+        f"known rotation angles ({n_rot} sections)",
+        covariance,
     )
     return KnownRotationFit(
         calibration=calibration,

@@ -55,6 +55,15 @@ class GyroBias:
     n_samples : int
         Samples used, over all segments.
     n_segments : int
+    chi2_blocks : ndarray, shape (3,)
+        Per axis, the chi-square of the means of consecutive blocks of :data:`BIAS_BLOCK_SAMPLES`
+        samples about the overall mean, against the white noise: about ``dof_blocks`` when the
+        bias holds still, larger when it wanders (bias instability, warm-up).
+    dof_blocks : int
+        Number of blocks minus one (0 with a single block).
+    wander_var_rad2_s2 : ndarray, shape (3,)
+        Per axis, the variance of the block means beyond what the white noise gives them (0 when
+        they scatter no more than that): how far the bias wanders over the recording, (rad/s)^2.
     """
 
     bias_ls_rad_s: np.ndarray
@@ -64,6 +73,9 @@ class GyroBias:
     noise_std_rad_s: np.ndarray
     n_samples: int
     n_segments: int
+    chi2_blocks: np.ndarray
+    dof_blocks: int
+    wander_var_rad2_s2: np.ndarray
 
 
 def _static_segments(static: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
@@ -90,6 +102,10 @@ def _static_segments(static: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarr
             )
         out.append(s)
     return out
+
+
+#: Samples per block of the bias's goodness of fit (10 s at 100 Hz).
+BIAS_BLOCK_SAMPLES = 1000
 
 
 def estimate_bias(static: np.ndarray | Sequence[np.ndarray]) -> GyroBias:
@@ -147,6 +163,16 @@ def estimate_bias(static: np.ndarray | Sequence[np.ndarray]) -> GyroBias:
     diff_n = sum(len(s) - 1 for s in segments)
     noise = np.sqrt(diff_ss / diff_n / 2.0)
     n = len(stacked)
+    blocks = [
+        b for seg in segments for b in np.array_split(seg, max(1, len(seg) // BIAS_BLOCK_SAMPLES))
+    ]
+    block_means = np.array([b.mean(axis=0) for b in blocks])
+    counts = np.array([len(b) for b in blocks], dtype=float)
+    chi2 = np.sum(counts[:, None] * (block_means - stacked.mean(axis=0)) ** 2, axis=0) / noise**2
+    white = noise**2 * np.mean(1.0 / counts)
+    wander = np.zeros(3)
+    if len(blocks) > 1:
+        wander = np.clip(np.var(block_means, axis=0, ddof=1) - white, 0.0, None)
     return GyroBias(
         bias_ls_rad_s=slope,
         std_ls_rad_s=noise * np.sqrt(weight_ss),
@@ -155,6 +181,9 @@ def estimate_bias(static: np.ndarray | Sequence[np.ndarray]) -> GyroBias:
         noise_std_rad_s=noise,
         n_samples=n,
         n_segments=len(segments),
+        chi2_blocks=chi2,
+        dof_blocks=len(blocks) - 1,
+        wander_var_rad2_s2=wander,
     )
 
 

@@ -24,7 +24,9 @@ from scipy.optimize import least_squares
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
 from imucal.columns import MAG, SI_UNITS, TIME
-from imucal.fits.alignment import AlignmentResult, align_constant_component
+from imucal.fits.alignment import ALIGNMENT_RULE, align_constant_component
+from imucal.fits.propagation import alignment_sensitivity
+from imucal.uncertainty import std_of, two_step_covariance
 
 #: Equal-area partition of the unit sphere for the coverage: bands of equal height in z
 #: (equal area by Archimedes' hat-box theorem) times sectors of equal longitude.
@@ -496,8 +498,9 @@ class MagnetometerCalibration:
     Attributes
     ----------
     calibration : SensorCalibration
-        ``matrix = T_R S'`` and ``o`` (eq. 16), with standard deviations (step-1 covariance and
-        the step-2 angle covariance propagated to first order, taken as independent).
+        ``matrix = T_R S'`` and ``o`` (eq. 16), with the covariance of its parameters (step 1's,
+        the alignment's own and step 1's carried through the alignment, to first order;
+        :mod:`imucal.fits.propagation`).
     step1 : EllipsoidFit
     alignments : dict of str to AlignmentResult
         Step 2 by both methods, keys 'full' and 'paper'.
@@ -519,37 +522,6 @@ class MagnetometerCalibration:
                 **{name: a.to_dict() for name, a in self.alignments.items()},
             },
         }
-
-
-def _propagate_std(step1: EllipsoidSolution, alignment: AlignmentResult, exact: bool) -> dict:
-    """First-order standard deviations of matrix, bias, scale, xi, alpha from both steps."""
-    p0 = np.concatenate([step1.upper[_UPPER], alignment.alpha_rad])
-    cov = np.zeros((9, 9))
-    cov[:6, :6] = step1.covariance[:6, :6]
-    cov[6:, 6:] = alignment.covariance
-
-    def outputs(p: np.ndarray) -> np.ndarray:
-        u = np.zeros((3, 3))
-        u[_UPPER] = p[:6]
-        m = errormodel.rotation_matrix(p[6:], exact) @ u
-        d = errormodel.decompose(m)
-        return np.concatenate([m.ravel(), d.scale, d.xi_rad, d.alpha_rad])
-
-    f0 = outputs(p0)
-    jac = np.empty((f0.size, p0.size))
-    for i in range(p0.size):
-        h = 1e-7 * max(1.0, abs(p0[i]))
-        dp = np.zeros_like(p0)
-        dp[i] = h
-        jac[:, i] = (outputs(p0 + dp) - outputs(p0 - dp)) / (2 * h)
-    std = np.sqrt(np.einsum("ij,jk,ik->i", jac, cov, jac))
-    return {
-        "bias": step1.std_bias,
-        "matrix": std[:9].reshape(3, 3),
-        "scale": std[9:12],
-        "xi_rad": std[12:15],
-        "alpha_rad": std[15:18],
-    }
 
 
 def calibrate_alignment(
@@ -588,12 +560,32 @@ def calibrate_alignment(
     if method not in alignments:
         raise ValueError(f"unknown step-2 method {method!r}; expected one of {sorted(alignments)}")
     chosen = alignments[method]
+    sensitivity = alignment_sensitivity(
+        lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
+        phases,
+        step1.upper,
+        step1.bias,
+    )
+    covariance = two_step_covariance(
+        step1.upper,
+        step1.bias,
+        step1.selected.covariance,
+        chosen.alpha_rad,
+        chosen.covariance,
+        sensitivity,
+        exact,
+    )
     calibration = SensorCalibration(
         sensor="mag",
         bias=step1.bias,
         matrix=chosen.matrix @ step1.upper,
         unit=SI_UNITS["mag"],
-        std=_propagate_std(step1.selected, chosen, exact),
+        std=std_of(covariance),
+        covariance=covariance,
+        quality={
+            "ellipsoid": {"rule": "covariance scaled by the residuals (sigma^2 = r.r / dof)"},
+            "alignment": {"rule": ALIGNMENT_RULE},
+        },
         method=(
             f"step 1: ellipsoid {step1.used}; step 2: {method} "
             f"({'exact rotation' if exact else 'small-angle eq. 5'})"

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from imucal import errormodel
+from imucal import errormodel, uncertainty
 from imucal.calibration import SensorCalibration
 from imucal.columns import AXES
 
@@ -228,6 +228,7 @@ def fit_pose_to_pose(
     bias_rad_s: np.ndarray,
     *,
     initial_matrix: np.ndarray | None = None,
+    bias_std_rad_s: np.ndarray | None = None,
 ) -> PoseToPoseFit:
     """Fit the gyroscope matrix to the gravity-direction change between static poses.
 
@@ -247,6 +248,10 @@ def fit_pose_to_pose(
         Gyroscope bias (e.g. from the initial static interval), rad/s, held fixed.
     initial_matrix : ndarray, shape (3, 3), optional
         Starting matrix (positive determinant); default identity (readings in nominal rad/s).
+    bias_std_rad_s : ndarray, shape (3,), optional
+        Standard deviation of ``bias_rad_s``; with it the calibration carries the covariance of
+        its 21 parameters (bias and matrix taken as uncorrelated: the bias's effect on the
+        fitted matrix shows in the residual scatter the matrix covariance is scaled by).
 
     Returns
     -------
@@ -323,8 +328,21 @@ def fit_pose_to_pose(
         "xi_rad": std_theta[3:6],
         "alpha_rad": std_theta[6:],
     }
+    covariance = None
+    if bias_std_rad_s is not None:
+        cov12 = np.zeros((12, 12))
+        cov12[:3, :3] = np.diag(np.asarray(bias_std_rad_s, dtype=float).reshape(3) ** 2)
+        cov12[3:, 3:] = jm @ cov @ jm.T
+        covariance = uncertainty.calibration_covariance(bias, matrix, cov12)
+        std = uncertainty.std_of(covariance)
     calibration = SensorCalibration(
-        "gyr", bias, matrix, "rad/s", std, f"pose-to-pose gravity directions ({n} intervals)"
+        "gyr",
+        bias,
+        matrix,
+        "rad/s",
+        std,
+        f"pose-to-pose gravity directions ({n} intervals)",
+        covariance,
     )
     return PoseToPoseFit(
         calibration=calibration,

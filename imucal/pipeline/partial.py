@@ -34,10 +34,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from imucal import errormodel
+from imucal import errormodel, uncertainty
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
 from imucal.fits import accelerometer, gyroscope
+from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
 from imucal.pipeline.outcome import not_run_reason
 from imucal.pipeline.registry import FINAL, STAGES, VALIDATE
@@ -429,7 +430,13 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
         "accelerometer and gyroscope data",
     )
     directions, intervals = pose_intervals(s.tables[recording], s.poses(recording), acc)
-    fit = posetopose.fit_pose_to_pose(directions[:-1], directions[1:], intervals, _bias(s))
+    fit = posetopose.fit_pose_to_pose(
+        directions[:-1],
+        directions[1:],
+        intervals,
+        _bias(s),
+        bias_std_rad_s=stages.gyr_bias_value(s.done["gyr_bias"], "ls")[1],
+    )
     artifact = stages.plain(fit)
     artifact.update(recording=recording, calibration=fit.calibration.to_dict())
     return artifact
@@ -568,23 +575,48 @@ def final_calibration(outcomes: list[Outcome]) -> dict[str, Any]:
     return {"sensors": sensors, "missing": missing}
 
 
+def _step1_only_covariance(upper, bias, covariance) -> np.ndarray:
+    """Covariance (21, 21) of a calibration ``matrix = S'`` (no T_R) from that of (S', o)."""
+    return uncertainty.two_step_covariance(
+        np.asarray(upper, dtype=float),
+        np.asarray(bias, dtype=float),
+        np.asarray(covariance, dtype=float),
+        np.zeros(3),
+        np.zeros((3, 3)),
+        np.zeros((3, 9)),
+    )
+
+
 def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
     artifact = done[stage]
     if stage == "mag_step1":
         from imucal.fits import magnetometer
 
         fit = magnetometer.EllipsoidFit.from_dict(dict(artifact))
+        cov = _step1_only_covariance(fit.upper, fit.bias, fit.selected.covariance)
         return SensorCalibration(
-            "mag", fit.bias, fit.upper, "normalised", {}, "ellipsoid fit only (step 1, no T_R)"
+            "mag",
+            fit.bias,
+            fit.upper,
+            "normalised",
+            uncertainty.std_of(cov),
+            "ellipsoid fit only (step 1, no T_R)",
+            cov,
         ).to_dict()
     if stage == "gyr_table":
+        shift = np.asarray(artifact.get("cut_shift", np.zeros(12)), dtype=float)
+        cov9 = upper_bias_covariance(
+            artifact["matrix"], np.asarray(artifact["covariance"]) + np.outer(shift, shift)
+        )
+        cov = _step1_only_covariance(artifact["upper"], artifact["bias"], cov9)
         return SensorCalibration(
             "gyr",
             artifact["bias"],
             artifact["upper"],
             "rad/s",
-            {"bias": np.asarray(artifact["std_bias"])},
+            uncertainty.std_of(cov),
             "rate table (eq. 33), no T_R",
+            cov,
         ).to_dict()
     if stage == "gyr_scale":
         align = done["gyr_align"]

@@ -20,11 +20,17 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from imucal import errormodel
+from imucal import errormodel, uncertainty
 from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
-from imucal.columns import ACC, AXES, GYR, MAG, TIME
+from imucal.columns import ACC, AXES, GYR, MAG, PARAMETER_STD_SUFFIX, TIME
 from imucal.fits import accelerometer, gyroscope
-from imucal.fits.alignment import align_constant_component, align_rotation_axis, phase_samples
+from imucal.fits.alignment import (
+    ALIGNMENT_RULE,
+    align_constant_component,
+    align_rotation_axis,
+    phase_samples,
+)
+from imucal.fits.propagation import alignment_sensitivity, upper_bias_covariance
 from imucal.pipeline.outcome import not_run_reason
 from imucal.plots import inertial as inertial_plots
 from imucal.segments.detector import is_clipped
@@ -37,6 +43,16 @@ PAPER_TABLE_II = {
     "paper w/o tools": (1.1526, 1.1327, 1.1411),
 }
 ALIGNMENT_METHODS = ("full", "paper")
+#: How the rate table's covariance is scaled (for the calibration's ``quality``).
+RATE_TABLE_RULE = (
+    "noise per axis from the runs' residuals about the fit (dof = n_runs - 4), plus the outer "
+    "product of the shift of (K, b) when every run loses its outer tenths (cut_shift)"
+)
+#: What the tool-free gyroscope's covariance leaves out.
+TOOL_FREE_RULE = (
+    "T_N is not observable without a rate table and is taken as exact (xi = 0, std 0); eq. 36's "
+    "scale std from the integrated noise and the spread of the acc/mag angles"
+)
 
 
 def plain(obj):
@@ -133,23 +149,42 @@ def align_acc(
     """
     upper = np.asarray(cube_fit["upper"], dtype=float)
     bias = np.asarray(cube_fit["bias"], dtype=float)
-    phases = {
-        label: errormodel.apply(upper, bias, values)
-        for label, values in _phases(rotation3d_lowpass, segments, "acc").items()
-    }
+    raw = _phases(rotation3d_lowpass, segments, "acc")
+    phases = {label: errormodel.apply(upper, bias, values) for label, values in raw.items()}
     alignments = {
         name: align_constant_component(phases, method=name, exact=exact)
         for name in ALIGNMENT_METHODS
     }
-    fit_std_bias = np.asarray(cube_fit["std_bias"], dtype=float)
+    fit = uncertainty.goodness_of_fit(cube_fit["chi2"], cube_fit["dof"])
+    covariance = uncertainty.two_step_covariance(
+        upper,
+        bias,
+        fit.inflation * np.asarray(cube_fit["covariance"], dtype=float),
+        alignments[method].alpha_rad,
+        alignments[method].covariance,
+        alignment_sensitivity(
+            lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
+            raw,
+            upper,
+            bias,
+        ),
+        exact,
+    )
     calibration = SensorCalibration(
         "acc",
         bias,
         alignments[method].matrix @ upper,
         "m/s^2",
-        {"bias": fit_std_bias},
+        uncertainty.std_of(covariance),
         f"step 1: cube fit ({cube_fit['method']}); step 2: {method} "
         f"({'exact rotation' if exact else 'small-angle eq. 5'})",
+        covariance,
+        {
+            # the cube fit's covariance is its Cramer-Rao bound to first order (noise-weighted
+            # Jacobian at the solution): only the inflation sets it apart
+            "cube": {**fit.to_dict(), "std_over_crlb": float(np.sqrt(fit.inflation))},
+            "alignment": {"rule": ALIGNMENT_RULE},
+        },
     )
     return {
         "calibration": calibration.to_dict(),
@@ -209,12 +244,36 @@ def estimate_gyr_bias(
 
 
 def gyr_bias_value(bias: Mapping, estimator: str) -> tuple[np.ndarray, np.ndarray]:
+    """The bias (3,) and its std (3,), rad/s.
+
+    Where the static blocks' means scatter beyond the white noise (:func:`gyr_bias_quality`
+    flags the axis), the bias wanders and the value at another time differs from the
+    recording's mean by that wander: its variance (``wander_var_rad2_s2``) is added.
+    """
     if estimator not in ("ls", "mean"):
         raise ValueError(f"gyroscope bias estimator {estimator!r}: expected 'ls' or 'mean'")
+    std = np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float)
+    flagged = np.array([q["inflation"] > 1 for q in gyr_bias_quality(bias)] or [False] * 3)
+    wander = np.asarray(bias.get("wander_var_rad2_s2", np.zeros(3)), dtype=float)
     return (
         np.asarray(bias[f"bias_{estimator}_rad_s"], dtype=float),
-        np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float),
+        np.sqrt(std**2 + np.where(flagged, wander, 0.0)),
     )
+
+
+def gyr_bias_quality(bias: Mapping) -> list[dict]:
+    """Per axis the goodness of fit of the static blocks' means (empty for a single block)."""
+    dof = int(bias.get("dof_blocks", 0))
+    if dof < 1:
+        return []
+    return [
+        {
+            **uncertainty.goodness_of_fit(c, dof).to_dict(),
+            "rule": "when chi2 > the 0.999 quantile: the variance of the block means beyond the "
+            "white noise (the bias's wander) is added to the bias's variance",
+        }
+        for c in bias["chi2_blocks"]
+    ]
 
 
 def align_gyr(
@@ -236,14 +295,23 @@ def align_gyr(
         ``S'_gyr`` from the rate table; the identity (unit scale) without one.
     """
     s = np.eye(3) if upper is None else np.asarray(upper, dtype=float)
-    phases = {
-        label: errormodel.apply(s, bias, values)
-        for label, values in _phases(rotation3d_lowpass, segments, "gyr").items()
-    }
+    raw = _phases(rotation3d_lowpass, segments, "gyr")
+    phases = {label: errormodel.apply(s, bias, values) for label, values in raw.items()}
     alignments = {
         name: align_rotation_axis(phases, method=name, exact=exact) for name in ALIGNMENT_METHODS
     }
-    return {"used": method, **{k: a.to_dict() for k, a in alignments.items()}}
+    sensitivity = alignment_sensitivity(
+        lambda ph: align_rotation_axis(ph, method=method, exact=exact, correlated=False),
+        raw,
+        s,
+        bias,
+    )
+    return {
+        "used": method,
+        **{k: a.to_dict() for k, a in alignments.items()},
+        "sensitivity": sensitivity.tolist(),
+        "sensitivity_to": "upper entries of S' row by row (identity without one), bias",
+    }
 
 
 def _adjacent_static(segments: pd.DataFrame, phase: pd.Series) -> tuple[pd.Series, pd.Series]:
@@ -288,6 +356,47 @@ def integration_times(table: pd.DataFrame) -> np.ndarray:
         return t
     period, t0 = np.polyfit(np.arange(t.size, dtype=float), t, 1)
     return t0 + period * np.arange(t.size)
+
+
+def _pause_angle_variance(before: np.ndarray, after: np.ndarray, axis: str) -> float:
+    """Variance of an angle change measured from the pause means (rad^2).
+
+    The angle of a pause mean about ``axis`` moves by the mean's noise across it over its
+    projection on the plane: ``var = s_perp^2 / (n |p|^2)`` per pause, with ``s_perp^2`` the
+    scatter of the pause's samples across the projection within the plane. A pause that is not
+    at rest (the end of a turn inside it) shows as a difference between the angles of its two
+    halves: their chi-square against the noise (1 dof) inflates the pause's variance by the
+    rule of :func:`imucal.uncertainty.goodness_of_fit`. The two pauses are independent.
+    """
+    k = AXES.index(axis)
+    plane = [(k + 1) % 3, (k + 2) % 3]
+    total = 0.0
+    for block in (before, after):
+        v = block[np.isfinite(block).all(axis=1)][:, plane]
+        if len(v) < 4:
+            raise ValueError(f"phase {axis!r}: a pause has {len(v)} valid samples, need 4")
+        mean = v.mean(axis=0)
+        across = np.array([-mean[1], mean[0]]) / np.linalg.norm(mean)
+        offset = v @ across / np.linalg.norm(mean)  # angle from the mean's direction, rad
+        var = float(np.var(offset, ddof=1)) / len(v)
+        halves = np.array_split(offset, 2)
+        chi2 = float((halves[0].mean() - halves[1].mean()) ** 2 / (4 * var))
+        total += var * uncertainty.goodness_of_fit(chi2, 1).inflation
+    return total
+
+
+def _mean_angle_std(angles: np.ndarray, variances: np.ndarray) -> float:
+    """Standard deviation of the mean of the angles measured by acc and mag (rad).
+
+    From their pause noise (:func:`_pause_angle_variance`); with two sensors their chi-square
+    about the mean is tested and inflates the variance by the rule of
+    :func:`imucal.uncertainty.goodness_of_fit` when they disagree beyond their noise.
+    """
+    var = float(np.sum(variances)) / len(angles) ** 2
+    if len(angles) > 1:
+        chi2 = float(np.sum((angles - angles.mean()) ** 2 / variances))
+        var *= uncertainty.goodness_of_fit(chi2, len(angles) - 1).inflation
+    return float(np.sqrt(var))
 
 
 def estimate_gyr_scale(
@@ -352,7 +461,7 @@ def estimate_gyr_scale(
         parts = [
             rotation3d.iloc[int(s.start_index) : int(s.end_index)] for s in (before, phase, after)
         ]
-        angles = {}
+        angles, angle_var = {}, {}
         for name, cal, cols in measuring:
             vectors = [
                 errormodel.apply(cal.matrix, cal.bias, p[list(cols)].to_numpy(dtype=float))
@@ -360,23 +469,26 @@ def estimate_gyr_scale(
             ]
             try:
                 angles[name] = gyroscope.measure_angle_change(*vectors, phase.label)
+                angle_var[name] = _pause_angle_variance(vectors[0], vectors[2], phase.label)
             except ValueError as err:
                 angles[name] = str(err)
         measured = [a for a in angles.values() if isinstance(a, float)]
         if not measured:
             raise ValueError(f"phase {phase.label!r}: no sensor could measure its angle: {angles}")
+        angle_std = _mean_angle_std(
+            np.array(measured), np.array([angle_var[n] for n in angles if n in angle_var])
+        )
         raw = window[list(GYR)].to_numpy(dtype=float)
         fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
         rate = errormodel.apply(rotation, o, raw[fresh])
         k = AXES.index(phase.label)
-        spread = float(np.std(measured)) if len(measured) > 1 else 0.0
         result = gyroscope.estimate_scale(
             integration_times(window[fresh]),
             rate,
             phase.label,
             float(np.mean(measured)),
             noise_std_rad_s=float(noise[k]),
-            angle_std_rad=spread,
+            angle_std_rad=angle_std,
         )
         per_phase[phase.label] = {"angles_rad": angles, **plain(result)}
     missing = [a for a in AXES if a not in per_phase]
@@ -427,8 +539,28 @@ def fit_gyr_table(
     fit = gyroscope.fit_rate_table(
         np.array([r.mean(axis=0) for r in runs]), rates, np.array([len(r) for r in runs])
     )
+    # the runs' ends are where a segmentation can take in the ramps: the fit on runs without
+    # their outer tenths shows how far that moves (K, b), a systematic term of the covariance
+    inner = [r[len(r) // 10 : len(r) - len(r) // 10] for r in runs]
+    trimmed = gyroscope.fit_rate_table(
+        np.array([r.mean(axis=0) for r in inner]), rates, np.array([len(r) for r in inner])
+    )
+    # the bound for the runs' own sample noise (pooled about each run's mean): how far the
+    # covariance from the residuals about the fit lies above the noise-limited one
+    within = np.sqrt(
+        sum(np.sum((r - r.mean(axis=0)) ** 2, axis=0) for r in runs) / sum(len(r) - 1 for r in runs)
+    )
+    crlb = gyroscope.rate_table_crlb(fit.matrix, rates, np.array([len(r) for r in runs]), within)
     artifact = plain(fit)
-    artifact.update(labels=list(rows["label"]), rates_rad_s=rates.tolist(), warnings=warnings)
+    artifact.update(
+        std_over_crlb=(np.sqrt(np.diag(fit.covariance)) / np.sqrt(np.diag(crlb))).tolist(),
+        labels=list(rows["label"]),
+        rates_rad_s=rates.tolist(),
+        warnings=warnings,
+        cut_shift=np.concatenate(
+            [(trimmed.matrix - fit.matrix).ravel(), trimmed.bias - fit.bias]
+        ).tolist(),
+    )
     if not figures:
         return artifact, {}
     figure = inertial_plots.plot_rate_table_errors(fit, list(rows["label"]))
@@ -440,6 +572,16 @@ def _truth_rows(truth: Mapping | None) -> tuple[dict, dict]:
         return {}, {}
     scale = errormodel.decompose(np.asarray(truth["gyr"]["matrix"], dtype=float)).scale
     return {"truth": tuple(truth["gyr"]["bias"])}, {"truth": tuple(scale)}
+
+
+def _bias_sensitivity(alignment: Mapping) -> np.ndarray:
+    """``d alpha / d (S', o)`` of the tool-free alignment with the bias columns only, (3, 9).
+
+    The tool-free alignment runs on unit scale: the columns of ``S'`` do not apply (eq. 36's
+    scale comes after the alignment)."""
+    g = np.zeros((3, 9))
+    g[:, 6:] = np.asarray(alignment["sensitivity"], dtype=float)[:, 6:]
+    return g
 
 
 def combine_gyr(
@@ -471,6 +613,7 @@ def combine_gyr(
     """
     o, o_std = gyr_bias_value(bias, bias_estimator)
     alpha = np.asarray(alignment[alignment["used"]]["alpha_rad"], dtype=float)
+    quality = {"alignment": {"rule": ALIGNMENT_RULE}}
     has_table = table is not None and table_alignment is not None
     if scale is None and not has_table:
         raise ValueError(
@@ -478,14 +621,37 @@ def combine_gyr(
         )
     tool_free = None
     if scale is not None:
+        # the tool-free matrix T_R diag(s) as a two-step calibration whose step 1 is
+        # (diag(s), o), s and o independent; T_N is not observable and taken as exact (xi = 0)
+        step1 = np.zeros((9, 9))
+        step1[[0, 3, 5], [0, 3, 5]] = np.square(np.asarray(scale["std_scale"], dtype=float))
+        step1[6:, 6:] = np.diag(np.square(o_std))
+        covariance = uncertainty.two_step_covariance(
+            np.diag(scale["scale"]),
+            o,
+            step1,
+            alpha,
+            np.asarray(alignment[alignment["used"]]["covariance"], dtype=float),
+            _bias_sensitivity(alignment),
+            exact,
+        )
+        xi = uncertainty.GROUPS["xi_rad"]
+        covariance[xi, :] = 0.0
+        covariance[:, xi] = 0.0
         tool_free = SensorCalibration(
             "gyr",
             o,
             errormodel.compose(scale["scale"], np.zeros(3), alpha, exact=exact),
             "rad/s",
-            {"bias": o_std, "scale": np.asarray(scale["std_scale"], dtype=float)},
+            uncertainty.std_of(covariance),
             f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31); "
             "scale: eq. 36 from acc/mag angles",
+            covariance,
+            {
+                **quality,
+                **{f"bias_{a}": q for a, q in zip(AXES, gyr_bias_quality(bias), strict=True)},
+                "tool_free": {"rule": TOOL_FREE_RULE},
+            },
         )
     with_table = None
     table_i = {"LS (this run)": tuple(bias["bias_ls_rad_s"]), **PAPER_TABLE_I}
@@ -494,14 +660,43 @@ def combine_gyr(
     if has_table:
         rotation = np.asarray(table_alignment[table_alignment["used"]]["matrix"], dtype=float)
         upper = np.asarray(table["upper"], dtype=float)
+        chosen = table_alignment[table_alignment["used"]]
+        covariance = uncertainty.two_step_covariance(
+            upper,
+            np.asarray(table["bias"], dtype=float),
+            upper_bias_covariance(
+                table["matrix"],
+                np.asarray(table["covariance"], dtype=float)
+                + np.outer(
+                    table.get("cut_shift", np.zeros(12)), table.get("cut_shift", np.zeros(12))
+                ),
+            ),
+            np.asarray(chosen["alpha_rad"], dtype=float),
+            np.asarray(chosen["covariance"], dtype=float),
+            np.asarray(table_alignment["sensitivity"], dtype=float),
+            exact,
+        )
         with_table = SensorCalibration(
             "gyr",
             table["bias"],
             rotation @ upper,
             "rad/s",
-            {"bias": np.asarray(table["std_bias"], dtype=float)},
+            uncertainty.std_of(covariance),
             f"rate table: vector fit (eq. 33), S' = upper-triangular factor; alignment: "
             f"{table_alignment['used']} (eqs. 28-31)",
+            covariance,
+            {
+                **quality,
+                "ratetable": {
+                    "dof": table["dof"],
+                    "rule": RATE_TABLE_RULE,
+                    **(
+                        {"std_over_crlb": float(np.median(table["std_over_crlb"]))}
+                        if "std_over_crlb" in table
+                        else {}
+                    ),
+                },
+            },
         )
         table_i = {"w. tools (this run)": tuple(table["bias"]), **table_i}
         table_ii = {"w. tools (this run)": tuple(np.diag(upper)), **table_ii}
@@ -606,9 +801,18 @@ def calibration_of_what_ran(artifacts: Mapping[str, Mapping]) -> dict:
 
 
 def apply_calibration(
-    table: pd.DataFrame, metadata: Mapping, calibration: ImuCalibration
+    table: pd.DataFrame,
+    metadata: Mapping,
+    calibration: ImuCalibration,
+    *,
+    parameter_std: bool = False,
 ) -> tuple[pd.DataFrame, dict]:
     """Calibrate the three sensors of an ingested recording to frame B.
+
+    With ``parameter_std`` the table gains, per calibrated column, the standard deviation that
+    the calibration's parameter covariance gives the sample
+    (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal; column name + ``_param_std``),
+    for sensors whose calibration has a covariance.
 
     Parameters
     ----------
@@ -643,7 +847,13 @@ def apply_calibration(
                 f"for {list(columns)}; expected one unit per sensor in the ingest metadata"
             )
         values = table[list(columns)].to_numpy(dtype=float)
-        out[list(columns)] = calibration.sensor(sensor).apply(values, unit=found.pop())
+        cal = calibration.sensor(sensor)
+        out[list(columns)] = cal.apply(values, unit=found.pop())
+        if parameter_std and cal.covariance is not None:
+            cov = uncertainty.calibrated_covariance(cal.matrix, cal.bias, cal.covariance, values)
+            std = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
+            for k, column in enumerate(columns):
+                out[column + PARAMETER_STD_SUFFIX] = std[:, k]
     return out, {**metadata, "calibrated": True}
 
 

@@ -187,6 +187,8 @@ def _is_scalar(value: Any) -> bool:
 
 def _with_std(value: Any, std: Any) -> str:
     """``value ± std`` (std with 2 significant digits), or the value alone if std is unknown."""
+    if std is not None and float(std) == 0.0:
+        return f"{format_number(value)} (fixed, not observable)"
     if std is None or not math.isfinite(float(std)):
         return format_number(value)
     return f"{format_number(value)} ± {format_number(std, 2)}"
@@ -502,7 +504,38 @@ def _sensor_parameters(sensor: str, cal: Mapping) -> dict:
         "rows": rows,
         "matrix": matrix,
         "std_unknown": unknown_std,
+        "quality": _quality_rows(cal.get("quality") or {}),
+        "has_covariance": cal.get("covariance") is not None,
     }
+
+
+def _quality_rows(quality: Mapping) -> list[dict]:
+    """Per stage behind a calibration: chi-square / dof, inflation and the rule stated."""
+    rows = []
+    for stage, q in quality.items():
+        ratio = q.get("chi2_per_dof")
+        inflation = q.get("inflation")
+        rows.append(
+            {
+                "stage": stage,
+                "chi2": "" if ratio is None else f"{format_number(q['chi2'], 3)} / {q['dof']}",
+                "ratio": "" if ratio is None else format_number(ratio, 3),
+                "inflated": (
+                    ""
+                    if inflation is None
+                    else (
+                        f"yes: covariance x {format_number(inflation, 3)}"
+                        if inflation > 1
+                        else "no"
+                    )
+                ),
+                "rule": q.get("rule", ""),
+                "crlb": (
+                    "" if q.get("std_over_crlb") is None else format_number(q["std_over_crlb"], 3)
+                ),
+            }
+        )
+    return rows
 
 
 def _paper_tables(tables: pd.DataFrame | None) -> list[dict]:

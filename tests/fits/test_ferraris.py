@@ -184,3 +184,29 @@ def test_tilt_weighting_estimates_placement_and_sharpens_the_bias():
     assert np.all(np.abs(tilt.calibration.bias - bias) < 5 * tilt.calibration.std["bias"])
     with pytest.raises(ValueError, match=r"weighting must be one of"):
         fit_known_orientations(positions, directions, G, weighting="robust")
+
+
+def test_known_rotations_covariance_with_the_bias_is_honest():
+    """The bias given with its std is drawn about the truth; the (bias, matrix) error's
+    Mahalanobis distance with the 12 x 12 covariance (bias-matrix cross terms included) summed
+    over 20 seeds lies in the 99.9 % interval of chi-square(240)."""
+    from scipy import stats
+
+    bias_std = 2e-4
+    known = -2 * np.pi * np.eye(3)
+    total = 0.0
+    for seed in range(20):
+        rng = np.random.default_rng(400 + seed)
+        sections = rotation_sections(rng, known)
+        bias = GYR_BIAS + bias_std * rng.standard_normal(3)
+        cal = fit_known_rotations(
+            sections,
+            known,
+            bias,
+            noise_std_rad_s=np.full(3, GYR_NOISE),
+            bias_std_rad_s=np.full(3, bias_std),
+        ).calibration
+        err = np.r_[cal.bias - GYR_BIAS, (cal.matrix - gyr_truth()).ravel()]
+        total += float(err @ np.linalg.solve(cal.covariance[:12, :12], err))
+    low, high = stats.chi2.ppf([0.0005, 0.9995], 240)
+    assert low < total < high, (total, low, high)

@@ -496,3 +496,22 @@ def fleet_calibrations(wildcards):
             "the fleet target needs a sample sheet: set config fleet.sessions (docs/fleet.md)"
         )
     return {name: calibration_path(name) for name in FLEET_SHEET["dataset"]}
+
+
+# The Monte-Carlo check of the reported uncertainty (rules in benchmark.smk).
+wildcard_constraints:
+    setting="clean|effects",
+
+
+def uncertainty_effects(wildcards):
+    """Comma-separated simulator effects of a setting ('' for clean)."""
+    return ",".join(config["uncertainty"]["effects"]) if wildcards.setting == "effects" else ""
+
+
+def uncertainty_chunks(wildcards):
+    """The chunk files of a setting: seeds 0 .. sessions - 1 in steps of the chunk size."""
+    u = config["uncertainty"]
+    return [
+        f"results/uncertainty/{wildcards.setting}/chunk{first}.json"
+        for first in range(0, u["sessions"], u["chunk"])
+    ]

@@ -1,0 +1,53 @@
+"""The covariance of calibration.json against the truth of simulated sessions (whole chain)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from imucal.columns import MAG
+from imucal.ingest import counts_to_si
+from imucal.pipeline.full import PipelineOptions, calibrate_session
+from imucal.sim import make_truth, simulate_session
+from imucal.sim.effects import stream_rng
+
+SEEDS = (11, 12, 13)
+RANGE_COUNTS = {"acc": 32767, "gyr": 32767, "mag": 32767}
+
+
+def _session(seed: int):
+    truth = make_truth("random", stream_rng(seed, "truth"))
+    session = simulate_session(truth, seed)
+    imu = {
+        rec: counts_to_si(
+            session.frame(rec).astype({c: "float64" for c in MAG}), session.sensitivity
+        )
+        for rec in session.logs
+    }
+    config = session.config
+    options = PipelineOptions(
+        truth.world.gravity_m_s2,
+        session.sensitivity,
+        RANGE_COUNTS,
+        {"axes": list(config.ratetable_axes), "rates_dps": list(config.rates_dps)},
+    )
+    return calibrate_session(imu, None, options).calibration, truth.calibration
+
+
+@pytest.mark.slow
+def test_bias_and_matrix_errors_follow_the_reported_covariance():
+    """Per sensor and session the Mahalanobis distance of the (bias, matrix) error with the
+    reported 12 x 12 covariance is chi-square(12) if the covariance is right; the sum over
+    3 sessions x 3 sensors must lie in the 99.9 % interval of chi-square(108). A covariance off
+    by a factor 2 in variance moves the sum to ~54 or ~216, outside (about 63 to 160)."""
+    total, dof = 0.0, 0
+    for seed in SEEDS:
+        estimate, truth = _session(seed)
+        for sensor in ("acc", "gyr", "mag"):
+            est, true = estimate.sensor(sensor), truth.sensor(sensor)
+            err = np.r_[est.bias - true.bias, (est.matrix - true.matrix).ravel()]
+            total += float(err @ np.linalg.solve(est.covariance[:12, :12], err))
+            dof += 12
+    low, high = stats.chi2.ppf([0.0005, 0.9995], dof)
+    assert low < total < high, (total, low, high)

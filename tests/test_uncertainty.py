@@ -1,0 +1,105 @@
+"""Covariance of calibration parameters: delta method, goodness of fit, the file form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from imucal import errormodel, uncertainty
+from imucal.calibration import ImuCalibration, SensorCalibration
+
+MATRIX = errormodel.compose([1.05, 0.97, 1.01], [0.01, -0.02, 0.015], [0.02, -0.01, 0.03])
+BIAS = np.array([0.1, -0.2, 0.05])
+
+
+def test_calibration_covariance_matches_sampling():
+    """The delta method's std of scale, xi, alpha equals the scatter of decompose() over draws."""
+    rng = np.random.default_rng(1)
+    cov12 = np.diag(np.r_[np.full(3, 1e-6), np.full(9, 1e-8)])
+    cov21 = uncertainty.calibration_covariance(BIAS, MATRIX, cov12)
+    draws = rng.multivariate_normal(np.r_[BIAS, MATRIX.ravel()], cov12, size=4000)
+    derived = []
+    for d in draws:
+        dec = errormodel.decompose(d[3:].reshape(3, 3))
+        derived.append(np.concatenate([d, dec.scale, dec.xi_rad, dec.alpha_rad]))
+    derived = np.array(derived)
+    # the sample std of 4000 draws is within 5 % of the truth (its own relative std is 1.1 %)
+    np.testing.assert_allclose(derived.std(axis=0), np.sqrt(np.diag(cov21)), rtol=0.05)
+
+
+def test_two_step_covariance_without_alignment_error_is_step_one():
+    _, upper = errormodel.upper_triangular_factor(MATRIX)
+    c1 = np.diag(np.r_[np.full(6, 1e-8), np.full(3, 1e-6)])
+    cov = uncertainty.two_step_covariance(
+        upper, BIAS, c1, np.zeros(3), np.zeros((3, 3)), np.zeros((3, 9))
+    )
+    np.testing.assert_allclose(np.diag(cov)[:3], 1e-6, rtol=1e-6)
+    # T_R = I: the matrix is S' itself, entries below the diagonal have no variance
+    matrix_var = np.diag(cov)[3:12].reshape(3, 3)
+    np.testing.assert_allclose(matrix_var[np.triu_indices(3)], 1e-8, rtol=1e-5)
+    np.testing.assert_allclose(matrix_var[np.tril_indices(3, -1)], 0.0, atol=1e-16)
+
+
+def test_sensitivity_carries_step_one_into_alpha():
+    _, upper = errormodel.upper_triangular_factor(MATRIX)
+    c1 = np.diag(np.r_[np.full(6, 1e-8), np.full(3, 1e-6)])
+    g = np.zeros((3, 9))
+    g[0, 6] = 0.5  # alpha_x moves by half of o_x
+    cov = uncertainty.two_step_covariance(upper, BIAS, c1, np.zeros(3), np.eye(3) * 1e-10, g)
+    alpha = uncertainty.GROUPS["alpha_rad"]
+    assert np.diag(cov)[alpha][0] == pytest.approx(0.25e-6 + 1e-10, rel=1e-4)
+    # and alpha_x is correlated with o_x (correlation 1 up to the alignment's own 1e-10)
+    corr = cov[alpha.start, 0] / np.sqrt(cov[alpha.start, alpha.start] * cov[0, 0])
+    assert corr == pytest.approx(1.0, abs=1e-3)
+
+
+def test_goodness_of_fit_inflates_only_beyond_the_quantile():
+    dof = 29
+    limit = stats.chi2.ppf(uncertainty.INFLATION_QUANTILE, dof)
+    assert uncertainty.goodness_of_fit(limit * 0.99, dof).inflation == 1.0
+    fit = uncertainty.goodness_of_fit(442.0, dof)  # the imu_tk cube fit
+    assert fit.inflation == pytest.approx(442.0 / 29)
+    assert fit.p_value < 1e-10
+    with pytest.raises(ValueError, match="dof >= 1"):
+        uncertainty.goodness_of_fit(3.0, 0)
+
+
+def test_covariance_round_trips_and_old_files_load():
+    cov = uncertainty.calibration_covariance(BIAS, MATRIX, np.eye(12) * 1e-8)
+    cal = SensorCalibration(
+        "acc", BIAS, MATRIX, "m/s^2", uncertainty.std_of(cov), "x", cov, {"cube": {"rule": "r"}}
+    )
+    d = cal.to_dict()
+    assert d["covariance"]["parameters"] == list(uncertainty.PARAMETERS)
+    back = SensorCalibration.from_dict("acc", d)
+    np.testing.assert_array_equal(back.covariance, cov)
+    assert back.quality == {"cube": {"rule": "r"}}
+    old = {k: v for k, v in d.items() if k not in ("covariance", "quality")}
+    assert SensorCalibration.from_dict("acc", old).covariance is None
+    d["covariance"]["parameters"] = d["covariance"]["parameters"][::-1]
+    with pytest.raises(ValueError, match="covariance of 'acc' is over the parameters"):
+        SensorCalibration.from_dict("acc", d)
+    with pytest.raises(ValueError, match=r"must be a finite \(21, 21\)"):
+        SensorCalibration("acc", BIAS, MATRIX, "m/s^2", covariance=np.eye(12))
+    full = ImuCalibration(
+        cal,
+        cal.__class__("gyr", BIAS, MATRIX, "rad/s"),
+        back.__class__("mag", BIAS, MATRIX, "normalised"),
+    )
+    assert "covariance" not in full.to_dict()["gyr"]
+
+
+def test_calibrated_covariance_matches_sampling():
+    """Cov of matrix (r - bias) over draws of (bias, matrix) equals the analytic J C J^T."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(12, 12)) * 1e-3
+    cov12 = a @ a.T
+    readings = np.array([[9.8, 0.1, -0.3], [0.0, 0.0, 0.0], [-3.0, 5.0, 7.0]])
+    analytic = uncertainty.calibrated_covariance(MATRIX, BIAS, cov12, readings)
+    draws = rng.multivariate_normal(np.r_[BIAS, MATRIX.ravel()], cov12, size=20000)
+    for i, r in enumerate(readings):
+        values = np.array([d[3:].reshape(3, 3) @ (r - d[:3]) for d in draws])
+        # a sample covariance of 20000 draws: entries within 4 % of the largest variance
+        scale = np.max(np.diag(analytic[i]))
+        np.testing.assert_allclose(np.cov(values.T), analytic[i], atol=0.04 * scale)
