@@ -13,6 +13,9 @@ Zhang et al. (2014) calibrate the gyroscope in two ways:
   phases (:mod:`imucal.fits.alignment`, eqs. 28-31), then the scale per phase from the orientation
   change seen by the accelerometer / magnetometer (eq. 36, :func:`measure_angle_change` and
   :func:`estimate_scale`). Alignment comes before scale, as the paper stresses.
+
+The module is long (about 690 lines): bias, scale and rate-table fits of the gyroscope
+share the bias's noise model and their covariance code.
 """
 
 from __future__ import annotations

@@ -11,6 +11,9 @@ positive definite, ``o`` from eq. 22 and ``S'`` the upper-triangular Cholesky fa
 (eq. 21). A Levenberg-Marquardt refinement of eq. 17 over the 9 parameters removes the bias of the
 algebraic fit at low coverage. Step 2 (the rotation ``T_R``, eqs. 25-27) is
 :func:`calibrate_alignment`, built on :mod:`imucal.fits.alignment`.
+
+The module is long (about 590 lines): the ellipsoid fit, its LM refinement and the
+covariance of both belong together.
 """
 
 from __future__ import annotations

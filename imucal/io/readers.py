@@ -16,6 +16,10 @@ fills no value: a sensor without a sample at a row's time holds NaN on that row 
 Every problem raises :class:`DeclarationError` (a declaration that does not fit the file, the
 message names the ``dataset.yaml`` key path and the column) or :class:`imucal.io.RawDataError`
 (the file breaks its declared format; the message names the file and the line or row).
+
+The module is long (about 1050 lines): every declared reader (tables, MATLAB v5/v7.3,
+HDF5, streams, parts, section lists, 2-D arrays) shares the declaration's checks and the
+error messages naming the ``dataset.yaml`` key; splitting it by format would repeat them.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ Methods per sensor, best first (the first that runs gives the final calibration)
   accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
   the bias alone.
 
-The module is long (about 700 lines): one runner per stage of the registry that a partial
+The module is long (about 770 lines): one runner per stage of the registry that a partial
 session can take, each with its condition and reason when it does not apply, and the choice of
 the final calibration among them; they share the session's state (:class:`_Session`).
 """

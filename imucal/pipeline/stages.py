@@ -6,7 +6,7 @@ low-pass filtered) tables, calls the fits of :mod:`imucal.fits.accelerometer`,
 figures, never saved here). Stages exchange their results through these artifacts, so one stage
 can be rerun on new data.
 
-The module is long (about 730 lines) because it has one function per rule of the paper's
+The module is long (about 960 lines) because it has one function per rule of the paper's
 stage-per-rule path; the in-process chain (:mod:`imucal.pipeline.full`) and the partial path
 (:mod:`imucal.pipeline.partial`) call the same functions, so a stage is written once.
 """

@@ -6,6 +6,9 @@ the file, so it reads the same offline. :func:`build_report_context` takes every
 explicitly (paths or already-loaded objects; the rule script passes ``snakemake.input``, this
 module never globs) and formats all numbers; :func:`render_report` only lays them out with the
 template ``imucal/report/templates/report.html.j2``.
+
+The module is long (about 860 lines): it turns every artifact of a run into the report's
+context; the sections share the formatting helpers, so they stay in one place.
 """
 
 from __future__ import annotations
