@@ -373,6 +373,30 @@ def _require_columns(
     raise RawDataError(path, line, f"missing {noun} {', '.join(hints)}", expected)
 
 
+def _csv_options(
+    names: list[str],
+    types: dict[str, pa.DataType],
+    delimiter: str,
+    skip_rows: int,
+    block_size: int | None = None,
+) -> tuple[pacsv.ReadOptions, pacsv.ParseOptions, pacsv.ConvertOptions]:
+    """pyarrow's CSV options of the native formats, for a whole read or one in batches.
+
+    Blank lines are kept (as all-null rows) so that row i is line ``first_line + i``.
+    """
+    read = {"block_size": block_size} if block_size is not None else {}
+    return (
+        pacsv.ReadOptions(column_names=names, skip_rows=skip_rows, **read),
+        pacsv.ParseOptions(delimiter=delimiter, quote_char=False, ignore_empty_lines=False),
+        pacsv.ConvertOptions(
+            column_types=types,
+            include_columns=[n for n in names if n != _TRAILING],
+            null_values=[""],
+            strings_can_be_null=False,
+        ),
+    )
+
+
 def _read_delimited(
     path: Path,
     names: list[str],
@@ -382,17 +406,7 @@ def _read_delimited(
     first_line: int,
 ) -> pa.Table:
     """Read the data rows with pyarrow's CSV reader; on failure find the offending line."""
-    read_options = pacsv.ReadOptions(column_names=names, skip_rows=skip_rows)
-    # Blank lines are kept (as all-null rows) so that row i is line first_line + i.
-    parse_options = pacsv.ParseOptions(
-        delimiter=delimiter, quote_char=False, ignore_empty_lines=False
-    )
-    convert_options = pacsv.ConvertOptions(
-        column_types=types,
-        include_columns=[n for n in names if n != _TRAILING],
-        null_values=[""],
-        strings_can_be_null=False,
-    )
+    read_options, parse_options, convert_options = _csv_options(names, types, delimiter, skip_rows)
     try:
         table = pacsv.read_csv(path, read_options, parse_options, convert_options)
     except pa.ArrowInvalid as err:
@@ -447,17 +461,8 @@ def _read_delimited_batches(
     batch_bytes: int,
 ) -> Iterator[pa.RecordBatch]:
     """:func:`_read_delimited` in batches; a batch that cannot be parsed is located and raised."""
-    read_options = pacsv.ReadOptions(
-        column_names=names, skip_rows=skip_rows, block_size=batch_bytes
-    )
-    parse_options = pacsv.ParseOptions(
-        delimiter=delimiter, quote_char=False, ignore_empty_lines=False
-    )
-    convert_options = pacsv.ConvertOptions(
-        column_types=types,
-        include_columns=[n for n in names if n != _TRAILING],
-        null_values=[""],
-        strings_can_be_null=False,
+    read_options, parse_options, convert_options = _csv_options(
+        names, types, delimiter, skip_rows, batch_bytes
     )
     try:
         reader = pacsv.open_csv(
