@@ -487,7 +487,8 @@ def quantum(x: np.ndarray) -> float:
     return max(q, float(np.max(np.abs(x))) / INT16_HEADROOM)
 
 
-def _identity(sensor: str) -> SensorCalibration:
+def identity_calibration(sensor: str) -> SensorCalibration:
+    """The calibration that leaves readings as they are (a sensor the session does not calibrate)."""
     unit = {"acc": "m/s^2", "gyr": "rad/s", "mag": "normalised"}[sensor]
     return SensorCalibration(sensor, np.zeros(3), np.eye(3), unit, method="identity (twin)")
 
@@ -522,7 +523,7 @@ def build_static_twin(
             cals[s] = SensorCalibration.from_dict(s, calibration[s])
             notes.append(f"{s}: the session's fitted calibration ({cals[s].method})")
         else:
-            cals[s] = _identity(s)
+            cals[s] = identity_calibration(s)
     noise, sens = {}, {}
     for name, stream in streams.items():
         for s, x in stream.values.items():

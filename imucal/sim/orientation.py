@@ -22,13 +22,10 @@ from imucal.orientation import (
     quat_rotate,
 )
 
-
 #: Dip of the simulated field below the horizon, deg.
 FIELD_DIP_DEG = 60.0
 #: The simulated field in the world (ENU, unit norm): north (+y) and down.
-FIELD_WORLD = np.array(
-    [0.0, np.cos(np.radians(FIELD_DIP_DEG)), -np.sin(np.radians(FIELD_DIP_DEG))]
-)
+FIELD_WORLD = np.array([0.0, np.cos(np.radians(FIELD_DIP_DEG)), -np.sin(np.radians(FIELD_DIP_DEG))])
 
 
 @dataclass(frozen=True)
@@ -90,6 +87,7 @@ def simulate_orientation_session(
     acc_noise_m_s2: float = 0.0,
     mag_matrix: np.ndarray | None = None,
     mag_bias: np.ndarray | None = None,
+    reference_jitter_s: float = 0.0,
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
@@ -102,6 +100,8 @@ def simulate_orientation_session(
     The magnetometer reads a constant field of unit norm (:data:`FIELD_WORLD`, dip
     :data:`FIELD_DIP_DEG` below the horizon towards north, +y), noise-free, ideal unless
     ``mag_matrix`` / ``mag_bias`` give its errors (``mag_B = mag_matrix (mag - mag_bias)``).
+    The reference's samples are taken at their time stamps plus white jitter of
+    ``reference_jitter_s`` (its own random stream: the other draws do not change).
     """
     rng = np.random.default_rng(seed)
     dt_fine = 1e-3
@@ -150,7 +150,10 @@ def simulate_orientation_session(
     t_mod_of_ref = (t_ref_all - offset_s) / (1 + drift_ppm * 1e-6)
     inside = (t_mod_of_ref >= 0.2) & (t_mod_of_ref <= duration_s - 0.2)
     t_ref, t_mod_of_ref = t_ref_all[inside], t_mod_of_ref[inside]
-    pos = t_mod_of_ref / dt_fine
+    taken = t_mod_of_ref + np.random.default_rng([seed, 1]).normal(
+        0.0, reference_jitter_s, t_mod_of_ref.shape
+    )
+    pos = taken / dt_fine
     i = np.floor(pos).astype(int)
     frac = (pos - i)[:, None]
     q_ref = (1 - frac) * q_fine[i] + frac * q_fine[i + 1]

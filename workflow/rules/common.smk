@@ -131,11 +131,16 @@ def datasets_pattern(full):
 
 
 def gap_partial_inputs(wildcards):
-    """A partial session's calibration, and its static recording when it has one."""
+    """A partial session's calibration, its static recording when it has one, and its
+    recordings with an orientation reference (with the references and the segments)."""
     d = wildcards.dataset
     inputs = {"calibration": f"results/{d}/partial/calibration.json"}
     if has_recording(wildcards, "static"):
         inputs["static"] = f"results/{d}/ingest/static.parquet"
+    if dataset_info(wildcards).orientation_references:
+        inputs |= {f"moving_{n}": p for n, p in orientation_recordings(wildcards).items()}
+        inputs["orientation"] = orientation_references(wildcards)
+        inputs["segments"] = f"results/{d}/segments.parquet"
     return inputs
 
 

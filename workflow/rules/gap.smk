@@ -53,6 +53,7 @@ rule gap_diagnose_partial:
         "../envs/imucal.yaml"
     params:
         settings=diagnosis_settings(),
+        windows_s=config["reference"]["windows_s"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_diagnose_partial.py"
