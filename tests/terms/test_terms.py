@@ -222,7 +222,9 @@ def test_apply_uses_the_temperature_term_and_refuses_what_it_cannot(drift):
     with pytest.raises(ValueError, match=r"rec\.parquet: .*no temperature column"):
         apply_calibration(table, meta, cal, source="rec.parquet")
     table, meta = _recording(temp=np.full(50, 30.5))
-    with pytest.raises(ValueError, match=r"rec\.parquet: .*outside .* by 2\.50 K, more than the margin 1 K"):
+    with pytest.raises(
+        ValueError, match=r"rec\.parquet: .*outside .* by 2\.50 K, more than the margin 1 K"
+    ):
         apply_calibration(table, meta, cal, source="rec.parquet")
     table, meta = _recording(temp=np.full(50, 28.5))
     _, m = apply_calibration(table, meta, cal, source="rec.parquet")
