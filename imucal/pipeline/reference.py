@@ -17,17 +17,20 @@ import pandas as pd
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
-from imucal.columns import ACC, GYR, QUAT, TIME
+from imucal.columns import ACC, GYR, MAG, QUAT, TIME
 from imucal.fits.reference import fit_gyro_to_reference
 from imucal.orientation import quat_conjugate, quat_rotate
 from imucal.validation.orientation import (
     OrientationAlignment,
     align_orientation_reference,
     aligned_intervals,
+    compare_window_errors,
+    field_direction_errors,
     gravity_errors,
     mount_orientation_reference,
     orientation_errors,
     rate_agreement,
+    window_errors,
 )
 from imucal.validation.timing import TimeAlignment
 
@@ -224,16 +227,78 @@ def _variant(
     time: TimeAlignment,
     where: str,
     windows_s: Sequence[float],
-) -> tuple[dict, OrientationAlignment]:
+) -> tuple[dict, OrientationAlignment, dict]:
     alignment = mount_orientation_reference(t, gyr_b, t_ref, quat, time, where=where)
     mounting = alignment.mounting.matrix
+    windows = window_errors(t, gyr_b, t_ref, quat, alignment, mounting, windows_s)
     out = {
         "gyroscope": label,
         "mounting": alignment.mounting.to_dict(),
         "rates": rate_agreement(t, gyr_b, t_ref, quat, alignment, mounting),
         "orientation": orientation_errors(t, gyr_b, t_ref, quat, alignment, mounting, windows_s),
     }
-    return out, alignment
+    return out, alignment, windows
+
+
+def _transfer(name: str, windows: Mapping[str, dict], windows_s: Sequence[float]) -> dict:
+    """The calibrated gyroscope against the bias-only one on a held-out recording, per window.
+
+    The criterion is fixed before the data are seen: a paired test over independent windows
+    (:func:`imucal.validation.orientation.compare_window_errors`). A calibration that does worse
+    than its own bias on data it was not fitted on gets a warning: its scale and axes do not
+    carry over (a rate-dependent scale, a reference that lags fast motion, a different mount).
+    """
+    out: dict = {"windows": {}, "warnings": []}
+    for window in windows_s:
+        key = f"{window:g}s"
+        test = compare_window_errors(
+            windows["calibrated"][key], windows["bias"][key], float(window)
+        )
+        out["windows"][key] = test
+        if test["verdict"] == "worse":
+            out["warnings"].append(
+                f"held-out recording {name}: the calibrated gyroscope integrates to a larger "
+                f"orientation error over {key} windows than the bias-only gyroscope (median "
+                f"difference {test['median_difference_deg']:+.3g} deg over "
+                f"{test['n_windows']} independent windows, Wilcoxon p = {test['p_value']:.2g}): "
+                "its scale, non-orthogonality and axes do not carry over to this recording"
+            )
+    return out
+
+
+def _field_directions(
+    table: pd.DataFrame,
+    calibration: Mapping,
+    t_ref: np.ndarray,
+    quat: np.ndarray,
+    alignments: Mapping[str, OrientationAlignment],
+    up: str,
+) -> dict:
+    """Field direction in the reference's world: the magnetometer as read and calibrated.
+
+    The magnetometer as read is carried into the world with the mounting of the gyroscope as
+    read (its axes are nominally those of the gyroscope); the calibrated one, which is in frame
+    B after step 2, with the mounting of the calibrated (else bias-corrected) gyroscope.
+    """
+    t, mag = _series(table, MAG)
+    raw = alignments["raw"]
+    out = {"raw": field_direction_errors(t, mag, t_ref, quat, raw, raw.mounting.matrix, up)}
+    if "mag" in calibration:
+        cal = SensorCalibration.from_dict("mag", calibration["mag"])
+        best = alignments.get("calibrated", alignments.get("bias", raw))
+        out["calibrated"] = field_direction_errors(
+            t, errormodel.apply(cal.matrix, cal.bias, mag), t_ref, quat, best,
+            best.mounting.matrix, up,
+        )  # fmt: skip
+        before, after = out["raw"]["median_deg"], out["calibrated"]["median_deg"]
+        if before is not None and after is not None and after > before:
+            out["warnings"] = [
+                f"the calibrated magnetometer's field direction scatters more about its mean "
+                f"than the magnetometer as read (median {after:.3g} deg against {before:.3g} "
+                "deg): its calibration does not make the field constant in the reference's "
+                "world on this recording"
+            ]
+    return out
 
 
 def validate_references(
@@ -268,7 +333,10 @@ def validate_references(
         mounting angle, orientation error medians per window and gyroscope) and
         ``recordings`` (per recording: ``alignment`` of the raw gyroscope and per gyroscope
         ``raw``, ``bias`` and ``calibrated`` the mounting, per-axis rates and windowed
-        orientation errors; ``gravity`` at rests for the accelerometer as read and calibrated).
+        orientation errors; ``gravity`` at rests for the accelerometer as read and calibrated;
+        ``field``, the magnetometer's direction in the reference's world as read and
+        calibrated; on a held-out recording ``transfer``, the paired test of the calibrated
+        gyroscope against the bias-only one per window, with ``warnings`` when it is worse).
         Every gyroscope gets its own mounting (Wahba) on each recording, so the comparison is
         about scale, non-orthogonality and bias, not about the misalignment.
 
@@ -306,13 +374,19 @@ def validate_references(
         clock = align_orientation_reference(
             t, variants.get("bias", gyr), t_ref, quat, where=where[name]
         ).time
-        alignments = {}
+        alignments, windows = {}, {}
         for label, values in variants.items():
-            record[label], alignments[label] = _variant(
+            record[label], alignments[label], windows[label] = _variant(
                 label, t, values, t_ref, quat, clock, where[name], windows_s
             )
+        if record["held_out"] and {"bias", "calibrated"} <= set(windows):
+            record["transfer"] = _transfer(name, windows, windows_s)
         base = alignments.get("bias", alignments["raw"])
         record["alignment"] = base.to_dict()
+        if "mag_x" in tables[name].columns:
+            record["field"] = _field_directions(
+                tables[name], calibration, t_ref, quat, alignments, meta["up"]
+            )
         rests = segments[
             (segments["recording"] == name) & segments["kind"].isin(["static", "position"])
         ]
@@ -339,6 +413,11 @@ def validate_references(
         out["recordings"][name] = record
         out["summary"][name] = {
             "held_out": record["held_out"],
+            **(
+                {"transfer": {k: v["verdict"] for k, v in record["transfer"]["windows"].items()}}
+                if "transfer" in record
+                else {}
+            ),
             "offset_ms": 1e3 * base.time.offset_s,
             "offset_std_ms": 1e3 * base.time.offset_std_s,
             "drift_ppm": base.time.drift_ppm,

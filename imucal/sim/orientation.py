@@ -23,6 +23,14 @@ from imucal.orientation import (
 )
 
 
+#: Dip of the simulated field below the horizon, deg.
+FIELD_DIP_DEG = 60.0
+#: The simulated field in the world (ENU, unit norm): north (+y) and down.
+FIELD_WORLD = np.array(
+    [0.0, np.cos(np.radians(FIELD_DIP_DEG)), -np.sin(np.radians(FIELD_DIP_DEG))]
+)
+
+
 @dataclass(frozen=True)
 class OrientationSession:
     """Simulated module and reference series with the truth.
@@ -31,8 +39,9 @@ class OrientationSession:
     ----------
     t_module : ndarray, shape (n,)
         Module times, s.
-    gyr, acc : ndarray, shape (n, 3)
-        Gyroscope and accelerometer readings (rad/s, m/s^2).
+    gyr, acc, mag : ndarray, shape (n, 3)
+        Gyroscope, accelerometer and magnetometer readings (rad/s, m/s^2, field of unit
+        norm).
     t_reference : ndarray, shape (m,)
         Reference times on its clock: ``t_ref = offset_s + (1 + drift_ppm 1e-6) t_module``.
     quat_reference : ndarray, shape (m, 4)
@@ -49,6 +58,7 @@ class OrientationSession:
     t_module: np.ndarray
     gyr: np.ndarray
     acc: np.ndarray
+    mag: np.ndarray
     t_reference: np.ndarray
     quat_reference: np.ndarray
     matrix: np.ndarray
@@ -78,6 +88,8 @@ def simulate_orientation_session(
     acc_matrix: np.ndarray | None = None,
     acc_bias: np.ndarray | None = None,
     acc_noise_m_s2: float = 0.0,
+    mag_matrix: np.ndarray | None = None,
+    mag_bias: np.ndarray | None = None,
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
@@ -87,6 +99,9 @@ def simulate_orientation_session(
     rotation of ``orientation_noise_rad`` RMS per axis to each orientation. The accelerometer
     reads gravity only (``9.81`` m/s^2 along up, in B), ideal unless ``acc_matrix`` /
     ``acc_bias`` / ``acc_noise_m_s2`` give its errors (``acc_B = acc_matrix (acc - acc_bias)``).
+    The magnetometer reads a constant field of unit norm (:data:`FIELD_WORLD`, dip
+    :data:`FIELD_DIP_DEG` below the horizon towards north, +y), noise-free, ideal unless
+    ``mag_matrix`` / ``mag_bias`` give its errors (``mag_B = mag_matrix (mag - mag_bias)``).
     """
     rng = np.random.default_rng(seed)
     dt_fine = 1e-3
@@ -123,6 +138,11 @@ def simulate_orientation_session(
     if acc_bias is not None:
         acc = acc + acc_bias
     acc = acc + rng.normal(0, 1, acc.shape) * acc_noise_m_s2
+    mag = quat_rotate(quat_multiply(q_mount, quat_conjugate(q_fine[idx])), FIELD_WORLD)
+    if mag_matrix is not None:
+        mag = np.linalg.solve(mag_matrix, mag.T).T
+    if mag_bias is not None:
+        mag = mag + mag_bias
     # reference clock: sample k at t_ref = k / rate, module time (t_ref - offset) / (1 + drift)
     t_ref_all = np.arange(
         0.0, offset_s + duration_s * (1 + drift_ppm * 1e-6), 1.0 / reference_rate_hz
@@ -144,6 +164,7 @@ def simulate_orientation_session(
         t_module=t_m,
         gyr=gyr,
         acc=acc,
+        mag=mag,
         t_reference=t_ref,
         quat_reference=q_ref,
         matrix=np.asarray(matrix, dtype=float),

@@ -9,7 +9,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.columns import ACC, GYR, QUAT, SEGMENT_COLUMNS, TIME
+from imucal.calibration import SensorCalibration
+from imucal.columns import ACC, GYR, MAG, QUAT, SEGMENT_COLUMNS, TIME
 from imucal.pipeline import partial
 from imucal.pipeline.reference import validate_references
 from imucal.sim.orientation import simulate_orientation_session
@@ -90,6 +91,35 @@ def test_held_out_validation_raw_bias_calibrated(chain):
     record = result["recordings"]["poses"]
     assert record["calibrated"]["rates"]["x"]["slope"] == pytest.approx(1.0, abs=2e-3)
     assert record["gravity"]["raw"]["n"] == len(segments.query("recording == 'poses'"))
+    # the calibration carries over: the paired test says so and warns of nothing
+    assert record["transfer"]["windows"]["10s"]["verdict"] == "better"
+    assert record["transfer"]["warnings"] == []
+    assert held["transfer"] == {"1s": "better", "10s": "better"}
+    assert "transfer" not in result["recordings"]["tumble"]  # fitted on: no held-out test
+
+
+def test_field_direction_as_read_and_calibrated(chain):
+    tables, references, segments, outcomes = chain
+    final = partial.final_calibration(outcomes)
+    calibration = {s: e["calibration"] for s, e in final["sensors"].items()}
+    mag_matrix = errormodel.compose([1.1, 0.9, 1.05], [0.02, -0.03, 0.01], [0.0, 0.0, 0.0])
+    mag_bias = np.array([0.3, -0.2, 0.4])
+    held = simulate_orientation_session(22, matrix=MATRIX, bias=BIAS, mounting=MOUNTING,
+                                        offset_s=-0.4, reference_rate_hz=100.0)  # fmt: skip
+    raw = np.linalg.solve(mag_matrix, held.mag.T).T + mag_bias
+    with_mag = dict(tables, poses=tables["poses"].assign(**dict(zip(MAG, raw.T))))
+    calibration["mag"] = SensorCalibration("mag", mag_bias, mag_matrix, "normalised").to_dict()
+    result = validate_references(with_mag, references, segments, calibration, None,
+                                 {n: n for n in tables}, windows_s=(10.0,))  # fmt: skip
+    field = result["recordings"]["poses"]["field"]
+    assert field["calibrated"]["median_deg"] < 0.1 < 10.0 < field["raw"]["median_deg"]
+    assert "warnings" not in field
+    assert "field" not in result["recordings"]["tumble"]  # no magnetometer there
+    # a calibration that makes it worse is said to
+    calibration["mag"] = SensorCalibration("mag", -mag_bias, mag_matrix, "normalised").to_dict()
+    worse = validate_references(with_mag, references, segments, calibration, None,
+                                {n: n for n in tables}, windows_s=(10.0,))  # fmt: skip
+    assert "scatters more" in worse["recordings"]["poses"]["field"]["warnings"][0]
 
 
 def test_every_reference_held_out_skips_the_stage(chain):
