@@ -63,6 +63,7 @@ _DATASET = _CALIBRATION + Counter(
     stages_full=1,
     stages=1,
     gap_diagnose=1,
+    model_terms=1,
     report=1,
 )
 

@@ -776,6 +776,11 @@ def build_report_context(
     }
 
 
+def _plus_minus(value: Any, std: Any) -> str:
+    """``value ± std`` for scalars, vectors and matrices alike."""
+    return f"{format_value(value)} ± {format_value(std, 2)}"
+
+
 def _terms_section(
     paths: Sequence[str | Path] | None, gap: Sequence[str | Path] | None
 ) -> dict | None:
@@ -802,20 +807,20 @@ def _terms_section(
         for kind in ("bias", "scale"):
             for k, (c, sd) in enumerate(zip(poly[kind], poly[f"{kind}_std"], strict=True), 1):
                 values.append({"term": f"temperature {sensor} {kind} dT^{k}",
-                               "value": _with_std(c, sd), "unit": poly[f"{kind}_unit"]})  # fmt: skip
+                               "value": _plus_minus(c, sd), "unit": poly[f"{kind}_unit"]})  # fmt: skip
     if "g_sensitivity" in model:
         g = model["g_sensitivity"]
-        values.append({"term": "g-sensitivity G", "value": _with_std(g["matrix"], g["std"]),
+        values.append({"term": "g-sensitivity G", "value": _plus_minus(g["matrix"], g["std"]),
                        "unit": g["unit"]})  # fmt: skip
     if "mag_delay" in model:
         m = model["mag_delay"]
-        values.append({"term": "magnetometer delay", "value": _with_std(m["delay_s"], m["std_s"]),
+        values.append({"term": "magnetometer delay", "value": _plus_minus(m["delay_s"], m["std_s"]),
                        "unit": m["unit"]})  # fmt: skip
     gap_before = (before.get("gap") or {}).get("total")
     gap_after = (after.get("gap") or {}).get("total")
     return {
         "rows": rows,
-        "values": values,
+        "coefficients": values,
         "in_model": summary["in_model"],
         "gap_before": format_number(gap_before),
         "gap_after": format_number(gap_after) if gap_after is not None else None,

@@ -22,13 +22,10 @@ from imucal.orientation import (
     quat_rotate,
 )
 
-
 #: Dip of the simulated field below the horizon, deg.
 FIELD_DIP_DEG = 60.0
 #: The simulated field in the world (ENU, unit norm): north (+y) and down.
-FIELD_WORLD = np.array(
-    [0.0, np.cos(np.radians(FIELD_DIP_DEG)), -np.sin(np.radians(FIELD_DIP_DEG))]
-)
+FIELD_WORLD = np.array([0.0, np.cos(np.radians(FIELD_DIP_DEG)), -np.sin(np.radians(FIELD_DIP_DEG))])
 
 
 @dataclass(frozen=True)

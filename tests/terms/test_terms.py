@@ -235,3 +235,20 @@ def test_corrected_session_with_no_terms_is_the_session(twin, drift):
     imu, _, fit, _ = drift
     fixed = corrected_session({"cube": imu["cube"]}, fit.calibration, ModelTerms())
     np.testing.assert_allclose(fixed["cube"][list(ACC)], imu["cube"][list(ACC)], atol=1e-12)
+
+
+def test_report_section_lists_the_terms_and_the_gap_before_and_after(drift, tmp_path):
+    from imucal.report.lab import _environment, _terms_section
+
+    (tmp_path / "terms.json").write_text(json.dumps(terms_summary(drift[3])))
+    (tmp_path / "after.json").write_text(
+        json.dumps({"gap": {"total": 1.5}, "remaining": {"total": 0.5}})
+    )
+    (tmp_path / "diagnosis.json").write_text(json.dumps({"gap": {"total": 40.0}}))
+    ctx = _terms_section(
+        [tmp_path / "terms.json", tmp_path / "after.json"], [tmp_path / "diagnosis.json"]
+    )
+    html = _environment().get_template("_terms.html.j2").render(terms=ctx)
+    assert "temperature gyr bias dT^1" in html and "g-sensitivity G" in html
+    assert "Gap before the terms (paper&#39;s model): 40" in html or "paper's model): 40" in html
+    assert "gap 1.5" in html
