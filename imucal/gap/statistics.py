@@ -47,13 +47,19 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.columns import AXES, GYR, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.columns import (
+    AXES,
+    GYR,
+    SENSOR_COLUMNS,
+    SENSORS,
+    SEQ,
+    TIME,
+    temperature_column,
+)
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
 
 HALVES = (None, "A", "B")
-#: Column of the temperature channel when a session has one.
-TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")
 
 
 @dataclass(frozen=True)
@@ -224,10 +230,6 @@ def allan_deviation(x: np.ndarray, m: int) -> np.ndarray:
         return np.full(x.shape[1], np.nan)
     d = c[2 * m :] - 2 * c[m : n + 1 - m] + c[: n + 1 - 2 * m]
     return np.sqrt(np.mean(d**2, axis=0) / (2 * m * m))
-
-
-def temperature_column(table: pd.DataFrame) -> str | None:
-    return next((c for c in TEMPERATURE_COLUMNS if c in table.columns), None)
 
 
 def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, float]:

@@ -415,6 +415,7 @@ def report_inputs(wildcards):
             f"results/{d}/figures/validation_xcorr.png",
         ]
     gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
+    inputs.update(terms=f"results/{d}/terms.json", gap_after=f"results/{d}/gap/after.json")
     noise = noise_report_inputs(d)
     return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
 

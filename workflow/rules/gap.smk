@@ -12,7 +12,9 @@ rule gap_diagnose:
         unpack(ingested),
         dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
-        calibration="results/{dataset}/calibration.json",
+        acc="results/{dataset}/acc.json",
+        gyr="results/{dataset}/gyr.json",
+        mag="results/{dataset}/mag.json",
     output:
         diagnosis="results/{dataset}/gap/diagnosis.json",
         gap_map="results/{dataset}/gap/gap_map.png",
