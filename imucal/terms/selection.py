@@ -68,6 +68,11 @@ class TermSettings:
         """Terms not switched off."""
         return [t for t in TERMS if getattr(self, t) != "off"]
 
+    @property
+    def needs_diagnosis(self) -> bool:
+        """Whether a term is 'auto' (decided on the session's diagnosis)."""
+        return any(getattr(self, t) == "auto" for t in TERMS)
+
 
 def decide(term: str, settings: TermSettings, diagnosis: Mapping | None) -> tuple[bool, str]:
     """Whether ``term`` is to be estimated, and why.

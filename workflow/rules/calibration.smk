@@ -5,13 +5,14 @@
 # The closed loop (imucal.terms, docs/model-terms.md): per term (config `terms`) off, on, or
 # auto when the diagnosis accepts its effect; the included terms are estimated, the session is
 # recalibrated with them and diagnosed again (gap/after.json). Without a term it writes the
-# decisions only and the paper's calibration stands.
+# decisions only and the paper's calibration stands; with no term `auto` it does not wait for
+# the diagnosis.
 rule model_terms:
     input:
         unpack(ingested),
         dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
-        diagnosis="results/{dataset}/gap/diagnosis.json",
+        diagnosis=diagnosis_for_terms,
     output:
         terms="results/{dataset}/terms.json",
         after="results/{dataset}/gap/after.json",

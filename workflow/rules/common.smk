@@ -8,6 +8,7 @@ from snakemake.utils import validate
 
 import imucal
 from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
+from imucal.terms import TermSettings
 from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.partial import is_full_protocol
@@ -128,6 +129,13 @@ def datasets_pattern(full):
         if on_path:
             names.append(name)
     return "|".join(names) if names else "(?!)"
+
+
+def diagnosis_for_terms(wildcards):
+    """The session's diagnosis when a model term is 'auto' (the loop decides on it), else none."""
+    if TermSettings.from_config(config["terms"]).needs_diagnosis:
+        return f"results/{wildcards.dataset}/gap/diagnosis.json"
+    return []
 
 
 def gap_partial_inputs(wildcards):

@@ -28,7 +28,7 @@ result = close_loop(
     reference,
     options,
     segments=segments,
-    diagnosis=read_json(snakemake.input.diagnosis),
+    diagnosis=read_json(recordings["diagnosis"]) if recordings.get("diagnosis") else None,
     settings=TermSettings.from_config(p.terms),
 )
 after = diagnosis_after(
