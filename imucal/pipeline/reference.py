@@ -14,12 +14,21 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
+from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, MAG, QUAT, TIME
-from imucal.fits.reference import fit_gyro_to_reference
+from imucal.fits import magnetometer
+from imucal.fits.reference import fit_gyro_to_reference, fit_mag_to_reference
 from imucal.orientation import quat_conjugate, quat_rotate
+from imucal.uncertainty import (
+    numerical_jacobian,
+    std_of,
+    two_step_covariance,
+    upper_entries,
+    upper_matrix,
+)
 from imucal.validation.orientation import (
     OrientationAlignment,
     align_orientation_reference,
@@ -210,6 +219,83 @@ def fit_acc_reference(
         recordings=list(gyr_reference["recordings"]),
     )
     return artifact
+
+
+def fit_mag_reference(
+    tables: Mapping[str, pd.DataFrame],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    step1: Mapping,
+    gyr_reference: Mapping,
+) -> dict:
+    """Stage ``mag_reference``: the magnetometer's alignment to B from the orientation reference.
+
+    On the recordings the gyroscope was fitted on (``gyr_reference``, their clocks and the
+    fitted mounting), the ellipsoid-fitted magnetometer (``mag_step1``) at each present reference
+    sample is aligned so that the field is one direction in the reference's world
+    (:func:`imucal.fits.reference.fit_mag_to_reference`). The calibration is step 1's with
+    ``T_R``; its covariance joins step 1's, the alignment's own (jackknife), the mounting's (B
+    is where the magnetometer is aligned to) and the alignment's dependence on step 1
+    (``d alpha / d theta`` by refitting with each step-1 parameter moved).
+
+    Returns
+    -------
+    dict
+        The fit (:meth:`~imucal.fits.reference.ReferenceMagFit.to_dict`), ``calibration``,
+        ``recordings``.
+
+    Raises
+    ------
+    ValueError
+        No fitted recording has magnetometer samples, or the fit's own refusals.
+    """
+    step = magnetometer.EllipsoidFit.from_dict(dict(step1))
+    mounting = Rotation.from_matrix(np.asarray(gyr_reference["mounting"]["matrix"], dtype=float))
+    raw, frames, used = [], [], []
+    for name in gyr_reference["recordings"]:
+        if not set(MAG) <= set(tables[name].columns):
+            continue
+        t, mag = _series(tables[name], MAG)
+        if len(t) < 2:
+            continue
+        t_ref, quat = _orientation(references[name][0])
+        tau = _module_time(gyr_reference["alignments"][name]["time"], t_ref)
+        keep = np.all(np.isfinite(quat), axis=1) & (tau >= t[0]) & (tau <= t[-1])
+        raw.append(np.column_stack([np.interp(tau[keep], t, mag[:, k]) for k in range(3)]))
+        # B -> world: the reference body -> world after B -> reference body (M^T)
+        body = Rotation.from_quat(quat[keep][:, [1, 2, 3, 0]])
+        frames.append(body * mounting.inv())
+        used.append(name)
+    if not used:
+        raise ValueError("no recording fitted against the reference has magnetometer samples")
+    samples = np.vstack(raw)
+    to_world = Rotation.concatenate(frames)
+    # at most 20,000 samples, evenly: the neighbours of a 100 Hz+ reference say the same
+    pick = np.unique(np.linspace(0, len(samples) - 1, min(len(samples), 20000)).astype(int))
+    samples, to_world = samples[pick], to_world[pick]
+
+    frame = np.diag(np.asarray(gyr_reference["mounting"]["std_rad"], dtype=float) ** 2)
+
+    def fitted(theta: np.ndarray):
+        field = (samples - theta[6:9]) @ upper_matrix(theta[:6]).T
+        return fit_mag_to_reference(field, to_world, frame)
+
+    theta = np.concatenate([upper_entries(step.upper), step.bias])
+    fit = fitted(theta)
+    sensitivity = numerical_jacobian(lambda x: fitted(x).alpha_rad, theta, rel_step=1e-4)
+    covariance = two_step_covariance(
+        step.upper, step.bias, step.selected.covariance, fit.alpha_rad, fit.alpha_covariance,
+        sensitivity,
+    )  # fmt: skip
+    calibration = SensorCalibration(
+        "mag",
+        step.bias,
+        Rotation.from_rotvec(fit.alpha_rad).as_matrix() @ step.upper,
+        "normalised",
+        std_of(covariance),
+        "ellipsoid fit and T_R against the orientation reference (B of gyr_reference)",
+        covariance,
+    )
+    return {**fit.to_dict(), "calibration": calibration.to_dict(), "recordings": used}
 
 
 def _plain(fit) -> dict:
