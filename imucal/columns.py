@@ -65,3 +65,5 @@ SEGMENT_COLUMNS = (
 )  # fmt: skip
 #: Kinds of segment.
 KINDS = ("static", "phase", "transition", "position", "run")
+#: Column of a temperature channel when a recording has one (the first of these it holds).
+TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")

@@ -47,13 +47,12 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.columns import AXES, GYR, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.columns import AXES, GYR, SENSOR_COLUMNS, SENSORS, SEQ, TEMPERATURE_COLUMNS, TIME
+from imucal.gap.blocks import long_series
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
 
 HALVES = (None, "A", "B")
-#: Column of the temperature channel when a session has one.
-TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")
 
 
 @dataclass(frozen=True)
@@ -296,10 +295,16 @@ def _clipping(fit: SessionFit, half) -> dict:
 
 
 def _noise(fit: SessionFit, half) -> dict:
+    """White noise and the 10 s Allan deviation from the static recording's full-rate rows (its
+    window when it is long); the trend and the Allan deviation at a fifth of the recording from
+    its block means (:func:`imucal.gap.blocks.long_series`: the rows themselves when short)."""
     table = fit.imu["static"]
     t = table[TIME].to_numpy(dtype=float)
     sl = _time_half(len(t), half)
     fs = 1 / np.median(np.diff(t))
+    series, samples, _ = long_series(fit.imu, fit.extra.get("static_blocks"))
+    t_long = series[TIME].to_numpy(dtype=float)
+    sl_long = _time_half(len(t_long), half)
     out = {}
     for s in SENSORS:
         x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl]
@@ -308,18 +313,22 @@ def _noise(fit: SessionFit, half) -> dict:
         x, tt = x[good], tt[good]
         rate = fs if s != "mag" else 1 / np.median(np.diff(tt))
         white = np.std(np.diff(x, axis=0), axis=0) / np.sqrt(2)
-        slope = np.polyfit(tt - tt.mean(), x, 1)[0]
         m10 = max(int(round(10 * rate)), 1)
-        mlong = max(int(len(x) / 5), 1)
+        xl = series[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl_long]
+        tl = t_long[sl_long]
+        good = np.all(np.isfinite(xl), axis=1)
+        xl, tl = xl[good], tl[good]
+        slope = np.polyfit(tl - tl.mean(), xl, 1)[0]
+        mlong = max(int(len(xl) / 5), 1)
+        # the white-noise line at the cluster's number of samples (rows x samples per row)
+        white_long = white / np.sqrt(mlong * samples[s])
         for j, a in enumerate(AXES):
             ad10 = allan_deviation(x[:, [j]], m10)[0]
-            adl = allan_deviation(x[:, [j]], mlong)[0]
+            adl = allan_deviation(xl[:, [j]], mlong)[0]
             out[("noise", s, a, "static", "adev_10s_excess")] = float(
                 np.log(ad10 / (white[j] / np.sqrt(m10)))
             )
-            out[("noise", s, a, "static", "adev_long_excess")] = float(
-                np.log(adl / (white[j] / np.sqrt(mlong)))
-            )
+            out[("noise", s, a, "static", "adev_long_excess")] = float(np.log(adl / white_long[j]))
             out[("noise", s, a, "static", "trend_per_s")] = float(slope[j])
     return out
 
@@ -787,7 +796,7 @@ def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
             rows = rows[rows["rate_dps"] == 0]
         rows = _alternate(rows, half)
         if rec == "static":
-            t = fit.imu[rec][TIME].to_numpy(dtype=float)
+            t = _resting_source(fit, rec)[0][TIME].to_numpy(dtype=float)
             edges = np.linspace(0, len(t), 9).astype(int)
             rows = pd.DataFrame({"start_index": edges[:-1], "end_index": edges[1:],
                                  "start_s": t[edges[:-1]], "end_s": t[edges[1:] - 1]})  # fmt: skip
@@ -840,15 +849,38 @@ def _white_variance(x: np.ndarray, floor: float) -> np.ndarray:
     return np.maximum(np.var(np.diff(x, axis=0), axis=0) / 2, floor) / len(x)
 
 
+def _resting_source(fit: SessionFit, recording: str) -> tuple[pd.DataFrame, float, tuple, dict]:
+    """The rows a recording's resting means are taken from: the table (block means for a long
+    static recording), its first sample's time, the calibrated gyro, acc and mag (n, 3) and
+    the samples per row of each sensor."""
+    if recording != "static":
+        table = fit.imu[recording]
+        cal = tuple(calibrated(fit, recording, s) for s in ("gyr", "acc", "mag"))
+        return table, float(table[TIME].iloc[0]), cal, dict.fromkeys(SENSORS, 1.0)
+    blocks = fit.extra.get("static_blocks")
+    table, samples, start = long_series(fit.imu, blocks)
+    if blocks is None:
+        cal = tuple(calibrated(fit, recording, s) for s in ("gyr", "acc", "mag"))
+        return table, start, cal, samples
+    cache = fit.extra.setdefault("calibrated", {})
+    for s in SENSORS:
+        if ("static blocks", s) not in cache:
+            c = fit.calibration.sensor(s)
+            # the calibration is affine: the calibrated block mean is the block mean calibrated
+            out = c.apply(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), unit=c.unit)
+            out.flags.writeable = False
+            cache[("static blocks", s)] = out
+    cal = tuple(cache[("static blocks", s)] for s in ("gyr", "acc", "mag"))
+    return table, start, cal, samples
+
+
 def resting_means(fit: SessionFit, half) -> RestingMeans:
     """The calibrated means of every resting segment of the session (segments with fewer than 3
     complete gyro and accelerometer samples are skipped)."""
     sens = fit.extra["options"].sensitivity
     rows_out = {k: [] for k in RestingMeans.__dataclass_fields__}
     for rec, rows in resting_rows(fit, half):
-        table = fit.imu[rec]
-        t0 = float(table[TIME].iloc[0])
-        w, a, m = (calibrated(fit, rec, s) for s in ("gyr", "acc", "mag"))
+        table, t0, (w, a, m), samples = _resting_source(fit, rec)
         col = temperature_column(table)
         temp = table[col].to_numpy(dtype=float) if col else None
         for r in rows.itertuples(index=False):
@@ -869,11 +901,10 @@ def resting_means(fit: SessionFit, half) -> RestingMeans:
             rows_out["recording"].append(rec)
             rows_out["mid_s"].append(0.5 * (r.start_s + r.end_s) - t0)
             rows_out["gyr"].append(ws.mean(axis=0))
-            rows_out["gyr_var"].append(_white_variance(ws, float(sens["gyr"]) ** 2 / 12))
+            q_gyr, q_acc = (float(sens[s]) ** 2 / 12 / samples[s] for s in ("gyr", "acc"))
+            rows_out["gyr_var"].append(_white_variance(ws, q_gyr))
             rows_out["acc"].append(as_.mean(axis=0))
-            rows_out["acc_var"].append(
-                float(np.mean(_white_variance(as_, float(sens["acc"]) ** 2 / 12)))
-            )
+            rows_out["acc_var"].append(float(np.mean(_white_variance(as_, q_acc))))
             rows_out["north"].append(north)
             rows_out["east"].append(east)
             rows_out["up"].append(up)
