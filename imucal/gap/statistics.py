@@ -124,10 +124,15 @@ Key = tuple  # (stage, sensor, axis, segment, statistic)
 
 
 def _rows(fit: SessionFit, recording: str, kinds) -> pd.DataFrame:
-    seg = fit.segments
-    kinds = [kinds] if isinstance(kinds, str) else list(kinds)
-    rows = seg[(seg["recording"] == recording) & seg["kind"].isin(kinds)]
-    return rows.sort_values("start_s")
+    """The segments of ``recording`` of the given kind(s) in time order (cached per fit: the
+    statistics ask for the same rows many times; callers select, they never write)."""
+    kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+    cache = fit.extra.setdefault("_cache", {}).setdefault("rows", {})
+    if (recording, kinds) not in cache:
+        seg = fit.segments
+        rows = seg[(seg["recording"] == recording) & seg["kind"].isin(kinds)]
+        cache[(recording, kinds)] = rows.sort_values("start_s")
+    return cache[(recording, kinds)]
 
 
 def _alternate(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
@@ -159,10 +164,15 @@ def _phase_half(labels, half: str | None) -> list:
     return [p for p in labels if (p in ("x", "z")) == (half == "A")]
 
 
+def _bounds(rows: pd.DataFrame) -> zip:
+    """(start_index, end_index) of each row."""
+    return zip(rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int), strict=True)
+
+
 def _means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
     out = []
-    for r in rows.itertuples(index=False):
-        x = table[int(r.start_index) : int(r.end_index)]
+    for a, b in _bounds(rows):
+        x = table[a:b]
         x = x[np.all(np.isfinite(x), axis=1)]
         out.append(x.mean(axis=0) if len(x) else np.full(table.shape[1], np.nan))
     return np.array(out).reshape(-1, table.shape[1])
@@ -876,15 +886,23 @@ def _resting_source(fit: SessionFit, recording: str) -> tuple[pd.DataFrame, floa
 
 def resting_means(fit: SessionFit, half) -> RestingMeans:
     """The calibrated means of every resting segment of the session (segments with fewer than 3
-    complete gyro and accelerometer samples are skipped)."""
+    complete gyro and accelerometer samples are skipped). Cached per fit and half, read-only."""
+    cache = fit.extra.setdefault("_cache", {}).setdefault("resting", {})
+    if half not in cache:
+        cache[half] = _resting_means(fit, half)
+    return cache[half]
+
+
+def _resting_means(fit: SessionFit, half) -> RestingMeans:
     sens = fit.extra["options"].sensitivity
     rows_out = {k: [] for k in RestingMeans.__dataclass_fields__}
     for rec, rows in resting_rows(fit, half):
         table, t0, (w, a, m), samples = _resting_source(fit, rec)
         col = temperature_column(table)
         temp = table[col].to_numpy(dtype=float) if col else None
-        for r in rows.itertuples(index=False):
-            sl = slice(int(r.start_index), int(r.end_index))
+        mids = 0.5 * (rows["start_s"].to_numpy(float) + rows["end_s"].to_numpy(float)) - t0
+        for (start, end), mid in zip(_bounds(rows), mids, strict=True):
+            sl = slice(start, end)
             ws = w[sl][np.all(np.isfinite(w[sl]), axis=1)]
             as_ = a[sl][np.all(np.isfinite(a[sl]), axis=1)]
             if len(ws) < 3 or len(as_) < 3:
@@ -899,7 +917,7 @@ def resting_means(fit: SessionFit, half) -> RestingMeans:
                     up = up_
                     north = np.cross(up, east)
             rows_out["recording"].append(rec)
-            rows_out["mid_s"].append(0.5 * (r.start_s + r.end_s) - t0)
+            rows_out["mid_s"].append(mid)
             rows_out["gyr"].append(ws.mean(axis=0))
             q_gyr, q_acc = (float(sens[s]) ** 2 / 12 / samples[s] for s in ("gyr", "acc"))
             rows_out["gyr_var"].append(_white_variance(ws, q_gyr))
@@ -915,6 +933,8 @@ def resting_means(fit: SessionFit, half) -> RestingMeans:
     vectors = {k: np.array(rows_out[k], dtype=float).reshape(-1, 3)
                for k in ("gyr", "gyr_var", "acc", "north", "east", "up")}  # fmt: skip
     scalars = {k: np.array(rows_out[k], dtype=float) for k in ("mid_s", "acc_var", "temp")}
+    for v in (*vectors.values(), *scalars.values()):
+        v.flags.writeable = False
     return RestingMeans(recording=rows_out["recording"], **vectors, **scalars)
 
 
