@@ -214,11 +214,11 @@ class SmoothingSplines:
         if n < 5 or np.any(np.diff(x) <= 0):
             raise ValueError(f"need >= 5 strictly increasing abscissae, got {n}")
         t = np.r_[[x[0]] * 3, x, [x[-1]] * 3]
-        xb = BSpline.design_matrix(x, t, 3).toarray()
+        xb = BSpline.design_matrix(x, t, 3).tocsr()  # sparse: n x (n + 2), 4 per row
         design = np.zeros((5, n))
         idx = np.arange(n - 4)
         for i in range(1, 4):
-            design[i, 2:-2] = xb[idx + i, idx + 3]
+            design[i, 2:-2] = np.asarray(xb[idx + i, idx + 3]).ravel()
         design[1, 1] = xb[0, 0]
         design[2, :2] = ((x[2] + x[1] - 2 * x[0]) * xb[0, 0], xb[1, 1] + xb[1, 2])
         design[3, :2] = ((x[2] - x[0]) * xb[1, 1], xb[2, 2])
