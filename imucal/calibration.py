@@ -1,22 +1,27 @@
 """Calibration parameters of the three sensors, as frozen dataclasses with a versioned dict form.
 
 ``calibrated = matrix @ (reading - bias)`` with ``reading = counts * sensitivity`` in SI units
-(the magnetometer normalised). Files are written and read by :mod:`imucal.io`.
+(the magnetometer normalised), plus the optional model terms of :mod:`imucal.modelterms`
+(temperature polynomials, g-sensitivity, magnetometer delay). Files are written and read by
+:mod:`imucal.io`. Format 2 adds the key ``terms`` (present only when a term is in the model);
+format 1 files are read as calibrations without terms.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from imucal import errormodel
-from imucal.columns import SENSORS, SI_UNITS
+from imucal.columns import SENSORS, SI_UNITS, TEMPERATURE_COLUMNS
+from imucal.modelterms import ModelTerms
 from imucal.uncertainty import PARAMETERS
 
-#: Version of the calibration file format written by this package.
-FORMAT_VERSION = 1
+#: Version of the calibration file format written by this package (2: optional ``terms``).
+FORMAT_VERSION = 2
 
 CONVENTION = "calibrated = matrix @ (reading - bias); reading = counts * sensitivity"
 FRAME = "B: the rotation axes of the 3-D platform (phase x rotates about x of B, ...)"
@@ -165,21 +170,111 @@ class SensorCalibration:
 
 @dataclass(frozen=True)
 class ImuCalibration:
-    """Calibration of accelerometer, gyroscope and magnetometer, all in frame B."""
+    """Calibration of accelerometer, gyroscope and magnetometer, all in frame B.
+
+    Attributes
+    ----------
+    acc, gyr, mag : SensorCalibration
+        The paper's bias and matrix of each sensor (at the temperature terms' ``reference_c``
+        when the model has them).
+    terms : ModelTerms
+        Optional model terms (none by default).
+    """
 
     acc: SensorCalibration
     gyr: SensorCalibration
     mag: SensorCalibration
+    terms: ModelTerms = field(default_factory=ModelTerms)
 
     def sensor(self, name: str) -> SensorCalibration:
         if name not in SENSORS:
             raise ValueError(f"unknown sensor {name!r}; expected one of {SENSORS}")
         return getattr(self, name)
 
+    def calibrate(
+        self,
+        readings: Mapping[str, np.ndarray],
+        units: Mapping[str, str],
+        *,
+        temp_c: np.ndarray | None = None,
+        source: str = "the recording",
+    ) -> tuple[dict, dict]:
+        """Calibrate the readings of the three sensors with the whole model.
+
+        The paper's ``matrix @ (reading - bias)`` (eq. 11) with every term the model has, in the
+        order of :mod:`imucal.modelterms`.
+
+        Parameters
+        ----------
+        readings : dict of str to ndarray, shape (n, 3)
+            Sensor -> readings in SI units (sensor frame); rows of one sample.
+        units : dict of str to str
+            Sensor -> unit of its readings (must be the calibration's).
+        temp_c : ndarray, shape (n,), optional
+            Temperature of each sample (deg C, finite); required when the model has a
+            temperature term.
+        source : str
+            What the readings come from (a file name), named in errors.
+
+        Returns
+        -------
+        calibrated : dict of str to ndarray, shape (n, 3)
+            Frame B, SI.
+        flags : dict
+            Per sensor with a temperature term, how many samples are outside its calibrated span
+            (within the margin): ``{'temperature': {sensor: {...}}}``; empty without terms.
+
+        Raises
+        ------
+        ValueError
+            For readings in another unit, a temperature term without ``temp_c``, or samples
+            farther outside the calibrated temperature span than its margin.
+        """
+        terms = self.terms
+        flags: dict = {}
+        out = {}
+        for s in SENSORS:
+            cal = self.sensor(s)
+            if units[s] != cal.unit:
+                raise ValueError(
+                    f"{source}: {s} calibration expects readings in {cal.unit!r}, got {units[s]!r}"
+                )
+            values = np.asarray(readings[s], dtype=float)
+            poly = terms.temperature.get(s)
+            if poly is None:
+                out[s] = errormodel.apply(cal.matrix, cal.bias, values)
+                continue
+            if temp_c is None:
+                raise ValueError(
+                    f"{source}: the calibration has a temperature term for {s}; the recording "
+                    f"has no temperature column (expected one of {list(TEMPERATURE_COLUMNS)})"
+                )
+            temp = np.asarray(temp_c, dtype=float)
+            if temp.shape != (len(values),) or not np.all(np.isfinite(temp)):
+                raise ValueError(
+                    f"{source}: the temperature must be a finite value per sample "
+                    f"({len(values)}), got shape {temp.shape}"
+                )
+            flags.setdefault("temperature", {})[s] = poly.check_span(temp, source)
+            drift, scale = poly.drift(temp)
+            bias_free = (values - cal.bias - drift) / (1.0 + scale)
+            out[s] = errormodel.apply(cal.matrix, np.zeros(3), bias_free)
+        if terms.g_sensitivity is not None:
+            out["gyr"] = out["gyr"] - out["acc"] @ terms.g_sensitivity.matrix.T
+        if terms.mag_delay is not None:
+            out["mag"] = out["mag"] - terms.mag_delay.delay_s * np.cross(out["gyr"], out["mag"])
+        return out, flags
+
+    def with_terms(self, terms: ModelTerms) -> ImuCalibration:
+        """The same bias and matrices with ``terms``."""
+        return ImuCalibration(self.acc, self.gyr, self.mag, terms)
+
     def to_dict(self) -> dict:
         out: dict = {"format_version": FORMAT_VERSION, "frame": FRAME, "convention": CONVENTION}
         for s in SENSORS:
             out[s] = self.sensor(s).to_dict()
+        if not self.terms.empty:
+            out["terms"] = self.terms.to_dict()
         return out
 
     @classmethod
@@ -195,4 +290,5 @@ class ImuCalibration:
         missing = [s for s in SENSORS if s not in d]
         if missing:
             raise ValueError(f"calibration lacks the sensors {missing}")
-        return cls(*(SensorCalibration.from_dict(s, d[s]) for s in SENSORS))
+        terms = ModelTerms.from_dict(d["terms"]) if version >= 2 and "terms" in d else ModelTerms()
+        return cls(*(SensorCalibration.from_dict(s, d[s]) for s in SENSORS), terms)

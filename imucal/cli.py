@@ -80,7 +80,9 @@ def _add_apply(sub: argparse._SubParsersAction) -> None:
         help="calibrate an ingested recording with a calibration.json",
         description="Calibrate the acc/gyr/mag columns of an ingested recording (parquet, "
         "results/{dataset}/ingest/{recording}.parquet) to frame B with a calibration.json of "
-        "this package; writes a parquet with the same rows and columns.",
+        "this package, with every model term it has (a temperature term needs the recording's "
+        "temperature column, within the calibrated span plus its margin); writes a parquet "
+        "with the same rows and columns.",
     )
     p.add_argument("calibration", help="calibration.json (results/{dataset}/calibration.json)")
     p.add_argument("recording", help="ingested recording (parquet with imucal metadata)")
@@ -100,7 +102,11 @@ def _run_apply(args: argparse.Namespace) -> int:
 
     table, metadata = read_recording(args.recording)
     calibrated, metadata = apply_calibration(
-        table, metadata, read_calibration(args.calibration), parameter_std=args.parameter_std
+        table,
+        metadata,
+        read_calibration(args.calibration),
+        parameter_std=args.parameter_std,
+        source=args.recording,
     )
     write_recording(calibrated, args.out, metadata)
     print(f"wrote {args.out}: {len(calibrated)} rows calibrated with {args.calibration}")

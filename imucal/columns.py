@@ -33,6 +33,9 @@ QUAT = ("q_w", "q_x", "q_y", "q_z")
 QUAT_SOURCE = ("q_0", "q_1", "q_2", "q_3")
 MATRIX_SOURCE = tuple(f"r_{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 
+#: Column of the temperature channel (deg C) when a recording has one, in order of preference.
+TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")
+
 #: Unit of each sensor after ingest (inside the package everything is SI).
 SI_UNITS = {"acc": "m/s^2", "gyr": "rad/s", "mag": "normalised"}
 
@@ -57,6 +60,11 @@ def sensor_columns(sensor: str) -> tuple[str, str, str]:
         raise ValueError(f"unknown sensor {sensor!r}; expected one of {SENSORS}") from None
 
 
+def temperature_column(table) -> str | None:
+    """The temperature column of ``table`` (a DataFrame), or None when it has none."""
+    return next((c for c in TEMPERATURE_COLUMNS if c in table.columns), None)
+
+
 #: Columns of the segments table (``results/{dataset}/segments.parquet``), in order
 #: (docs/architecture.md).
 SEGMENT_COLUMNS = (
@@ -65,5 +73,3 @@ SEGMENT_COLUMNS = (
 )  # fmt: skip
 #: Kinds of segment.
 KINDS = ("static", "phase", "transition", "position", "run")
-#: Column of a temperature channel when a recording has one (the first of these it holds).
-TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")

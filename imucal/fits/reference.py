@@ -1,4 +1,5 @@
-"""Gyroscope calibration against an orientation reference (motion capture, robot).
+"""Calibration against an orientation reference (motion capture, robot): the gyroscope, and
+the magnetometer's alignment.
 
 The reference's relative rotation over each of its sample intervals, divided by the interval,
 is the mean body rate ``omega_body`` there (:func:`imucal.orientation.body_rates`); the
@@ -18,6 +19,12 @@ plane. Then ``K = Q U`` (QR, positive diagonal) gives the calibration matrix ``U
 (motion-capture glitches at the edges of tracking gaps) are left out and counted. The
 finite-difference rates have coloured errors, so the standard deviations are the larger of the
 formal ones and the delete-a-block jackknife's over :data:`N_BLOCKS` contiguous blocks.
+
+The magnetometer, after its ellipsoid fit (step 1), reads the field's direction in its own
+frame; carried into the reference's world through B (``R_t T_R m_t``) it must be one constant
+direction in an undisturbed field. :func:`fit_mag_to_reference` finds ``T_R`` (the
+magnetometer's step 2 against the reference instead of the platform's phases) and the world
+field by alternating least squares, with a jackknife covariance.
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
+from imucal.uncertainty import numerical_jacobian
 
 #: Residuals beyond this many robust (MAD) standard deviations are outliers.
 OUTLIER_SIGMA = 5.0
@@ -231,3 +239,132 @@ def _propagate(theta: np.ndarray, inv: np.ndarray, var: np.ndarray) -> np.ndarra
             jac[:, i] = (d - np.concatenate([base[:12], np.zeros(3)])) / h
         cov += jac @ (var[j] * inv) @ jac.T
     return np.sqrt(np.diag(cov))
+
+
+# --------------------------------------------------------------------------- magnetometer
+
+
+@dataclass(frozen=True)
+class ReferenceMagFit:
+    """Magnetometer alignment from an orientation reference.
+
+    Attributes
+    ----------
+    alpha_rad : ndarray, shape (3,)
+        Rotation vector of ``T_R``: the ellipsoid-fitted field (step 1) -> B.
+    alpha_covariance : ndarray, shape (3, 3)
+        Its covariance (delete-a-block jackknife).
+    field_world : ndarray, shape (3,)
+        The field's unit direction in the reference's world.
+    residual_median_deg, residual_p95_deg : float
+        Angles between each sample's field carried into the world and ``field_world``.
+    n_samples : int
+    """
+
+    alpha_rad: np.ndarray
+    alpha_covariance: np.ndarray
+    field_world: np.ndarray
+    residual_median_deg: float
+    residual_p95_deg: float
+    n_samples: int
+
+    def to_dict(self) -> dict:
+        return {
+            "alpha_rad": self.alpha_rad.tolist(),
+            "alpha_std_rad": np.sqrt(np.diag(self.alpha_covariance)).tolist(),
+            "alpha_covariance": self.alpha_covariance.tolist(),
+            "field_world": self.field_world.tolist(),
+            "residual_median_deg": self.residual_median_deg,
+            "residual_p95_deg": self.residual_p95_deg,
+            "n_samples": self.n_samples,
+        }
+
+
+def _align_field(field: np.ndarray, to_world: Rotation, iterations: int = 50) -> tuple:
+    """``T_R`` and the world field making ``to_world (T_R field)`` one constant direction.
+
+    Alternates the two least-squares steps of ``sum |m_w - R_t T field_t|^2``: the world field
+    as the mean of the carried directions, then ``T`` by Wahba against ``R_t^T m_w``.
+    """
+    unit = field / np.linalg.norm(field, axis=1, keepdims=True)
+    rotation = Rotation.identity()
+    for _ in range(iterations):
+        carried = to_world.apply(rotation.apply(unit))
+        world = carried.mean(axis=0)
+        world /= np.linalg.norm(world)
+        previous = rotation
+        rotation, _ = Rotation.align_vectors(to_world.apply(world, inverse=True), unit)
+        if (rotation * previous.inv()).magnitude() < 1e-10:
+            break
+    return rotation, world
+
+
+def fit_mag_to_reference(
+    field: np.ndarray, body_to_world: Rotation, frame_covariance: np.ndarray | None = None
+) -> ReferenceMagFit:
+    """``T_R`` of the magnetometer from an orientation reference: the field constant in its world.
+
+    Parameters
+    ----------
+    field : ndarray, shape (n, 3)
+        The magnetometer after its ellipsoid fit (step 1; any norm), at the reference's samples.
+    body_to_world : Rotation
+        ``n`` orientations of B in the reference's world (the reference's orientation times the
+        inverse mounting).
+    frame_covariance : ndarray, shape (3, 3), optional
+        Covariance of a small rotation of B itself (the mounting's uncertainty): B is where the
+        magnetometer is aligned to, so it adds to ``T_R``'s.
+
+    Returns
+    -------
+    ReferenceMagFit
+
+    Raises
+    ------
+    ValueError
+        With fewer than :data:`MIN_INTERVALS` samples, or orientations that do not turn the field
+        about two axes (the alignment is then not determined).
+    """
+    field = np.asarray(field, dtype=float)
+    n = len(field)
+    if n < MIN_INTERVALS:
+        raise ValueError(
+            f"{n} magnetometer samples with the reference; expected at least {MIN_INTERVALS}"
+        )
+    rotation, world = _align_field(field, body_to_world)
+    # the field seen from B: it must sweep more than a cone about one axis
+    seen = body_to_world.apply(world, inverse=True)
+    spread = np.linalg.svd(seen - seen.mean(axis=0), compute_uv=False) / np.sqrt(n)
+    if spread[1] < 0.05:
+        raise ValueError(
+            f"the field seen from B turns about one axis only (spread {spread.tolist()}); "
+            "expected rotations about at least two axes"
+        )
+    blocks = np.array_split(np.arange(n), N_BLOCKS)
+    jack = []
+    for block in blocks:
+        keep = np.setdiff1d(np.arange(n), block)
+        r_k, _ = _align_field(field[keep], body_to_world[keep])
+        jack.append((r_k * rotation.inv()).as_rotvec())
+    jack = np.array(jack)
+    centred = jack - jack.mean(axis=0)
+    # the jackknife of a small rotation of B, carried to the rotation vector alpha (which may be
+    # far from zero: a magnetometer mounted with swapped axes)
+    small = (N_BLOCKS - 1) / N_BLOCKS * centred.T @ centred
+    if frame_covariance is not None:
+        small = small + np.asarray(frame_covariance, dtype=float)
+    to_alpha = numerical_jacobian(
+        lambda d: (Rotation.from_rotvec(d) * rotation).as_rotvec(), np.zeros(3)
+    )
+    covariance = to_alpha @ small @ to_alpha.T
+    unit = field / np.linalg.norm(field, axis=1, keepdims=True)
+    carried = body_to_world.apply(rotation.apply(unit))
+    angles = np.degrees(np.arccos(np.clip(carried @ world, -1.0, 1.0)))
+    return ReferenceMagFit(
+        rotation.as_rotvec(),
+        covariance,
+        world,
+        float(np.median(angles)),
+        float(np.percentile(angles, 95)),
+        n,
+    )

@@ -8,7 +8,7 @@ with this pipeline (large misalignment under the exact rotation), with ``misalig
 
 A session whose calibration chain stops on its data (too few positions, a fit the samples do not
 support), or whose twin cannot be replicated, still gets a diagnosis: the static diagnosis of
-its ``static`` recording (:func:`imucal.gap.static.diagnose_partial_session`), with the reason
+its ``static`` recording (:func:`imucal.gap.composite.diagnose_partial_session`), with the reason
 in ``fallback``; readings clipped at a sensor's range are then ``noted`` as ``saturation``
 (with the fraction per sensor), since clipping shows in the readings without a twin.
 """
@@ -267,7 +267,7 @@ def diagnose(
         twin = build_twin(fit, fit.extra["options"])
         reps = run_replicas(twin, settings.replicas, settings.seed)
     except ValueError as err:
-        from imucal.gap.static import diagnose_partial_session
+        from imucal.gap.composite import diagnose_partial_session
 
         where = (
             "the session's twin cannot be replicated" if fit else "the calibration chain stopped"

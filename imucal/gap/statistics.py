@@ -47,7 +47,15 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.columns import AXES, GYR, SENSOR_COLUMNS, SENSORS, SEQ, TEMPERATURE_COLUMNS, TIME
+from imucal.columns import (
+    AXES,
+    GYR,
+    SENSOR_COLUMNS,
+    SENSORS,
+    SEQ,
+    TIME,
+    temperature_column,
+)
 from imucal.gap.blocks import long_series
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
@@ -110,8 +118,17 @@ STATIC_STATISTICS = {
     "burst_fraction": StatisticInfo("1", floor=2e-3),
     "long_gap_fraction": StatisticInfo("1", floor=2e-4),
 }
-#: Every statistic either diagnosis scores: name -> scoring info.
-CATALOGUE = {**PROTOCOL_STATISTICS, **STATIC_STATISTICS}
+#: Statistics that only recordings with an orientation reference have (:mod:`imucal.gap.motion`;
+#: it also measures ``resid_rms``, ``rate2``, ``rate3`` and ``dir_resid_rad``). The floors of
+#: the slopes are what a calibration against a reference can resolve: a scale of 1e-4, a
+#: g-sensitivity of 2e-5 rad/s per m/s^2 (0.01 deg/s per g, below any datasheet's).
+MOTION_STATISTICS = {
+    "ori_median_rad": StatisticInfo("rad", log=True, floor=0.02),
+    "ref_scale": StatisticInfo("1", floor=1e-4),
+    "ref_g_slope": StatisticInfo("rad/s per m/s^2", floor=2e-5),
+}
+#: Every statistic a diagnosis scores: name -> scoring info.
+CATALOGUE = {**PROTOCOL_STATISTICS, **STATIC_STATISTICS, **MOTION_STATISTICS}
 
 #: Unit "up" directions a cube or V-block can hold (faces, edges, corners), shape (26, 3).
 NOMINAL_DIRECTIONS = np.array([v for v in product((-1, 0, 1), repeat=3) if any(v)], dtype=float)
@@ -224,10 +241,6 @@ def allan_deviation(x: np.ndarray, m: int) -> np.ndarray:
         return np.full(x.shape[1], np.nan)
     d = c[2 * m :] - 2 * c[m : n + 1 - m] + c[: n + 1 - 2 * m]
     return np.sqrt(np.mean(d**2, axis=0) / (2 * m * m))
-
-
-def temperature_column(table: pd.DataFrame) -> str | None:
-    return next((c for c in TEMPERATURE_COLUMNS if c in table.columns), None)
 
 
 def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, float]:

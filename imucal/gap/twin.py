@@ -40,9 +40,9 @@ from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from imucal.calibration import ImuCalibration, SensorCalibration
-from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME, temperature_column
 from imucal.gap.blocks import COUNT_COLUMNS, STATIC_WINDOW_S, StaticBlocks
-from imucal.gap.statistics import HALVES, compute_statistics, temperature_column
+from imucal.gap.statistics import HALVES, compute_statistics
 from imucal.gap.streams import STREAMS, Stream, static_statistics, white_std
 from imucal.ingest import counts_to_si, reference_to_table
 from imucal.io.raw import MtManagerExport
@@ -651,7 +651,8 @@ def quantum(x: np.ndarray) -> float:
     return max(q, float(np.max(np.abs(x))) / INT16_HEADROOM)
 
 
-def _identity(sensor: str) -> SensorCalibration:
+def identity_calibration(sensor: str) -> SensorCalibration:
+    """The calibration that leaves readings as they are (a sensor the session does not calibrate)."""
     unit = {"acc": "m/s^2", "gyr": "rad/s", "mag": "normalised"}[sensor]
     return SensorCalibration(sensor, np.zeros(3), np.eye(3), unit, method="identity (twin)")
 
@@ -686,7 +687,7 @@ def build_static_twin(
             cals[s] = SensorCalibration.from_dict(s, calibration[s])
             notes.append(f"{s}: the session's fitted calibration ({cals[s].method})")
         else:
-            cals[s] = _identity(s)
+            cals[s] = identity_calibration(s)
     noise, sens = {}, {}
     for name, stream in streams.items():
         for s, x in stream.values.items():

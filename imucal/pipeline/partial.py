@@ -376,6 +376,14 @@ def _acc_reference(s: _Session) -> dict:
     )
 
 
+def _mag_reference(s: _Session) -> dict:
+    from imucal.pipeline.reference import fit_mag_reference
+
+    _need("mag_step1" in s.done, "needs the ellipsoid fit (mag_step1)")
+    _need("gyr_reference" in s.done, "needs the gyroscope against the reference (gyr_reference)")
+    return fit_mag_reference(s.tables, s.references, s.done["mag_step1"], s.done["gyr_reference"])
+
+
 def _acc_final(s: _Session) -> SensorCalibration | None:
     for stage in FINAL["acc"]:
         if stage in s.done:
@@ -471,6 +479,7 @@ RUNNERS: dict[str, Callable[[_Session], dict]] = {
     "gyr_known_rotation": _gyr_known_rotation,
     "gyr_reference": _gyr_reference,
     "acc_reference": _acc_reference,
+    "mag_reference": _mag_reference,
     "gyr_pose_to_pose": _gyr_pose_to_pose,
     "gyr_scale": _gyr_scale,
 }
@@ -677,6 +686,8 @@ def full_protocol_stages(
         "platform (an orientation reference is declared on partial sessions' recordings)",
         "acc_reference": "not applicable: the full protocol calibrates the accelerometer with "
         "the cube and the platform",
+        "mag_reference": "not applicable: the full protocol aligns the magnetometer with the "
+        "platform's phases (mag_step2)",
         "gyr_pose_to_pose": "not applicable: the full protocol calibrates the gyroscope with the "
         "platform (and rate table)",
     }

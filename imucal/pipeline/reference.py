@@ -14,20 +14,32 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
+from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
-from imucal.columns import ACC, GYR, QUAT, TIME
-from imucal.fits.reference import fit_gyro_to_reference
+from imucal.columns import ACC, GYR, MAG, QUAT, TIME
+from imucal.fits import magnetometer
+from imucal.fits.reference import fit_gyro_to_reference, fit_mag_to_reference
 from imucal.orientation import quat_conjugate, quat_rotate
+from imucal.uncertainty import (
+    numerical_jacobian,
+    std_of,
+    two_step_covariance,
+    upper_entries,
+    upper_matrix,
+)
 from imucal.validation.orientation import (
     OrientationAlignment,
     align_orientation_reference,
     aligned_intervals,
+    compare_window_errors,
+    field_direction_errors,
     gravity_errors,
     mount_orientation_reference,
     orientation_errors,
     rate_agreement,
+    window_errors,
 )
 from imucal.validation.timing import TimeAlignment
 
@@ -209,6 +221,83 @@ def fit_acc_reference(
     return artifact
 
 
+def fit_mag_reference(
+    tables: Mapping[str, pd.DataFrame],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    step1: Mapping,
+    gyr_reference: Mapping,
+) -> dict:
+    """Stage ``mag_reference``: the magnetometer's alignment to B from the orientation reference.
+
+    On the recordings the gyroscope was fitted on (``gyr_reference``, their clocks and the
+    fitted mounting), the ellipsoid-fitted magnetometer (``mag_step1``) at each present reference
+    sample is aligned so that the field is one direction in the reference's world
+    (:func:`imucal.fits.reference.fit_mag_to_reference`). The calibration is step 1's with
+    ``T_R``; its covariance joins step 1's, the alignment's own (jackknife), the mounting's (B
+    is where the magnetometer is aligned to) and the alignment's dependence on step 1
+    (``d alpha / d theta`` by refitting with each step-1 parameter moved).
+
+    Returns
+    -------
+    dict
+        The fit (:meth:`~imucal.fits.reference.ReferenceMagFit.to_dict`), ``calibration``,
+        ``recordings``.
+
+    Raises
+    ------
+    ValueError
+        No fitted recording has magnetometer samples, or the fit's own refusals.
+    """
+    step = magnetometer.EllipsoidFit.from_dict(dict(step1))
+    mounting = Rotation.from_matrix(np.asarray(gyr_reference["mounting"]["matrix"], dtype=float))
+    raw, frames, used = [], [], []
+    for name in gyr_reference["recordings"]:
+        if not set(MAG) <= set(tables[name].columns):
+            continue
+        t, mag = _series(tables[name], MAG)
+        if len(t) < 2:
+            continue
+        t_ref, quat = _orientation(references[name][0])
+        tau = _module_time(gyr_reference["alignments"][name]["time"], t_ref)
+        keep = np.all(np.isfinite(quat), axis=1) & (tau >= t[0]) & (tau <= t[-1])
+        raw.append(np.column_stack([np.interp(tau[keep], t, mag[:, k]) for k in range(3)]))
+        # B -> world: the reference body -> world after B -> reference body (M^T)
+        body = Rotation.from_quat(quat[keep][:, [1, 2, 3, 0]])
+        frames.append(body * mounting.inv())
+        used.append(name)
+    if not used:
+        raise ValueError("no recording fitted against the reference has magnetometer samples")
+    samples = np.vstack(raw)
+    to_world = Rotation.concatenate(frames)
+    # at most 20,000 samples, evenly: the neighbours of a 100 Hz+ reference say the same
+    pick = np.unique(np.linspace(0, len(samples) - 1, min(len(samples), 20000)).astype(int))
+    samples, to_world = samples[pick], to_world[pick]
+
+    frame = np.diag(np.asarray(gyr_reference["mounting"]["std_rad"], dtype=float) ** 2)
+
+    def fitted(theta: np.ndarray):
+        field = (samples - theta[6:9]) @ upper_matrix(theta[:6]).T
+        return fit_mag_to_reference(field, to_world, frame)
+
+    theta = np.concatenate([upper_entries(step.upper), step.bias])
+    fit = fitted(theta)
+    sensitivity = numerical_jacobian(lambda x: fitted(x).alpha_rad, theta, rel_step=1e-4)
+    covariance = two_step_covariance(
+        step.upper, step.bias, step.selected.covariance, fit.alpha_rad, fit.alpha_covariance,
+        sensitivity,
+    )  # fmt: skip
+    calibration = SensorCalibration(
+        "mag",
+        step.bias,
+        Rotation.from_rotvec(fit.alpha_rad).as_matrix() @ step.upper,
+        "normalised",
+        std_of(covariance),
+        "ellipsoid fit and T_R against the orientation reference (B of gyr_reference)",
+        covariance,
+    )
+    return {**fit.to_dict(), "calibration": calibration.to_dict(), "recordings": used}
+
+
 def _plain(fit) -> dict:
     from imucal.pipeline.stages import plain
 
@@ -224,16 +313,78 @@ def _variant(
     time: TimeAlignment,
     where: str,
     windows_s: Sequence[float],
-) -> tuple[dict, OrientationAlignment]:
+) -> tuple[dict, OrientationAlignment, dict]:
     alignment = mount_orientation_reference(t, gyr_b, t_ref, quat, time, where=where)
     mounting = alignment.mounting.matrix
+    windows = window_errors(t, gyr_b, t_ref, quat, alignment, mounting, windows_s)
     out = {
         "gyroscope": label,
         "mounting": alignment.mounting.to_dict(),
         "rates": rate_agreement(t, gyr_b, t_ref, quat, alignment, mounting),
         "orientation": orientation_errors(t, gyr_b, t_ref, quat, alignment, mounting, windows_s),
     }
-    return out, alignment
+    return out, alignment, windows
+
+
+def _transfer(name: str, windows: Mapping[str, dict], windows_s: Sequence[float]) -> dict:
+    """The calibrated gyroscope against the bias-only one on a held-out recording, per window.
+
+    The criterion is fixed before the data are seen: a paired test over independent windows
+    (:func:`imucal.validation.orientation.compare_window_errors`). A calibration that does worse
+    than its own bias on data it was not fitted on gets a warning: its scale and axes do not
+    carry over (a rate-dependent scale, a reference that lags fast motion, a different mount).
+    """
+    out: dict = {"windows": {}, "warnings": []}
+    for window in windows_s:
+        key = f"{window:g}s"
+        test = compare_window_errors(
+            windows["calibrated"][key], windows["bias"][key], float(window)
+        )
+        out["windows"][key] = test
+        if test["verdict"] == "worse":
+            out["warnings"].append(
+                f"held-out recording {name}: the calibrated gyroscope integrates to a larger "
+                f"orientation error over {key} windows than the bias-only gyroscope (median "
+                f"difference {test['median_difference_deg']:+.3g} deg over "
+                f"{test['n_windows']} independent windows, Wilcoxon p = {test['p_value']:.2g}): "
+                "its scale, non-orthogonality and axes do not carry over to this recording"
+            )
+    return out
+
+
+def _field_directions(
+    table: pd.DataFrame,
+    calibration: Mapping,
+    t_ref: np.ndarray,
+    quat: np.ndarray,
+    alignments: Mapping[str, OrientationAlignment],
+    up: str,
+) -> dict:
+    """Field direction in the reference's world: the magnetometer as read and calibrated.
+
+    The magnetometer as read is carried into the world with the mounting of the gyroscope as
+    read (its axes are nominally those of the gyroscope); the calibrated one, which is in frame
+    B after step 2, with the mounting of the calibrated (else bias-corrected) gyroscope.
+    """
+    t, mag = _series(table, MAG)
+    raw = alignments["raw"]
+    out = {"raw": field_direction_errors(t, mag, t_ref, quat, raw, raw.mounting.matrix, up)}
+    if "mag" in calibration:
+        cal = SensorCalibration.from_dict("mag", calibration["mag"])
+        best = alignments.get("calibrated", alignments.get("bias", raw))
+        out["calibrated"] = field_direction_errors(
+            t, errormodel.apply(cal.matrix, cal.bias, mag), t_ref, quat, best,
+            best.mounting.matrix, up,
+        )  # fmt: skip
+        before, after = out["raw"]["median_deg"], out["calibrated"]["median_deg"]
+        if before is not None and after is not None and after > before:
+            out["warnings"] = [
+                f"the calibrated magnetometer's field direction scatters more about its mean "
+                f"than the magnetometer as read (median {after:.3g} deg against {before:.3g} "
+                "deg): its calibration does not make the field constant in the reference's "
+                "world on this recording"
+            ]
+    return out
 
 
 def validate_references(
@@ -268,7 +419,10 @@ def validate_references(
         mounting angle, orientation error medians per window and gyroscope) and
         ``recordings`` (per recording: ``alignment`` of the raw gyroscope and per gyroscope
         ``raw``, ``bias`` and ``calibrated`` the mounting, per-axis rates and windowed
-        orientation errors; ``gravity`` at rests for the accelerometer as read and calibrated).
+        orientation errors; ``gravity`` at rests for the accelerometer as read and calibrated;
+        ``field``, the magnetometer's direction in the reference's world as read and
+        calibrated; on a held-out recording ``transfer``, the paired test of the calibrated
+        gyroscope against the bias-only one per window, with ``warnings`` when it is worse).
         Every gyroscope gets its own mounting (Wahba) on each recording, so the comparison is
         about scale, non-orthogonality and bias, not about the misalignment.
 
@@ -306,13 +460,19 @@ def validate_references(
         clock = align_orientation_reference(
             t, variants.get("bias", gyr), t_ref, quat, where=where[name]
         ).time
-        alignments = {}
+        alignments, windows = {}, {}
         for label, values in variants.items():
-            record[label], alignments[label] = _variant(
+            record[label], alignments[label], windows[label] = _variant(
                 label, t, values, t_ref, quat, clock, where[name], windows_s
             )
+        if record["held_out"] and {"bias", "calibrated"} <= set(windows):
+            record["transfer"] = _transfer(name, windows, windows_s)
         base = alignments.get("bias", alignments["raw"])
         record["alignment"] = base.to_dict()
+        if "mag_x" in tables[name].columns:
+            record["field"] = _field_directions(
+                tables[name], calibration, t_ref, quat, alignments, meta["up"]
+            )
         rests = segments[
             (segments["recording"] == name) & segments["kind"].isin(["static", "position"])
         ]
@@ -339,6 +499,11 @@ def validate_references(
         out["recordings"][name] = record
         out["summary"][name] = {
             "held_out": record["held_out"],
+            **(
+                {"transfer": {k: v["verdict"] for k, v in record["transfer"]["windows"].items()}}
+                if "transfer" in record
+                else {}
+            ),
             "offset_ms": 1e3 * base.time.offset_s,
             "offset_std_ms": 1e3 * base.time.offset_std_s,
             "drift_ppm": base.time.drift_ppm,

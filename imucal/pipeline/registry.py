@@ -84,6 +84,12 @@ STAGES: dict[str, Stage] = {
             "(positions of known orientation, in the gyroscope's frame B)",
         ),
         Stage(
+            "mag_reference",
+            "mag",
+            "magnetometer alignment T_R to the gyroscope's frame B from the orientation "
+            "reference (the field one direction in its world)",
+        ),
+        Stage(
             "gyr_pose_to_pose",
             "gyr",
             "gyroscope from gravity-direction changes between poses (Tedaldi 2014)",
@@ -100,7 +106,7 @@ STAGES: dict[str, Stage] = {
 VALIDATE = Stage("validate", "all", "validation against the reference", "validation.json")
 #: Per sensor, the stages whose result calibrates it, preferred first.
 FINAL = {
-    "mag": ("mag_step2", "mag_step1"),
+    "mag": ("mag_step2", "mag_reference", "mag_step1"),
     "acc": ("acc_known_orientation", "acc_align", "acc_reference", "acc_cube"),
     "gyr": (
         "gyr_table",

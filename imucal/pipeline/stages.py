@@ -14,6 +14,7 @@ stage-per-rule path; the in-process chain (:mod:`imucal.pipeline.full`) and the 
 from __future__ import annotations
 
 import dataclasses
+import logging
 from collections.abc import Mapping
 
 import numpy as np
@@ -22,7 +23,7 @@ from matplotlib.figure import Figure
 
 from imucal import errormodel, uncertainty
 from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
-from imucal.columns import ACC, AXES, GYR, MAG, PARAMETER_STD_SUFFIX, TIME
+from imucal.columns import ACC, AXES, GYR, MAG, PARAMETER_STD_SUFFIX, TIME, temperature_column
 from imucal.fits import accelerometer, gyroscope
 from imucal.fits.alignment import (
     ALIGNMENT_RULE,
@@ -35,6 +36,8 @@ from imucal.pipeline.outcome import not_run_reason
 from imucal.plots import inertial as inertial_plots
 from imucal.segments.detector import is_clipped
 from imucal.segments.table import cut, rows_of
+
+logger = logging.getLogger(__name__)
 
 #: The paper's Tables I and II (gyroscope bias in rad/s, scale), reference rows of tables.csv.
 PAPER_TABLE_I = {"paper w. tools": (0.0027, 0.1605, 0.0660), "paper LS": (-0.0022, 0.1608, 0.0679)}
@@ -800,19 +803,40 @@ def calibration_of_what_ran(artifacts: Mapping[str, Mapping]) -> dict:
     }  # fmt: skip
 
 
+def _temperature_per_sample(table: pd.DataFrame, source: str) -> np.ndarray | None:
+    """The recording's temperature at every row (deg C), rows without a reading interpolated
+    linearly in time from their neighbours (a channel sampled slower than acc/gyro); None
+    without a temperature column."""
+    col = temperature_column(table)
+    if col is None:
+        return None
+    temp = table[col].to_numpy(dtype=float)
+    ok = np.isfinite(temp)
+    if not ok.any():
+        raise ValueError(f"{source}: the temperature column {col!r} has no finite value")
+    if ok.all():
+        return temp
+    t = table[TIME].to_numpy(dtype=float)
+    return np.interp(t, t[ok], temp[ok])
+
+
 def apply_calibration(
     table: pd.DataFrame,
     metadata: Mapping,
     calibration: ImuCalibration,
     *,
     parameter_std: bool = False,
+    source: str | None = None,
 ) -> tuple[pd.DataFrame, dict]:
     """Calibrate the three sensors of an ingested recording to frame B.
 
-    With ``parameter_std`` the table gains, per calibrated column, the standard deviation that
-    the calibration's parameter covariance gives the sample
+    Every term of the calibration's model is used (:meth:`ImuCalibration.calibrate`); a
+    temperature term takes the recording's temperature column (rows without a reading
+    interpolated in time). With ``parameter_std`` the table gains, per calibrated column, the
+    standard deviation that the calibration's parameter covariance gives the sample
     (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal; column name + ``_param_std``),
-    for sensors whose calibration has a covariance.
+    for sensors whose calibration has a covariance (the bias and matrix only: the terms'
+    standard deviations are in the calibration file, not propagated to the samples).
 
     Parameters
     ----------
@@ -821,40 +845,66 @@ def apply_calibration(
     metadata : dict
         Its metadata; ``units`` names the unit of each sensor and must match the calibration.
     calibration : ImuCalibration
+    source : str, optional
+        Name of the recording in errors (default: the metadata's ``source``).
 
     Returns
     -------
     table : DataFrame
         Same rows and columns, sensor values calibrated (NaN magnetometer rows stay NaN).
     metadata : dict
-        With ``calibrated`` = True.
+        With ``calibrated`` = True, and ``model_terms`` (the terms used) and
+        ``temperature_outside_span`` (per sensor, the fraction of samples outside the
+        calibrated span but within its margin, and the farthest distance in K) when the model
+        has terms.
 
     Raises
     ------
     ValueError
-        If the recording is already calibrated or a sensor is in another unit than the
-        calibration expects.
+        If the recording is already calibrated, a sensor is in another unit than the
+        calibration expects, or the model has a temperature term and the recording has no
+        temperature column or is farther outside the calibrated span than its margin.
     """
+    source = source or str(metadata.get("source", "?"))
     if metadata.get("calibrated"):
-        raise ValueError(f"recording {metadata.get('source', '?')!r} is already calibrated")
+        raise ValueError(f"recording {source!r} is already calibrated")
     units = metadata.get("units", {})
     out = table.copy()
+    readings, unit_of = {}, {}
     for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
         found = {units.get(c) for c in columns}
         if len(found) != 1 or None in found:
             raise ValueError(
-                f"recording {metadata.get('source', '?')!r} states the units {sorted(map(str, found))} "
+                f"recording {source!r} states the units {sorted(map(str, found))} "
                 f"for {list(columns)}; expected one unit per sensor in the ingest metadata"
             )
-        values = table[list(columns)].to_numpy(dtype=float)
+        readings[sensor] = table[list(columns)].to_numpy(dtype=float)
+        unit_of[sensor] = found.pop()
+    temp = _temperature_per_sample(table, source) if calibration.terms.temperature else None
+    values, flags = calibration.calibrate(readings, unit_of, temp_c=temp, source=source)
+    for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
+        out[list(columns)] = values[sensor]
         cal = calibration.sensor(sensor)
-        out[list(columns)] = cal.apply(values, unit=found.pop())
         if parameter_std and cal.covariance is not None:
-            cov = uncertainty.calibrated_covariance(cal.matrix, cal.bias, cal.covariance, values)
+            cov = uncertainty.calibrated_covariance(
+                cal.matrix, cal.bias, cal.covariance, readings[sensor]
+            )
             std = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
             for k, column in enumerate(columns):
                 out[column + PARAMETER_STD_SUFFIX] = std[:, k]
-    return out, {**metadata, "calibrated": True}
+    meta = {**metadata, "calibrated": True}
+    if not calibration.terms.empty:
+        meta["model_terms"] = calibration.terms.names()
+    if "temperature" in flags:
+        meta["temperature_outside_span"] = flags["temperature"]
+        for sensor, f in flags["temperature"].items():
+            if f["outside_fraction"] > 0:
+                logger.warning(
+                    "%s: %.1f %% of the samples are outside the %s calibration's temperature "
+                    "span (up to %.2f K, within the margin): extrapolated",
+                    source, 100 * f["outside_fraction"], sensor, f["max_outside_k"],
+                )  # fmt: skip
+    return out, meta
 
 
 def validate_session(

@@ -590,6 +590,7 @@ def build_report_context(
     generated: str | None = None,
     gap: Sequence[str | Path] | None = None,
     noise: Sequence[str | Path] | None = None,
+    terms: Sequence[str | Path] | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -771,6 +772,61 @@ def build_report_context(
         "benchmarks_total_s": format_number(float(bench["s"].sum()), 4) if len(bench) else None,
         "gap": _gap_section(gap),
         "noise": _noise_section(noise),
+        "terms": _terms_section(terms, gap),
+    }
+
+
+def _plus_minus(value: Any, std: Any) -> str:
+    """``value ± std`` for scalars, vectors and matrices alike."""
+    return f"{format_value(value)} ± {format_value(std, 2)}"
+
+
+def _terms_section(
+    paths: Sequence[str | Path] | None, gap: Sequence[str | Path] | None
+) -> dict | None:
+    """Context of the model-terms partial (``_terms.html.j2``) from terms.json and
+    gap/after.json (in that order), with the gap before from diagnosis.json."""
+    if not paths:
+        return None
+    terms_path, after_path = paths
+    summary = _load_json(terms_path, "model terms")
+    after = _load_json(after_path, "diagnosis after the model terms")
+    before = _load_json(gap[0], "gap diagnosis") if gap else {}
+    rows = [
+        {
+            "term": name,
+            "setting": r["setting"],
+            "included": "in the model" if name in summary["in_model"] else "not in the model",
+            "reason": r["reason"],
+        }
+        for name, r in summary["terms"].items()
+    ]
+    model = (summary.get("calibration") or {}).get("terms", {})
+    values = []
+    for sensor, poly in model.get("temperature", {}).items():
+        for kind in ("bias", "scale"):
+            for k, (c, sd) in enumerate(zip(poly[kind], poly[f"{kind}_std"], strict=True), 1):
+                values.append({"term": f"temperature {sensor} {kind} dT^{k}",
+                               "value": _plus_minus(c, sd), "unit": poly[f"{kind}_unit"]})  # fmt: skip
+    if "g_sensitivity" in model:
+        g = model["g_sensitivity"]
+        values.append({"term": "g-sensitivity G", "value": _plus_minus(g["matrix"], g["std"]),
+                       "unit": g["unit"]})  # fmt: skip
+    if "mag_delay" in model:
+        m = model["mag_delay"]
+        values.append({"term": "magnetometer delay", "value": _plus_minus(m["delay_s"], m["std_s"]),
+                       "unit": m["unit"]})  # fmt: skip
+    gap_before = (before.get("gap") or {}).get("total")
+    gap_after = (after.get("gap") or {}).get("total")
+    return {
+        "rows": rows,
+        "coefficients": values,
+        "in_model": summary["in_model"],
+        "gap_before": format_number(gap_before),
+        "gap_after": format_number(gap_after) if gap_after is not None else None,
+        "remaining_after": format_number((after.get("remaining") or {}).get("total")),
+        "explained_after": list(after.get("explained", [])),
+        "note": after.get("note", ""),
     }
 
 

@@ -22,6 +22,11 @@ from imucal.orientation import (
     quat_rotate,
 )
 
+#: Dip of the simulated field below the horizon, deg.
+FIELD_DIP_DEG = 60.0
+#: The simulated field in the world (ENU, unit norm): north (+y) and down.
+FIELD_WORLD = np.array([0.0, np.cos(np.radians(FIELD_DIP_DEG)), -np.sin(np.radians(FIELD_DIP_DEG))])
+
 
 @dataclass(frozen=True)
 class OrientationSession:
@@ -31,8 +36,9 @@ class OrientationSession:
     ----------
     t_module : ndarray, shape (n,)
         Module times, s.
-    gyr, acc : ndarray, shape (n, 3)
-        Gyroscope and accelerometer readings (rad/s, m/s^2).
+    gyr, acc, mag : ndarray, shape (n, 3)
+        Gyroscope, accelerometer and magnetometer readings (rad/s, m/s^2, field of unit
+        norm).
     t_reference : ndarray, shape (m,)
         Reference times on its clock: ``t_ref = offset_s + (1 + drift_ppm 1e-6) t_module``.
     quat_reference : ndarray, shape (m, 4)
@@ -49,6 +55,7 @@ class OrientationSession:
     t_module: np.ndarray
     gyr: np.ndarray
     acc: np.ndarray
+    mag: np.ndarray
     t_reference: np.ndarray
     quat_reference: np.ndarray
     matrix: np.ndarray
@@ -78,6 +85,9 @@ def simulate_orientation_session(
     acc_matrix: np.ndarray | None = None,
     acc_bias: np.ndarray | None = None,
     acc_noise_m_s2: float = 0.0,
+    mag_matrix: np.ndarray | None = None,
+    mag_bias: np.ndarray | None = None,
+    reference_jitter_s: float = 0.0,
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
@@ -87,6 +97,11 @@ def simulate_orientation_session(
     rotation of ``orientation_noise_rad`` RMS per axis to each orientation. The accelerometer
     reads gravity only (``9.81`` m/s^2 along up, in B), ideal unless ``acc_matrix`` /
     ``acc_bias`` / ``acc_noise_m_s2`` give its errors (``acc_B = acc_matrix (acc - acc_bias)``).
+    The magnetometer reads a constant field of unit norm (:data:`FIELD_WORLD`, dip
+    :data:`FIELD_DIP_DEG` below the horizon towards north, +y), noise-free, ideal unless
+    ``mag_matrix`` / ``mag_bias`` give its errors (``mag_B = mag_matrix (mag - mag_bias)``).
+    The reference's samples are taken at their time stamps plus white jitter of
+    ``reference_jitter_s`` (its own random stream: the other draws do not change).
     """
     rng = np.random.default_rng(seed)
     dt_fine = 1e-3
@@ -123,6 +138,11 @@ def simulate_orientation_session(
     if acc_bias is not None:
         acc = acc + acc_bias
     acc = acc + rng.normal(0, 1, acc.shape) * acc_noise_m_s2
+    mag = quat_rotate(quat_multiply(q_mount, quat_conjugate(q_fine[idx])), FIELD_WORLD)
+    if mag_matrix is not None:
+        mag = np.linalg.solve(mag_matrix, mag.T).T
+    if mag_bias is not None:
+        mag = mag + mag_bias
     # reference clock: sample k at t_ref = k / rate, module time (t_ref - offset) / (1 + drift)
     t_ref_all = np.arange(
         0.0, offset_s + duration_s * (1 + drift_ppm * 1e-6), 1.0 / reference_rate_hz
@@ -130,7 +150,10 @@ def simulate_orientation_session(
     t_mod_of_ref = (t_ref_all - offset_s) / (1 + drift_ppm * 1e-6)
     inside = (t_mod_of_ref >= 0.2) & (t_mod_of_ref <= duration_s - 0.2)
     t_ref, t_mod_of_ref = t_ref_all[inside], t_mod_of_ref[inside]
-    pos = t_mod_of_ref / dt_fine
+    taken = t_mod_of_ref + np.random.default_rng([seed, 1]).normal(
+        0.0, reference_jitter_s, t_mod_of_ref.shape
+    )
+    pos = taken / dt_fine
     i = np.floor(pos).astype(int)
     frac = (pos - i)[:, None]
     q_ref = (1 - frac) * q_fine[i] + frac * q_fine[i + 1]
@@ -144,6 +167,7 @@ def simulate_orientation_session(
         t_module=t_m,
         gyr=gyr,
         acc=acc,
+        mag=mag,
         t_reference=t_ref,
         quat_reference=q_ref,
         matrix=np.asarray(matrix, dtype=float),

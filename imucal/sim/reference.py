@@ -15,6 +15,7 @@ every event appears ``offset_s`` later on the reference's time axis.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +73,7 @@ def render_reference(
     rate_hz: float,
     ticks_start: int,
     rng: np.random.Generator,
+    sample_times: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> pd.DataFrame:
     """The reference's export table covering the module recording ``motion``.
 
@@ -90,6 +92,9 @@ def render_reference(
     ticks_start : int
         ``SampleTimeFine`` of the first sample (10 kHz ticks).
     rng : numpy.random.Generator
+    sample_times : callable, optional
+        Nominal reference times -> the instants the samples are taken at (the effects'
+        ``on_reference_times``); the time stamps stay nominal.
 
     Returns
     -------
@@ -101,7 +106,8 @@ def render_reference(
     n = int(np.floor(clock.reference_time(motion.duration_s) * rate_hz)) + 1
     k = np.arange(n)
     tau = k / rate_hz
-    signals = true_signals(evaluate_motion(motion, clock.module_time(tau)), world)
+    taken = tau if sample_times is None else sample_times(tau)
+    signals = true_signals(evaluate_motion(motion, clock.module_time(taken)), world)
     data: dict = {
         REF_COUNTER: k % SEQ_MODULUS,
         REF_TIME_FINE: ticks_start + np.rint(tau * REF_TICKS_PER_S).astype(np.int64),

@@ -317,6 +317,12 @@ def simulate_session(
     for effect in effects:
         clock = effect.on_reference_clock(clock)
     ref_rng = stream_rng(seed, "reference")
+
+    def sample_times(tau: np.ndarray) -> np.ndarray:
+        for effect in effects:
+            tau = effect.on_reference_times(tau, stream_rng(seed, f"{effect.name}/reference"))
+        return tau
+
     reference = render_reference(
         rendered["rotation3d"].motion,
         truth.world,
@@ -326,6 +332,7 @@ def simulate_session(
         REFERENCE_RATE_HZ,
         int(ref_rng.integers(100_000, 5_000_000)),
         ref_rng,
+        sample_times,
     )
     return Session(
         name, description, seed, truth, config, tuple(effects), sensitivity, plans, logs, clock,

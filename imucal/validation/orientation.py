@@ -294,7 +294,7 @@ def _at(t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def orientation_errors(
+def window_errors(
     t_module: np.ndarray,
     gyr_b: np.ndarray,
     t_reference: np.ndarray,
@@ -303,14 +303,15 @@ def orientation_errors(
     mounting: np.ndarray,
     windows_s: Sequence[float],
     stride_s: float = 1.0,
-) -> dict:
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Orientation change integrated from the gyroscope over windows against the reference's.
 
     For each window ``[s, s + T]`` both ends are reference samples present (not in a gap; what
     happens between them does not matter, nothing is interpolated across a gap), starting every
     ``stride_s``. The gyroscope (frame B) is integrated over the same module-clock interval; the
     error is the angle of ``Q_gyro^-1 M Q_ref M^-1`` with ``Q_ref`` the reference's relative
-    rotation in its body frame.
+    rotation in its body frame. The windows depend on the clock and the reference's gaps only,
+    so two gyroscopes compared with the same clock get the same windows (a paired comparison).
 
     Parameters
     ----------
@@ -324,8 +325,8 @@ def orientation_errors(
     Returns
     -------
     dict
-        Per window (key ``f"{T:g}s"``): ``n``, ``median_deg``, ``rms_deg``, ``p95_deg``,
-        ``max_deg`` (None when no window fits), ``window_s``.
+        Per window (key ``f"{T:g}s"``): ``(starts, errors)``, the reference time of each
+        window's start (s) and its orientation error (deg), shapes (k,).
     """
     t_m, w = _check(t_module, gyr_b, 3, "module")
     keep = np.all(np.isfinite(w), axis=1)
@@ -353,8 +354,86 @@ def orientation_errors(
             rel_r = quat_multiply(quat_conjugate(q_valid[i]), q_valid[j])
             rel_r_b = quat_multiply(quat_multiply(q_mount, rel_r), quat_conjugate(q_mount))
             errors = quat_angle_deg(quat_multiply(quat_conjugate(rel_g), rel_r_b))
-        out[f"{window:g}s"] = _stats(errors) | {"window_s": float(window)}
+        out[f"{window:g}s"] = (tau_start[fits], errors)
     return out
+
+
+def orientation_errors(
+    t_module: np.ndarray,
+    gyr_b: np.ndarray,
+    t_reference: np.ndarray,
+    quat_reference: np.ndarray,
+    alignment: OrientationAlignment,
+    mounting: np.ndarray,
+    windows_s: Sequence[float],
+    stride_s: float = 1.0,
+) -> dict:
+    """Summary of :func:`window_errors` per window.
+
+    Returns
+    -------
+    dict
+        Per window (key ``f"{T:g}s"``): ``n``, ``median_deg``, ``rms_deg``, ``p95_deg``,
+        ``max_deg`` (None when no window fits), ``window_s``.
+    """
+    found = window_errors(
+        t_module, gyr_b, t_reference, quat_reference, alignment, mounting, windows_s, stride_s
+    )
+    return {
+        key: _stats(errors) | {"window_s": float(window)}
+        for (key, (_, errors)), window in zip(found.items(), windows_s)
+    }
+
+
+def compare_window_errors(
+    candidate: tuple[np.ndarray, np.ndarray],
+    baseline: tuple[np.ndarray, np.ndarray],
+    window_s: float,
+    alpha: float = 0.05,
+) -> dict:
+    """Does one gyroscope's orientation error differ from another's over the same windows?
+
+    Windows that overlap share their errors, so only windows at least ``window_s`` apart
+    enter: a greedy choice of non-overlapping windows present in both. Their paired
+    differences go through the Wilcoxon signed-rank test (two-sided; no assumption on the
+    errors' distribution, which is far from normal).
+
+    Parameters
+    ----------
+    candidate, baseline : (starts, errors)
+        As :func:`window_errors` returns them for one window length.
+    window_s : float
+        The window length, s.
+    alpha : float
+        Level of the test.
+
+    Returns
+    -------
+    dict
+        ``n_windows`` (independent pairs), ``median_difference_deg`` (candidate - baseline),
+        ``p_value`` (None with fewer than 6 pairs, too few for the test at 5 %), ``verdict``:
+        ``better``, ``worse``, ``no significant difference`` or ``too few windows``.
+    """
+    from scipy.stats import wilcoxon
+
+    start_c, err_c = candidate
+    start_b, err_b = baseline
+    common, ic, ib = np.intersect1d(start_c, start_b, return_indices=True)
+    chosen, last = [], -np.inf
+    for k, start in enumerate(common):
+        if start >= last + window_s:
+            chosen.append(k)
+            last = start
+    diff = err_c[ic[chosen]] - err_b[ib[chosen]]
+    out = {"n_windows": int(diff.size), "median_difference_deg": None, "p_value": None}
+    if diff.size < 6:
+        return out | {"verdict": "too few windows"}
+    p = float(wilcoxon(diff).pvalue)
+    median = float(np.median(diff))
+    verdict = "no significant difference"
+    if p < alpha:
+        verdict = "better" if median < 0 else "worse"
+    return out | {"median_difference_deg": median, "p_value": p, "verdict": verdict}
 
 
 def _stats(errors: np.ndarray) -> dict:
@@ -422,4 +501,64 @@ def gravity_errors(
         "n": int(found.size),
         "median_deg": float(np.median(found)) if found.size else None,
         "max_deg": float(np.max(found)) if found.size else None,
+    }
+
+
+def field_direction_errors(
+    t_module: np.ndarray,
+    mag_b: np.ndarray,
+    t_reference: np.ndarray,
+    quat_reference: np.ndarray,
+    alignment: OrientationAlignment,
+    mounting: np.ndarray,
+    up: str,
+) -> dict:
+    """The magnetometer's field direction carried into the reference's world: is it constant?
+
+    At every present reference sample the magnetometer (interpolated to it on the module
+    clock, never across a gap of the reference since only present samples enter) is rotated
+    into the world, ``m_w = R_ref M^T m_B``. In an undisturbed field ``m_w`` is one constant
+    direction; its scatter about the mean direction measures what the magnetometer's
+    calibration (hard and soft iron, its alignment to the gyroscope's frame B) leaves, together
+    with field disturbances of the room.
+
+    Parameters
+    ----------
+    t_module, mag_b : shapes (n,), (n, 3)
+        Module times (s) and magnetometer in frame B (any unit: only directions count).
+    t_reference, quat_reference, alignment, mounting
+        As in :func:`rate_agreement`.
+    up : str
+        The reference world's up axis (``+z`` for ENU), for the dip angle.
+
+    Returns
+    -------
+    dict
+        ``n`` (reference samples used), ``median_deg``, ``p95_deg``, ``max_deg`` of the angle
+        between ``m_w`` and its mean direction, and ``dip_deg`` of the mean direction (positive
+        below the horizon); None values when no sample overlaps.
+    """
+    t_m, m = _check(t_module, mag_b, 3, "module")
+    keep = np.all(np.isfinite(m), axis=1)
+    t_m, m = t_m[keep], m[keep]
+    t_r, q_r = _check(t_reference, quat_reference, 4, "reference")
+    tau = alignment.to_module_time(t_r)
+    use = np.all(np.isfinite(q_r), axis=1) & (tau >= t_m[0]) & (tau <= t_m[-1])
+    if not use.any():
+        return {"n": 0, "median_deg": None, "p95_deg": None, "max_deg": None, "dip_deg": None}
+    m_at = np.column_stack([np.interp(tau[use], t_m, m[:, k]) for k in range(3)])
+    body = m_at @ np.asarray(mounting, dtype=float)  # rows M^T m_B
+    world = quat_rotate(q_r[use], body)
+    world /= np.linalg.norm(world, axis=1, keepdims=True)
+    mean = world.mean(axis=0)
+    mean /= np.linalg.norm(mean)
+    angles = np.degrees(np.arccos(np.clip(world @ mean, -1.0, 1.0)))
+    up_world = np.zeros(3)
+    up_world["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    return {
+        "n": int(angles.size),
+        "median_deg": float(np.median(angles)),
+        "p95_deg": float(np.percentile(angles, 95)),
+        "max_deg": float(np.max(angles)),
+        "dip_deg": float(np.degrees(np.arcsin(np.clip(-mean @ up_world, -1.0, 1.0)))),
     }

@@ -14,7 +14,8 @@ import pytest
 
 from imucal.columns import SENSOR_COLUMNS, TIME
 from imucal.gap import DiagnosisSettings
-from imucal.gap.static import diagnose_partial_session, diagnose_static
+from imucal.gap.composite import diagnose_partial_session
+from imucal.gap.static import diagnose_static
 from imucal.gap.streams import split_streams
 from imucal.gap.twin import StaticTwin, render_static
 from imucal.sim import make_effect, make_truth
@@ -104,7 +105,7 @@ def test_a_session_without_static_recording_says_why():
         settings=DiagnosisSettings(replicas=5, seed=0, crn_seeds=2),
     )  # fmt: skip
     assert d["explained"] == [] and d["locations"] == [] and d["scope"] == "none"
-    assert "no static recording" in d["reason"]
+    assert "neither a static recording nor a recording with an orientation reference" in d["reason"]
 
 
 def test_too_few_replicas_are_refused():

@@ -9,7 +9,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.columns import ACC, GYR, QUAT, SEGMENT_COLUMNS, TIME
+from imucal.calibration import SensorCalibration
+from imucal.columns import ACC, GYR, MAG, QUAT, SEGMENT_COLUMNS, TIME
 from imucal.pipeline import partial
 from imucal.pipeline.reference import validate_references
 from imucal.sim.orientation import simulate_orientation_session
@@ -19,11 +20,14 @@ BIAS = np.array([0.015, -0.01, 0.02])
 MOUNTING = Rotation.from_rotvec([0.2, 0.4, -0.9]).as_matrix()
 ACC_MATRIX = errormodel.compose([1.02, 0.99, 0.98], [0.003, 0.002, -0.004], [0.01, -0.02, 0.015])
 ACC_BIAS = np.array([0.1, -0.05, 0.2])
+#: The magnetometer's soft iron, non-orthogonality and misalignment to the gyroscope's axes.
+MAG_MATRIX = errormodel.compose([1.1, 0.9, 1.05], [0.02, -0.03, 0.01], [0.05, -0.04, 0.1])
+MAG_BIAS = np.array([0.3, -0.2, 0.4])
 
 
 def as_tables(session, name):
     table = pd.DataFrame({TIME: session.t_module, **dict(zip(ACC, session.acc.T)),
-                          **dict(zip(GYR, session.gyr.T))})  # fmt: skip
+                          **dict(zip(GYR, session.gyr.T)), **dict(zip(MAG, session.mag.T))})  # fmt: skip
     reference = pd.DataFrame(
         {TIME: session.t_reference, **dict(zip(QUAT, session.quat_reference.T))}
     )
@@ -42,9 +46,11 @@ def chain():
     fit = simulate_orientation_session(21, matrix=MATRIX, bias=BIAS, mounting=MOUNTING,
                                        offset_s=0.8, drift_ppm=30.0, duration_s=240.0,
                                        acc_matrix=ACC_MATRIX, acc_bias=ACC_BIAS,
-                                       acc_noise_m_s2=0.02)  # fmt: skip
+                                       acc_noise_m_s2=0.02, mag_matrix=MAG_MATRIX,
+                                       mag_bias=MAG_BIAS)  # fmt: skip
     held = simulate_orientation_session(22, matrix=MATRIX, bias=BIAS, mounting=MOUNTING,
-                                        offset_s=-0.4, reference_rate_hz=100.0)  # fmt: skip
+                                        offset_s=-0.4, reference_rate_hz=100.0,
+                                        mag_matrix=MAG_MATRIX, mag_bias=MAG_BIAS)  # fmt: skip
     t_fit, r_fit, s_fit = as_tables(fit, "tumble")
     t_held, r_held, s_held = as_tables(held, "poses")
     tables = {"tumble": t_fit, "poses": t_held}
@@ -90,6 +96,45 @@ def test_held_out_validation_raw_bias_calibrated(chain):
     record = result["recordings"]["poses"]
     assert record["calibrated"]["rates"]["x"]["slope"] == pytest.approx(1.0, abs=2e-3)
     assert record["gravity"]["raw"]["n"] == len(segments.query("recording == 'poses'"))
+    # the calibration carries over: the paired test says so and warns of nothing
+    assert record["transfer"]["windows"]["10s"]["verdict"] == "better"
+    assert record["transfer"]["warnings"] == []
+    assert held["transfer"] == {"1s": "better", "10s": "better"}
+    assert "transfer" not in result["recordings"]["tumble"]  # fitted on: no held-out test
+
+
+def test_mag_reference_aligns_the_magnetometer_to_the_gyroscope(chain):
+    _, _, _, outcomes = chain
+    done = {o.name: o for o in outcomes}
+    assert done["mag_step2"].status == "skipped"  # no rotation3d phases
+    assert done["mag_reference"].status == "run", done["mag_reference"].reason
+    final = partial.final_calibration(outcomes)["sensors"]["mag"]
+    assert final["stage"] == "mag_reference"
+    cal = SensorCalibration.from_dict("mag", final["calibration"])
+    np.testing.assert_allclose(cal.bias, MAG_BIAS, atol=2e-3)
+    np.testing.assert_allclose(cal.matrix, MAG_MATRIX, atol=2e-3)
+    # and the reported uncertainty covers the error (4 sigma per entry, the jackknife's blocks
+    # of a correlated reference are few)
+    std = np.asarray(cal.std["matrix"])
+    assert np.all(np.abs(cal.matrix - MAG_MATRIX) < 4 * std + 1e-4)
+
+
+def test_field_direction_as_read_and_calibrated(chain):
+    tables, references, segments, outcomes = chain
+    final = partial.final_calibration(outcomes)
+    calibration = {s: e["calibration"] for s, e in final["sensors"].items()}
+    result = validate_references(tables, references, segments, calibration, None,
+                                 {n: n for n in tables}, windows_s=(10.0,))  # fmt: skip
+    field = result["recordings"]["poses"]["field"]
+    # as read, the hard iron (|b| ~ 0.54 of the field) turns with the body: tens of degrees;
+    # calibrated on the other recording, the alignment's error remains (about 0.1 deg)
+    assert field["calibrated"]["median_deg"] < 0.3 < 10.0 < field["raw"]["median_deg"]
+    assert "warnings" not in field
+    # a calibration that makes it worse is said to
+    wrong = SensorCalibration("mag", -MAG_BIAS, MAG_MATRIX, "normalised").to_dict()
+    worse = validate_references(tables, references, segments, calibration | {"mag": wrong},
+                                None, {n: n for n in tables}, windows_s=(10.0,))  # fmt: skip
+    assert "scatters more" in worse["recordings"]["poses"]["field"]["warnings"][0]
 
 
 def test_every_reference_held_out_skips_the_stage(chain):

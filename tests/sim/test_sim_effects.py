@@ -26,6 +26,7 @@ from imucal.sim.effects import (
     EFFECTS,
     PROTOCOL_EFFECTS,
     REALISTIC,
+    REFERENCE_EFFECTS,
     make_effect,
     parse_effect,
     platform_yaw,
@@ -92,9 +93,10 @@ def count_tol(session, sensor: str, n: int) -> float:
 # --- the table ------------------------------------------------------------------------------
 
 
-def test_all_14_effects_are_registered_with_realistic_defaults_and_a_magnitude():
-    assert len(CANONICAL) == 14 and sorted(CANONICAL + PROTOCOL_EFFECTS) == sorted(EFFECTS)
-    for name in CANONICAL + PROTOCOL_EFFECTS:
+def test_all_16_effects_are_registered_with_realistic_defaults_and_a_magnitude():
+    every = CANONICAL + PROTOCOL_EFFECTS + REFERENCE_EFFECTS
+    assert len(CANONICAL) == 14 and sorted(every) == sorted(EFFECTS) and len(every) == 16
+    for name in every:
         effect = make_effect(name)
         assert REALISTIC[name] == effect.params() == EFFECTS[name].realistic()
         m = effect.magnitude()
@@ -295,6 +297,21 @@ def test_time_offset_shifts_the_reference_only(truth, base):
     sigma = truth.reference_noise["gyr"]
     assert rms(w_on[shift : shift + n], w_off[:n]) < 1.5 * math.sqrt(2) * sigma
     assert rms(w_on[:n], w_off[:n]) > 10 * sigma
+
+
+def test_reference_jitter_moves_the_reference_samples_only(truth, base):
+    jitter = make_effect("reference_jitter", std_s=2e-3)
+    taken = jitter.on_reference_times(np.zeros(20000), stream_rng(1, "x"))
+    assert np.std(taken) == pytest.approx(2e-3, rel=0.03) and abs(np.mean(taken)) < 1e-4
+    on = render(truth, jitter)
+    assert same_counts(on, base)
+    stamps = ["PacketCounter", "SampleTimeFine"]
+    np.testing.assert_array_equal(on.reference[stamps], base.reference[stamps])
+    # where the rate changes the jittered samples differ from the nominal ones by about
+    # omega_dot e (the reference's white noise is the same draw in both)
+    cols = ["Gyr_X", "Gyr_Y", "Gyr_Z"]
+    moved = np.abs(on.reference[cols].to_numpy() - base.reference[cols].to_numpy()).max(axis=1)
+    assert 0 < np.count_nonzero(moved > 1e-9) < len(moved)
 
 
 def test_packet_loss_leaves_seq_gaps_and_the_kept_rows_untouched(truth, base):

@@ -9,12 +9,15 @@ from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.orientation import body_rates, integrate_rates, quat_conjugate
-from imucal.sim.orientation import simulate_orientation_session
+from imucal.sim.orientation import FIELD_DIP_DEG, simulate_orientation_session
 from imucal.validation.orientation import (
     align_orientation_reference,
+    compare_window_errors,
+    field_direction_errors,
     gravity_errors,
     orientation_errors,
     rate_agreement,
+    window_errors,
 )
 
 MATRIX = errormodel.compose([1.02, 0.97, 1.01], [0.004, -0.006, 0.003], [0.0, 0.0, 0.0])
@@ -116,3 +119,52 @@ def test_metrics_calibrated_against_raw(session):
     )
     assert grav["n"] == len(s.rests_s)
     assert grav["max_deg"] < 0.05  # the reference noise averaged over a rest
+
+
+def test_field_direction_constant_only_once_calibrated():
+    mag_matrix = errormodel.compose([1.1, 0.9, 1.05], [0.02, -0.03, 0.01], [0.0, 0.0, 0.0])
+    mag_bias = np.array([0.3, -0.2, 0.4])  # hard iron of the order of the field
+    s = simulate_orientation_session(
+        3, matrix=MATRIX, bias=BIAS, mounting=MOUNTING, mag_matrix=mag_matrix, mag_bias=mag_bias
+    )
+    calibrated = errormodel.apply(MATRIX, BIAS, s.gyr)
+    al = align_orientation_reference(s.t_module, calibrated, s.t_reference, s.quat_reference)
+    mag_b = errormodel.apply(mag_matrix, mag_bias, s.mag)
+    cal = field_direction_errors(s.t_module, mag_b, s.t_reference, s.quat_reference, al,
+                                 MOUNTING, "+z")  # fmt: skip
+    raw = field_direction_errors(s.t_module, s.mag, s.t_reference, s.quat_reference, al,
+                                 MOUNTING, "+z")  # fmt: skip
+    # calibrated: the reference's orientation noise (0.0005 rad per axis, a 2-D angle of
+    # median 1.18 sigma = 0.034 deg) and the mounting's error (< 0.1 deg) remain
+    assert cal["median_deg"] < 0.1
+    assert cal["dip_deg"] == pytest.approx(FIELD_DIP_DEG, abs=0.1)
+    assert cal["n"] > 0.9 * np.count_nonzero(np.all(np.isfinite(s.quat_reference), axis=1))
+    # as read, the hard iron (|b| ~ 0.54 of the field) turns with the body: tens of degrees
+    assert raw["median_deg"] > 10.0
+
+
+def test_window_comparison_finds_the_worse_gyroscope(session):
+    s = session
+    calibrated = errormodel.apply(MATRIX, BIAS, s.gyr)
+    al = align_orientation_reference(s.t_module, calibrated, s.t_reference, s.quat_reference)
+    # a scale error of 1 % on every axis: ~2 rad/s x 10 s x 1 % = 11 deg per 10 s window
+    scaled = 1.01 * calibrated
+    good = window_errors(s.t_module, calibrated, s.t_reference, s.quat_reference, al,
+                         MOUNTING, (10.0,))["10s"]  # fmt: skip
+    bad = window_errors(s.t_module, scaled, s.t_reference, s.quat_reference, al,
+                        MOUNTING, (10.0,))["10s"]  # fmt: skip
+    worse = compare_window_errors(bad, good, 10.0)
+    assert worse["verdict"] == "worse" and worse["median_difference_deg"] > 0
+    assert compare_window_errors(good, bad, 10.0)["verdict"] == "better"
+    # only independent windows enter: 120 s holds at most 12 of 10 s
+    assert 6 <= worse["n_windows"] <= 12
+    # two gyroscopes equal but for their own white noise of the same level: no difference
+    rng = np.random.default_rng(1)
+    one, two = (
+        window_errors(s.t_module, calibrated + rng.normal(0, 0.01, calibrated.shape),
+                      s.t_reference, s.quat_reference, al, MOUNTING, (10.0,))["10s"]
+        for _ in range(2)
+    )  # fmt: skip
+    assert compare_window_errors(one, two, 10.0)["verdict"] == "no significant difference"
+    few = compare_window_errors(bad, good, 30.0)
+    assert few["verdict"] == "too few windows" and few["p_value"] is None

@@ -1,4 +1,36 @@
-# The combined calibration of all three sensors in frame B, and applying it to a recording.
+# The combined calibration of all three sensors in frame B (with the model terms the closed
+# loop includes), and applying it to a recording.
+
+
+# The closed loop (imucal.terms, docs/model-terms.md): per term (config `terms`) off, on, or
+# auto when the diagnosis accepts its effect; the included terms are estimated, the session is
+# recalibrated with them and diagnosed again (gap/after.json). Without a term it writes the
+# decisions only and the paper's calibration stands; with no term `auto` it does not wait for
+# the diagnosis.
+rule model_terms:
+    input:
+        unpack(ingested),
+        dataset_yaml=dataset_yaml,
+        segments="results/{dataset}/segments.parquet",
+        diagnosis=diagnosis_for_terms,
+    output:
+        terms="results/{dataset}/terms.json",
+        after="results/{dataset}/gap/after.json",
+    log:
+        "results/{dataset}/logs/model_terms.log",
+    benchmark:
+        "results/{dataset}/benchmarks/model_terms.tsv"
+    wildcard_constraints:
+        dataset=datasets_pattern(full=True),
+    conda:
+        "../envs/imucal.yaml"
+    params:
+        terms=config["terms"],
+        settings=diagnosis_settings(),
+        pipeline=PIPELINE_SETTINGS,
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/model_terms.py"
 
 
 rule calibration:
@@ -6,6 +38,7 @@ rule calibration:
         acc="results/{dataset}/acc.json",
         gyr="results/{dataset}/gyr.json",
         mag="results/{dataset}/mag.json",
+        terms="results/{dataset}/terms.json",
     output:
         calibration=report(
             "results/{dataset}/calibration.json",

@@ -8,6 +8,7 @@ from snakemake.utils import validate
 
 import imucal
 from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
+from imucal.terms import TermSettings
 from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.partial import is_full_protocol
@@ -130,12 +131,24 @@ def datasets_pattern(full):
     return "|".join(names) if names else "(?!)"
 
 
+def diagnosis_for_terms(wildcards):
+    """The session's diagnosis when a model term is 'auto' (the loop decides on it), else none."""
+    if TermSettings.from_config(config["terms"]).needs_diagnosis:
+        return f"results/{wildcards.dataset}/gap/diagnosis.json"
+    return []
+
+
 def gap_partial_inputs(wildcards):
-    """A partial session's calibration, and its static recording when it has one."""
+    """A partial session's calibration, its static recording when it has one, and its
+    recordings with an orientation reference (with the references and the segments)."""
     d = wildcards.dataset
     inputs = {"calibration": f"results/{d}/partial/calibration.json"}
     if has_recording(wildcards, "static"):
         inputs["static"] = f"results/{d}/ingest/static.parquet"
+    if dataset_info(wildcards).orientation_references:
+        inputs |= {f"moving_{n}": p for n, p in orientation_recordings(wildcards).items()}
+        inputs["orientation"] = orientation_references(wildcards)
+        inputs["segments"] = f"results/{d}/segments.parquet"
     return inputs
 
 
@@ -410,6 +423,7 @@ def report_inputs(wildcards):
             f"results/{d}/figures/validation_xcorr.png",
         ]
     gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
+    inputs.update(terms=f"results/{d}/terms.json", gap_after=f"results/{d}/gap/after.json")
     noise = noise_report_inputs(d)
     return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
 

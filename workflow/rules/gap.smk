@@ -12,7 +12,9 @@ rule gap_diagnose:
         unpack(ingested),
         dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
-        calibration="results/{dataset}/calibration.json",
+        acc="results/{dataset}/acc.json",
+        gyr="results/{dataset}/gyr.json",
+        mag="results/{dataset}/mag.json",
     output:
         diagnosis="results/{dataset}/gap/diagnosis.json",
         gap_map="results/{dataset}/gap/gap_map.png",
@@ -53,6 +55,7 @@ rule gap_diagnose_partial:
         "../envs/imucal.yaml"
     params:
         settings=diagnosis_settings(),
+        windows_s=config["reference"]["windows_s"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_diagnose_partial.py"

@@ -1,11 +1,12 @@
 """Rule calibration: calibration.json of the three sensors in frame B (with the reason for a
-sensor whose stages did not run)."""
+sensor whose stages did not run), or the closed loop's recalibration with its model terms."""
 
 import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_json, write_json
 from imucal.pipeline.stages import calibration_of_what_ran
+from imucal.terms import final_calibration
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -13,4 +14,5 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
 artifacts = {sensor: read_json(snakemake.input[sensor]) for sensor in ("acc", "gyr", "mag")}
-write_json(calibration_of_what_ran(artifacts), snakemake.output.calibration)
+paper = calibration_of_what_ran(artifacts)
+write_json(final_calibration(paper, read_json(snakemake.input.terms)), snakemake.output.calibration)

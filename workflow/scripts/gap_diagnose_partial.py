@@ -1,13 +1,14 @@
-"""Rule gap_diagnose_partial: the gap diagnosis of a partial session (imucal.gap.static)."""
+"""Rule gap_diagnose_partial: the gap diagnosis of a partial session (imucal.gap.composite)."""
 
 import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.gap import DiagnosisSettings
+from imucal.gap.composite import diagnose_partial_session
 from imucal.gap.figures import plot_effects, plot_gap_map
-from imucal.gap.static import diagnose_partial_session
-from imucal.io import read_json, read_recording, write_json
+from imucal.gap.motion import motion_part
+from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 
 if TYPE_CHECKING:
@@ -16,10 +17,28 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 info = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 inputs = dict(snakemake.input.items())
+calibration = read_json(snakemake.input.calibration)
+motion = None
+if "orientation" in inputs:
+    references = {}
+    for path in snakemake.input.orientation:
+        table, metadata = read_recording(path)
+        references[metadata["recording"]] = (table, metadata)
+    motion = motion_part(
+        {name: read_recording(inputs[f"moving_{name}"])[0] for name in references},
+        references,
+        calibration,
+        read_segments(snakemake.input.segments),
+        {name: info.reference_where(name) for name in references},
+        info.sensitivity,
+        info.gravity_m_s2,
+        snakemake.params.windows_s,
+    )
 result = diagnose_partial_session(
     read_recording(inputs["static"])[0] if "static" in inputs else None,
+    motion=motion,
     dataset=snakemake.wildcards.dataset,
-    calibration=read_json(snakemake.input.calibration),
+    calibration=calibration,
     sensitivity=info.sensitivity,
     gravity_m_s2=info.gravity_m_s2,
     settings=DiagnosisSettings.from_config(snakemake.params.settings),

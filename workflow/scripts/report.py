@@ -33,5 +33,8 @@ context = build_report_context(
     imucal_version=snakemake.params.imucal_version,
     gap=list(snakemake.input.gap) if "gap" in snakemake.input.keys() else None,  # noqa: SIM118
     noise=list(snakemake.input.noise) if "noise" in snakemake.input.keys() else None,  # noqa: SIM118
+    terms=[snakemake.input.terms, snakemake.input.gap_after]
+    if "terms" in snakemake.input.keys()  # noqa: SIM118
+    else None,
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")

@@ -25,7 +25,7 @@ from imucal.sim.effects.sensor import (
     ScaleNonlinearity,
     TemperatureDrift,
 )
-from imucal.sim.effects.timing import PacketLoss, TimeOffset, TimingJitter
+from imucal.sim.effects.timing import PacketLoss, ReferenceJitter, TimeOffset, TimingJitter
 
 #: The canonical effects of the diagnosis, in the order of docs/simulator.md.
 CANONICAL = (
@@ -49,8 +49,14 @@ CANONICAL = (
 #: (a module held by hand); the gap diagnosis has no model of them.
 PROTOCOL_EFFECTS = ("hand_tremor",)
 
+#: Effects of a reference system rather than of the module; the diagnosis models them where the
+#: reference is compared sample by sample with the gyroscope (:mod:`imucal.gap.motion`).
+REFERENCE_EFFECTS = ("reference_jitter",)
+
 #: Effect name -> its typical realistic parameters (MEMS-class module, MTx-class reference).
-REALISTIC = {name: EFFECTS[name].realistic() for name in CANONICAL + PROTOCOL_EFFECTS}
+REALISTIC = {
+    name: EFFECTS[name].realistic() for name in CANONICAL + PROTOCOL_EFFECTS + REFERENCE_EFFECTS
+}
 
 __all__ = [
     "CANONICAL",
@@ -58,6 +64,7 @@ __all__ = [
     "PLACEMENT_CONVENTION",
     "PROTOCOL_EFFECTS",
     "REALISTIC",
+    "REFERENCE_EFFECTS",
     "BiasInstability",
     "EarthRotation",
     "Effect",
@@ -68,6 +75,7 @@ __all__ = [
     "MagLatency",
     "Magnitude",
     "PacketLoss",
+    "ReferenceJitter",
     "PlacementError",
     "PlatformMagnetic",
     "RecordingContext",

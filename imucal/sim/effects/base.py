@@ -16,10 +16,12 @@ hook                        level
 ``on_readings``             sensor readings in SI before quantisation (drift, g-sensitivity, ...)
 ``on_packets``              the packet log: rows, timestamps, counter, extra columns
 ``on_reference_clock``      the reference's clock (offset, drift)
+``on_reference_times``      the instants a reference's samples are taken at, against their
+                            nominal time stamps (``reference_jitter``)
 ``dataset_overrides``       keys of dataset.yaml the effect changes (e.g. ``range_counts``)
 ==========================  =====================================================================
 
-The truth hook runs once, the IMU hooks for every IMU recording, the reference hook once. At each hook the effects run
+The truth hook runs once, the IMU hooks for every IMU recording, the reference hooks once per reference. At each hook the effects run
 in the order given, stably sorted by their class attribute ``priority`` (default 0; an effect that
 must act last at its level, such as ``saturation`` at the ADC, has a higher one). Each effect draws its random numbers from its own stream (:meth:`RecordingContext.rng`
 keyed by effect name and recording), so switching one effect on or off leaves the random numbers
@@ -152,6 +154,11 @@ class Effect:
 
     def on_reference_clock(self, clock: ReferenceClock) -> ReferenceClock:
         return clock
+
+    def on_reference_times(self, tau_s: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The instants (s) the reference's samples stamped ``tau_s`` are taken at; ``rng`` is
+        the effect's own stream."""
+        return tau_s
 
     def dataset_overrides(self) -> dict:
         return {}

@@ -152,3 +152,32 @@ class TimeOffset(Effect):
 
     def magnitude(self) -> Magnitude:
         return Magnitude(abs(self.offset_s), "s", "|offset| of the reference clock")
+
+
+@register
+@dataclass(frozen=True)
+class ReferenceJitter(Effect):
+    """The reference's samples are taken at their nominal time stamps plus white jitter.
+
+    Sample ``k`` stamped ``tau_k`` shows the motion at ``tau_k + e_k``, ``e_k ~ N(0, std_s^2)``
+    independent: an orientation reference then reads ``q(tau_k) exp(omega e_k)``, an error along
+    the rotation axis that grows with the rate, and its rates over an interval ``dt`` carry
+    ``omega (e_{k+1} - e_k) / dt``. A camera system's exposure against its time stamps, or a
+    reference resampled onto the module's clock, do this.
+
+    Parameters
+    ----------
+    std_s : float
+        s. Realistic: 0.1 ms (an optical reference's frames against the IMU's samples after the
+        dataset's synchronisation; far above the cameras' own shutter jitter of microseconds).
+    """
+
+    name = "reference_jitter"
+    scalable = ("std_s",)
+    std_s: float = 1e-4
+
+    def on_reference_times(self, tau_s: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return tau_s + rng.normal(0.0, self.std_s, np.shape(tau_s))
+
+    def magnitude(self) -> Magnitude:
+        return Magnitude(self.std_s, "s", "std of the reference's sampling instants")

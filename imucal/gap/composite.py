@@ -1,0 +1,181 @@
+"""The gap diagnosis of a partial session, from its parts: a static recording and recordings with
+an orientation reference.
+
+A partial session (:mod:`imucal.pipeline.partial`) has no cube, rate table or MT Manager
+reference, so the full-protocol diagnosis cannot refit it; it may hold a static recording (:class:`imucal.gap.twin.StaticTwin`) and
+recordings with an orientation reference (:class:`imucal.gap.motion.MotionTwin`). Their
+locations differ (stages ``static``/``temperature`` and ``reference``), so one diagnosis scores
+them together (:func:`diagnose_partial_session`): a replica of the composite is a replica of each part with the same seed, its
+statistics the union of theirs. An effect is rendered in the part whose library holds it (the
+part whose locations can show it), and its estimator reads that part of the session.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import pandas as pd
+
+from imucal.gap.diagnosis import DiagnosisSettings, scored_diagnosis
+from imucal.gap.effects import EffectModel
+from imucal.gap.motion import (
+    MOTION_NOT_OBSERVABLE,
+    MotionRecording,
+    MotionTwin,
+    motion_library,
+    motion_statistics,
+)
+from imucal.gap.null import run_replicas
+from imucal.gap.static import (
+    NOT_OBSERVABLE,
+    STATIC_LIBRARY,
+    diagnose_static,
+    unscored_diagnosis,
+)
+from imucal.gap.statistics import HALVES
+from imucal.gap.streams import split_streams, static_statistics
+from imucal.gap.twin import Replica, build_static_twin
+
+
+@dataclass(frozen=True)
+class CompositeTwin:
+    """Twins of the parts of one session.
+
+    Attributes
+    ----------
+    parts : dict
+        Part name -> twin (anything with ``replica(seed, effects, halves)`` and ``describe()``).
+    libraries : dict
+        Part name -> names of the effects rendered in that part.
+    """
+
+    parts: dict
+    libraries: dict
+
+    def describe(self) -> dict:
+        return {name: twin.describe() for name, twin in self.parts.items()}
+
+    def replica(self, seed: int, effects: tuple = (), halves: tuple = HALVES) -> Replica:
+        """One replica of every part with ``seed``; each part renders its own effects."""
+        sessions: dict = {}
+        stats: dict = {h: {} for h in halves}
+        for name, twin in self.parts.items():
+            own = tuple(e for e in effects if e.name in self.libraries[name])
+            rep = twin.replica(seed, own, halves)
+            sessions[name] = rep.session
+            for h in halves:
+                stats[h].update(rep.stats[h])
+        return Replica(seed, sessions, stats)
+
+
+def on_part(model: EffectModel, part: str) -> EffectModel:
+    """The same effect model, its estimator reading one part of a composite session."""
+    estimate = model.estimate
+
+    def on(session: Mapping, half):
+        return estimate(session[part], half)
+
+    return dataclasses.replace(model, estimate=on)
+
+
+def composite_library(libraries: Mapping[str, Mapping[str, EffectModel]]) -> dict:
+    """Part -> effect library into one library whose estimators read their part."""
+    out = {}
+    for part, library in libraries.items():
+        for name, model in library.items():
+            out[name] = on_part(model, part)
+    return out
+
+
+def diagnose_partial_session(
+    static: pd.DataFrame | None,
+    *,
+    motion: tuple[Mapping[str, MotionRecording], MotionTwin] | None = None,
+    dataset: str,
+    calibration: Mapping | None,
+    sensitivity: Mapping[str, float],
+    gravity_m_s2: float,
+    settings: DiagnosisSettings,
+) -> dict:
+    """The gap diagnosis of a partial session from the parts it has, or why none is scored.
+
+    Parameters
+    ----------
+    static : DataFrame or None
+        The ingested ``static`` recording, None when the session has none.
+    motion : (dict of str to MotionRecording, MotionTwin) or None
+        The recordings with an orientation reference and their twin
+        (:func:`imucal.gap.motion.motion_part`), None when the session has none.
+    dataset : str
+    calibration, sensitivity, gravity_m_s2, settings
+        As in :func:`imucal.gap.static.diagnose_static`.
+
+    Returns
+    -------
+    dict
+        diagnosis.json (:func:`~imucal.gap.diagnosis.scored_diagnosis`) plus ``scope``
+        (``static``, ``reference``, ``static+reference``), ``not_observable``, ``twin``,
+        ``settings``, ``timing_s``; or :func:`~imucal.gap.static.unscored_diagnosis` with the
+        reason.
+    """
+    streams = split_streams(static) if static is not None else {}
+    if motion is None:
+        if static is None:
+            return unscored_diagnosis(
+                dataset,
+                "the session has neither a static recording nor a recording with an "
+                "orientation reference; the twin of a partial session renders only these (its "
+                "other recordings are hand-held motions nothing measures independently)",
+            )
+        if not streams:
+            return unscored_diagnosis(
+                dataset, "the static recording has no stream of >= 100 samples"
+            )
+        return diagnose_static(
+            static, dataset=dataset, calibration=calibration, sensitivity=sensitivity,
+            gravity_m_s2=gravity_m_s2, settings=settings,
+        )  # fmt: skip
+    t0 = time.perf_counter()
+    recordings, motion_twin = motion
+    parts, sessions, libraries = {}, {}, {}
+    if streams:
+        parts["static"] = build_static_twin(
+            streams, calibration, dict(sensitivity or {}), gravity_m_s2
+        )
+        sessions["static"] = streams
+        libraries["static"] = STATIC_LIBRARY
+    parts["motion"] = motion_twin
+    sessions["motion"] = recordings
+    libraries["motion"] = motion_library(motion_twin)
+    libraries = {
+        part: {k: m for k, m in lib.items() if k not in settings.exclude}
+        for part, lib in libraries.items()
+    }
+    twin = CompositeTwin(parts, {part: set(lib) for part, lib in libraries.items()})
+    stats = {}
+    for h in HALVES:
+        stats[h] = motion_statistics(
+            recordings, h, windows_s=motion_twin.windows_s, gravity_m_s2=gravity_m_s2
+        )
+        if streams:
+            stats[h].update(static_statistics(streams, h))
+    reps = run_replicas(twin, settings.replicas, settings.seed)
+    t_null = time.perf_counter()
+    result = scored_diagnosis(
+        twin, sessions, stats, reps, composite_library(libraries), dataset=dataset,
+        settings=settings,
+        cannot_show="the session cannot show this effect (no such recording, stream or channel)",
+    )  # fmt: skip
+    shown = set().union(*(set(lib) for lib in libraries.values()))
+    reasons = {**MOTION_NOT_OBSERVABLE, **NOT_OBSERVABLE} if streams else MOTION_NOT_OBSERVABLE
+    return {
+        **result,
+        "scope": "static+reference" if streams else "reference",
+        "not_observable": {k: v for k, v in reasons.items() if k not in shown},
+        "twin": twin.describe(),
+        "settings": settings.describe(),
+        "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
+    }

@@ -1,0 +1,323 @@
+"""Optional terms of the calibration model beyond the paper's bias and matrix.
+
+The paper's model is ``calibrated = K (reading - o)`` (eq. 11). A calibration may add terms the
+gap diagnosis has shown a session needs (``docs/model-terms.md``); with all of them the
+calibrated values of one sample are
+
+1. temperature (per sensor, per axis): ``v = K (reading - o - b(dT)) / (1 + s(dT))``
+   elementwise inside the bracket, with ``dT = T - reference_c`` and the polynomials
+   ``b(dT) = sum_k bias[k-1] dT^k``, ``s(dT) = sum_k scale[k-1] dT^k`` (k = 1 .. order; the
+   constant term is the paper's bias and matrix, which hold at ``reference_c``);
+2. g-sensitivity of the gyroscope: ``w_B = v_gyr - G a_B`` with ``a_B`` the calibrated
+   specific force of the same sample (``G`` in rad/s per m/s^2, frame B);
+3. magnetometer delay against acc/gyro: ``m_B = v_mag - delay (w_B x v_mag)``, the first-order
+   advance of a field that turns in B at ``-w_B`` by the delay (s).
+
+This module holds the terms as frozen dataclasses with their dict form (part of
+``calibration.json``, format 2), their units and standard deviations, and the evaluation of
+the temperature polynomials with the check of the calibrated temperature span. The
+estimators are in :mod:`imucal.terms`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from imucal.columns import SENSORS, SI_UNITS
+
+#: Names of the optional terms, in the order they are applied.
+TERMS = ("temperature", "g_sensitivity", "mag_delay")
+
+#: Sensors a temperature polynomial may be estimated for.
+TEMPERATURE_SENSORS = ("acc", "gyr")
+
+
+def _coefficients(values: Any, name: str) -> np.ndarray:
+    c = np.asarray(values, dtype=float).reshape(-1, 3)
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"{name} must be finite rows of 3 coefficients, got {values!r}")
+    return c
+
+
+@dataclass(frozen=True)
+class TemperaturePolynomial:
+    """Temperature dependence of one sensor's bias and scale, per axis of the reading.
+
+    Attributes
+    ----------
+    sensor : str
+        'acc' or 'gyr'.
+    reference_c : float
+        Temperature (deg C) at which the calibration's bias and matrix hold.
+    span_c : tuple of float
+        Lowest and highest temperature (deg C) of the data the polynomials were fitted on.
+    margin_c : float
+        How far outside ``span_c`` (K) a sample may be and still be calibrated (flagged);
+        beyond it the calibration is refused.
+    bias : ndarray, shape (p, 3)
+        Row ``k-1``: coefficient of ``dT^k`` of the bias drift of each axis, in the sensor's
+        unit per K^k (m/s^2/K^k, rad/s/K^k). ``p`` is the bias order (0: none).
+    scale : ndarray, shape (q, 3)
+        Row ``k-1``: coefficient of ``dT^k`` of the relative scale change of each axis (1/K^k).
+    bias_std, scale_std : ndarray, same shapes
+        Standard deviations of the coefficients.
+    method : str
+        How they were estimated (free text for the report).
+    """
+
+    sensor: str
+    reference_c: float
+    span_c: tuple
+    margin_c: float
+    bias: np.ndarray
+    scale: np.ndarray
+    bias_std: np.ndarray
+    scale_std: np.ndarray
+    method: str = ""
+
+    def __post_init__(self) -> None:
+        if self.sensor not in TEMPERATURE_SENSORS:
+            raise ValueError(
+                f"temperature term of unknown sensor {self.sensor!r}; "
+                f"expected one of {TEMPERATURE_SENSORS}"
+            )
+        lo, hi = (float(x) for x in self.span_c)
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise ValueError(
+                f"{self.sensor} temperature span_c must be [low, high], got {self.span_c!r}"
+            )
+        if not self.margin_c >= 0:
+            raise ValueError(
+                f"{self.sensor} temperature margin_c must be >= 0 K, got {self.margin_c}"
+            )
+        object.__setattr__(self, "span_c", (lo, hi))
+        object.__setattr__(self, "reference_c", float(self.reference_c))
+        object.__setattr__(self, "margin_c", float(self.margin_c))
+        for name in ("bias", "scale", "bias_std", "scale_std"):
+            object.__setattr__(
+                self, name, _coefficients(getattr(self, name), f"{self.sensor}.{name}")
+            )
+        if self.bias_std.shape != self.bias.shape or self.scale_std.shape != self.scale.shape:
+            raise ValueError(f"{self.sensor} temperature std must have the coefficients' shapes")
+
+    @property
+    def unit(self) -> str:
+        return SI_UNITS[self.sensor]
+
+    def check_span(self, temp_c: np.ndarray, source: str) -> dict:
+        """Refuse temperatures beyond the span by more than the margin; say how many are outside.
+
+        Parameters
+        ----------
+        temp_c : ndarray, shape (n,)
+            Temperature of each sample (deg C), finite.
+        source : str
+            What the samples come from (file name), for the message.
+
+        Returns
+        -------
+        dict
+            ``outside_fraction`` (samples outside ``span_c`` but within the margin) and
+            ``max_outside_k`` (how far the farthest one is, K).
+
+        Raises
+        ------
+        ValueError
+            If a sample is farther than ``margin_c`` outside ``span_c``.
+        """
+        lo, hi = self.span_c
+        beyond = np.maximum(lo - temp_c, temp_c - hi)
+        worst = float(np.max(beyond)) if len(beyond) else 0.0
+        if worst > self.margin_c:
+            raise ValueError(
+                f"{source}: temperature {float(np.min(temp_c)):.2f}..{float(np.max(temp_c)):.2f} "
+                f"deg C is outside the {self.sensor} calibration's span {lo:.2f}..{hi:.2f} deg C "
+                f"by {worst:.2f} K, more than the margin {self.margin_c:g} K; the temperature "
+                "polynomial is not extrapolated that far"
+            )
+        return {
+            "outside_fraction": float(np.mean(beyond > 0)) if len(beyond) else 0.0,
+            "max_outside_k": max(worst, 0.0),
+        }
+
+    def drift(self, temp_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bias drift and relative scale change at ``temp_c`` (shape (n,), deg C).
+
+        Returns
+        -------
+        bias : ndarray, shape (n, 3)
+            ``b(dT)`` in the sensor's unit.
+        scale : ndarray, shape (n, 3)
+            ``s(dT)``, dimensionless.
+        """
+        d_t = np.asarray(temp_c, dtype=float)[:, None] - self.reference_c
+        bias = sum((c * d_t**k for k, c in enumerate(self.bias, 1)), np.zeros((len(d_t), 3)))
+        scale = sum((c * d_t**k for k, c in enumerate(self.scale, 1)), np.zeros((len(d_t), 3)))
+        return bias, scale
+
+    def to_dict(self) -> dict:
+        return {
+            "reference_c": self.reference_c,
+            "span_c": list(self.span_c),
+            "margin_c": self.margin_c,
+            "bias_order": len(self.bias),
+            "bias": self.bias.tolist(),
+            "bias_std": self.bias_std.tolist(),
+            "bias_unit": f"{self.unit}/K^k (row k-1: coefficient of (T - reference_c)^k)",
+            "scale_order": len(self.scale),
+            "scale": self.scale.tolist(),
+            "scale_std": self.scale_std.tolist(),
+            "scale_unit": "1/K^k (row k-1: coefficient of (T - reference_c)^k)",
+            "method": self.method,
+        }
+
+    @classmethod
+    def from_dict(cls, sensor: str, d: dict) -> TemperaturePolynomial:
+        for key in ("reference_c", "span_c", "margin_c", "bias", "scale"):
+            if key not in d:
+                raise ValueError(f"temperature term of {sensor!r} lacks the key {key!r}")
+        return cls(
+            sensor,
+            d["reference_c"],
+            tuple(d["span_c"]),
+            d["margin_c"],
+            d["bias"],
+            d["scale"],
+            d.get("bias_std", np.zeros_like(np.asarray(d["bias"], dtype=float))),
+            d.get("scale_std", np.zeros_like(np.asarray(d["scale"], dtype=float))),
+            d.get("method", ""),
+        )
+
+
+@dataclass(frozen=True)
+class GSensitivity:
+    """Gyroscope output per specific force, in frame B: ``w_B -= matrix @ a_B``.
+
+    Attributes
+    ----------
+    matrix : ndarray, shape (3, 3)
+        rad/s per m/s^2; row: gyro axis of B, column: specific-force axis of B.
+    std : ndarray, shape (3, 3)
+    method : str
+    """
+
+    matrix: np.ndarray
+    std: np.ndarray
+    method: str = ""
+
+    def __post_init__(self) -> None:
+        for name in ("matrix", "std"):
+            m = np.asarray(getattr(self, name), dtype=float)
+            if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+                raise ValueError(f"g_sensitivity.{name} must be a finite 3x3 matrix, got {m!r}")
+            object.__setattr__(self, name, m)
+
+    def to_dict(self) -> dict:
+        return {
+            "matrix": self.matrix.tolist(),
+            "std": self.std.tolist(),
+            "unit": "rad/s per m/s^2 (frame B; row: gyro axis, column: specific-force axis)",
+            "method": self.method,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> GSensitivity:
+        if "matrix" not in d:
+            raise ValueError("g_sensitivity term lacks the key 'matrix'")
+        return cls(d["matrix"], d.get("std", np.zeros((3, 3))), d.get("method", ""))
+
+
+@dataclass(frozen=True)
+class MagDelay:
+    """Delay of the magnetometer behind acc/gyro (s): its reading is the field of
+    ``delay_s`` earlier (mean age of a held sample included).
+
+    Attributes
+    ----------
+    delay_s : float
+    std_s : float
+    method : str
+    """
+
+    delay_s: float
+    std_s: float
+    method: str = ""
+
+    def __post_init__(self) -> None:
+        for name in ("delay_s", "std_s"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v):
+                raise ValueError(f"mag_delay.{name} must be finite, got {v}")
+            object.__setattr__(self, name, v)
+
+    def to_dict(self) -> dict:
+        return {"delay_s": self.delay_s, "std_s": self.std_s, "unit": "s", "method": self.method}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> MagDelay:
+        if "delay_s" not in d:
+            raise ValueError("mag_delay term lacks the key 'delay_s'")
+        return cls(d["delay_s"], d.get("std_s", 0.0), d.get("method", ""))
+
+
+@dataclass(frozen=True)
+class ModelTerms:
+    """The optional terms of one calibration (any may be absent).
+
+    Attributes
+    ----------
+    temperature : dict of str to TemperaturePolynomial
+        Sensor -> its polynomials.
+    g_sensitivity : GSensitivity or None
+    mag_delay : MagDelay or None
+    """
+
+    temperature: dict = field(default_factory=dict)
+    g_sensitivity: GSensitivity | None = None
+    mag_delay: MagDelay | None = None
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.temperature) - set(TEMPERATURE_SENSORS))
+        if unknown:
+            raise ValueError(
+                f"temperature terms of unknown sensors {unknown}; expected {TEMPERATURE_SENSORS}"
+            )
+
+    @property
+    def empty(self) -> bool:
+        return not self.temperature and self.g_sensitivity is None and self.mag_delay is None
+
+    def names(self) -> list[str]:
+        """The terms present, in :data:`TERMS` order."""
+        present = {
+            "temperature": bool(self.temperature),
+            "g_sensitivity": self.g_sensitivity is not None,
+            "mag_delay": self.mag_delay is not None,
+        }
+        return [t for t in TERMS if present[t]]
+
+    def to_dict(self) -> dict:
+        out: dict = {}
+        if self.temperature:
+            out["temperature"] = {
+                s: self.temperature[s].to_dict() for s in SENSORS if s in self.temperature
+            }
+        if self.g_sensitivity is not None:
+            out["g_sensitivity"] = self.g_sensitivity.to_dict()
+        if self.mag_delay is not None:
+            out["mag_delay"] = self.mag_delay.to_dict()
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ModelTerms:
+        unknown = sorted(set(d) - set(TERMS))
+        if unknown:
+            raise ValueError(f"calibration has unknown model terms {unknown}; known: {list(TERMS)}")
+        return cls(
+            {s: TemperaturePolynomial.from_dict(s, t) for s, t in d.get("temperature", {}).items()},
+            GSensitivity.from_dict(d["g_sensitivity"]) if "g_sensitivity" in d else None,
+            MagDelay.from_dict(d["mag_delay"]) if "mag_delay" in d else None,
+        )

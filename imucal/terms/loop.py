@@ -1,0 +1,204 @@
+"""The closed loop: the effects a diagnosis accepts become terms of the calibration model.
+
+:func:`close_loop` decides per term (:mod:`imucal.terms.selection`), estimates the included
+ones on the session calibrated with the paper's model, corrects the session's readings with
+them (every sample mapped to the terms' reference: ``reading' = o + K^-1 v`` with ``v`` the
+calibrated value of the whole model and ``(K, o)`` the paper's calibration the terms were
+estimated against), and recalibrates the corrected session with the paper's chain, so that
+bias and matrices hold at the reference. The corrected session is what the diagnosis after
+the loop is run on (:func:`imucal.gap.diagnose`): the gap before and after in one report.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import pandas as pd
+
+from imucal import errormodel
+from imucal.calibration import ImuCalibration
+from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_UNITS
+from imucal.modelterms import TERMS, ModelTerms
+from imucal.pipeline.full import PipelineOptions, calibrate_session
+from imucal.pipeline.stages import apply_calibration
+from imucal.terms.gsensitivity import fit_g_sensitivity
+from imucal.terms.magdelay import fit_mag_delay
+from imucal.terms.selection import TermSettings, decide
+from imucal.terms.temperature import fit_temperature
+
+
+def corrected_session(
+    imu: Mapping[str, pd.DataFrame], base: ImuCalibration, terms: ModelTerms
+) -> dict[str, pd.DataFrame]:
+    """The recordings with the terms taken out of their readings (same rows and columns).
+
+    Parameters
+    ----------
+    imu : dict of str to DataFrame
+        Ingested recordings (SI).
+    base : ImuCalibration
+        The calibration the terms were estimated against (its own terms ignored).
+    terms : ModelTerms
+
+    Returns
+    -------
+    dict of str to DataFrame
+        Readings ``o + K^-1 v`` per sensor, ``v`` calibrated with ``base`` and ``terms``.
+    """
+    model = base.with_terms(terms)
+    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
+    out = {}
+    for name, table in imu.items():
+        values, _ = apply_calibration(table, {"units": units}, model, source=name)
+        fixed = table.copy()
+        for s in SENSORS:
+            cal = base.sensor(s)
+            cols = list(SENSOR_COLUMNS[s])
+            fixed[cols] = errormodel.invert(cal.matrix, cal.bias, values[cols].to_numpy(float))
+        out[name] = fixed
+    return out
+
+
+def close_loop(
+    imu: Mapping[str, pd.DataFrame],
+    reference: pd.DataFrame | None,
+    options: PipelineOptions,
+    *,
+    segments: pd.DataFrame,
+    diagnosis: Mapping | None,
+    settings: TermSettings,
+) -> dict:
+    """Decide, estimate and fold the optional terms into a session's calibration.
+
+    Parameters
+    ----------
+    imu : dict of str to DataFrame
+        Ingested recordings (SI).
+    reference : DataFrame or None
+    options : PipelineOptions
+    segments : DataFrame
+        The session's segments table.
+    diagnosis : dict or None
+        The session's diagnosis.json (for 'auto').
+    settings : TermSettings
+
+    Returns
+    -------
+    dict
+        ``terms``: term -> ``setting``, ``included`` (bool), ``reason``, ``evidence``;
+        ``calibration``: the recalibrated :class:`ImuCalibration` with its terms, or None when
+        no term is included (the paper's calibration stands); ``corrected``: the corrected
+        recordings (None likewise).
+    """
+    record = {}
+    for term in TERMS:
+        wanted, reason = decide(term, settings, diagnosis)
+        record[term] = {"setting": getattr(settings, term), "included": wanted, "reason": reason}
+    if not any(r["included"] for r in record.values()):
+        return {"terms": record, "calibration": None, "corrected": None}
+    fit = base = calibrate_session(imu, reference, options, segments)
+    found: dict = {}
+    if record["temperature"]["included"]:
+        polys, evidence = fit_temperature(
+            fit,
+            max_order=settings.temperature_max_order,
+            min_span_c=settings.temperature_min_span_c,
+            margin_c=settings.temperature_margin_c,
+        )
+        record["temperature"]["evidence"] = evidence
+        if polys:
+            found["temperature"] = polys
+            # the other terms are estimated on the session without the drift
+            fixed = corrected_session(imu, base.calibration, ModelTerms(polys))
+            fit = calibrate_session(fixed, reference, options, segments)
+    for term, estimator in (("g_sensitivity", fit_g_sensitivity), ("mag_delay", fit_mag_delay)):
+        if record[term]["included"]:
+            value, evidence = estimator(fit)
+            record[term]["evidence"] = evidence
+            if value is not None:
+                found[term] = value
+    for term, r in record.items():
+        if r["included"] and term not in found:
+            r["included"] = False
+            refused = _refusals(r.get("evidence", {}))
+            r["reason"] += f"; refused: {refused}"
+    if not found:
+        return {"terms": record, "calibration": None, "corrected": None}
+    terms = ModelTerms(**found)
+    corrected = corrected_session(imu, base.calibration, terms)
+    refit = calibrate_session(corrected, reference, options, segments)
+    return {
+        "terms": record,
+        "calibration": refit.calibration.with_terms(terms),
+        "corrected": corrected,
+    }
+
+
+def _refusals(evidence: Mapping) -> str:
+    """The refusal reasons in an evidence record (nested per sensor)."""
+    found = [evidence["refused"]] if "refused" in evidence else []
+    found += [
+        f"{k}: {v['refused']}"
+        for k, v in evidence.items()
+        if isinstance(v, Mapping) and "refused" in v
+    ]
+    return "; ".join(found) or "nothing to estimate"
+
+
+def terms_summary(result: Mapping) -> dict:
+    """terms.json: the decisions with their evidence, the terms in the model and the
+    recalibrated calibration (None when no term is in the model), JSON-ready."""
+    cal = result["calibration"]
+    return {
+        "format_version": 1,
+        "in_model": cal.terms.names() if cal is not None else [],
+        "terms": _jsonable(result["terms"]),
+        "calibration": cal.to_dict() if cal is not None else None,
+    }
+
+
+def final_calibration(paper: Mapping, summary: Mapping) -> dict:
+    """calibration.json: the closed loop's recalibration when it has terms, else the paper's
+    calibration unchanged (byte for byte what the loop switched off writes)."""
+    return dict(summary["calibration"]) if summary.get("calibration") else dict(paper)
+
+
+def diagnosis_after(
+    result: Mapping,
+    reference: pd.DataFrame | None,
+    options: PipelineOptions,
+    *,
+    dataset: str,
+    segments: pd.DataFrame,
+    settings,
+) -> dict:
+    """The diagnosis of the session recalibrated with the terms in the model
+    (:func:`imucal.gap.diagnose` on the corrected recordings); without a term, a record
+    saying that the diagnosis before is the calibration's."""
+    if result["corrected"] is None:
+        return {
+            "format_version": 1,
+            "dataset": dataset,
+            "in_model": [],
+            "note": "no model term is in the calibration: the diagnosis is that of the paper's model",
+        }
+    from imucal.gap.diagnosis import diagnose
+
+    after = diagnose(
+        result["corrected"], reference, options, dataset=dataset, segments=segments,
+        settings=settings,
+    )  # fmt: skip
+    return {**after, "in_model": result["calibration"].terms.names()}
+
+
+def _jsonable(x):
+    if isinstance(x, Mapping):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x

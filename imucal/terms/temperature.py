@@ -1,0 +1,365 @@
+"""Temperature polynomials of bias and scale per axis, with the order chosen on held-out data.
+
+The estimators work on the session's resting segments (:func:`imucal.gap.statistics.resting_rows`:
+rotation3d rests, cube positions, rate-table rest runs, the static recording in blocks) and on
+the rate-table runs, each reduced to its raw mean reading and mean temperature:
+
+- gyroscope bias: the raw resting means against ``dT^k`` per axis, with a constant and the
+  calibrated specific force as nuisance regressors (so that a g-sensitivity is not taken for a
+  drift between poses at different temperatures);
+- gyroscope scale (rate table only): the raw run means, less the bias drift, against the
+  sensor-frame rate ``u = K^-1 w`` and ``u dT^k`` per axis (``K`` and the bias of eq. 33);
+- accelerometer bias and scale: ``|a| - g`` of the resting means (rate-table runs left out),
+  linearised about the paper's calibration: with ``d`` the direction of the calibrated mean and
+  ``u = reading - o``, a drift moves ``|a|`` by ``-(d^T K)_j (b_j(dT) + s_j(dT) u_j)``; a
+  constant bias and scale change per axis (the cube fit holds at the cube's temperatures) are
+  nuisance regressors.
+
+The order (0 .. ``max_order``) is chosen on held-out segments (:func:`select_order`:
+leave-one-out residuals, the smallest order within one standard error of the best); order 0
+(no temperature dependence) wins when no polynomial predicts the held-out segments better. A
+sensor is refused when its recording's temperature span is below ``min_span_c``. Standard
+deviations are those of least squares with the residual variance of the whole fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from imucal.columns import AXES, GYR, SENSOR_COLUMNS, temperature_column
+from imucal.gap import statistics as st
+from imucal.modelterms import TemperaturePolynomial
+from imucal.pipeline.full import SessionFit, calibrated
+
+#: Highest order of a scale polynomial: the scale is seen only in rate-table runs (one axis's
+#: runs span a fraction of a kelvin) and in the gravity along an axis, too little for a curve.
+SCALE_MAX_ORDER = 1
+
+
+@dataclass(frozen=True)
+class Means:
+    """Segment means of one kind of segment, in time order within each recording.
+
+    Attributes
+    ----------
+    raw : dict of str to ndarray, shape (n, 3)
+        Sensor -> raw mean reading (SI, sensor frame).
+    acc_b : ndarray, shape (n, 3)
+        Calibrated specific force (frame B, m/s^2).
+    temp_c : ndarray, shape (n,)
+    """
+
+    raw: dict
+    acc_b: np.ndarray
+    temp_c: np.ndarray
+
+
+def _segment_means(fit: SessionFit, segments: list) -> Means:
+    raw = {s: [] for s in ("acc", "gyr")}
+    acc_b, temp = [], []
+    for rec, rows in segments:
+        table = fit.imu[rec]
+        col = temperature_column(table)
+        if col is None or rows.empty:
+            continue
+        t = st._means(table[[col]].to_numpy(dtype=float), rows)[:, 0]
+        for s in raw:
+            raw[s].append(st._means(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), rows))
+        acc_b.append(st._means(np.asarray(calibrated(fit, rec, "acc")), rows))
+        temp.append(t)
+    if not temp:
+        empty = np.zeros((0, 3))
+        return Means({s: empty for s in raw}, empty, np.zeros(0))
+    out = Means(
+        {s: np.vstack(v) for s, v in raw.items()},
+        np.vstack(acc_b),
+        np.concatenate(temp),
+    )
+    ok = np.isfinite(out.temp_c) & np.all(np.isfinite(out.raw["gyr"]), axis=1)
+    ok &= np.all(np.isfinite(out.raw["acc"]), axis=1)
+    return Means({s: v[ok] for s, v in out.raw.items()}, out.acc_b[ok], out.temp_c[ok])
+
+
+def resting_means(fit: SessionFit, *, table: bool = True) -> Means:
+    """Raw means of the session's resting segments with a temperature reading (rate-table rest
+    runs left out when ``table`` is False)."""
+    segments = [(r, rows) for r, rows in st.resting_rows(fit, None) if table or r != "ratetable"]
+    return _segment_means(fit, segments)
+
+
+def _powers(d_t: np.ndarray, order: int) -> np.ndarray:
+    """Columns ``dT^1 .. dT^order``, shape (n, order)."""
+    return (
+        np.column_stack([d_t**k for k in range(1, order + 1)]) if order else np.zeros((len(d_t), 0))
+    )
+
+
+def _lstsq(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients (m, k) and their standard deviations of ``y (n, k) ~ x (n, m)``."""
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    dof = max(len(x) - x.shape[1], 1)
+    sigma2 = np.sum((y - x @ coef) ** 2, axis=0) / dof
+    cov = np.linalg.pinv(x.T @ x)
+    return coef, np.sqrt(np.clip(np.diag(cov), 0, None))[:, None] * np.sqrt(sigma2)[None, :]
+
+
+def heldout_residuals(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Leave-one-out residuals of the least-squares fit ``y (n, k) ~ x (n, m)``: each segment
+    predicted from a fit on all the others (``e_i / (1 - h_ii)``), shape (n, k); NaN when the
+    fit has no more segments than columns or a segment alone determines a coefficient."""
+    n, m = x.shape
+    if n <= m + 1:
+        return np.full(y.shape, np.nan)
+    pinv = np.linalg.pinv(x)
+    h = np.einsum("ij,ji->i", x, pinv)
+    if np.any(h > 1 - 1e-9):
+        return np.full(y.shape, np.nan)
+    e = y - x @ (pinv @ y)
+    return e / (1 - h).reshape((-1,) + (1,) * (y.ndim - 1))
+
+
+def select_model(candidates: dict, y: np.ndarray) -> tuple:
+    """The candidate design chosen on held-out residuals, and the held-out RMS of each.
+
+    The held-out residuals are leave-one-out (:func:`heldout_residuals`). The choice is the
+    candidate with the fewest columns whose mean squared held-out residual is within one
+    standard error of the smallest (the one-standard-error rule: a larger model has to predict
+    better by more than the noise of the comparison).
+
+    Parameters
+    ----------
+    candidates : dict
+        Key -> design matrix, shape (n, m); the first key is the model without temperature.
+    y : ndarray, shape (n,) or (n, k)
+
+    Returns
+    -------
+    key
+        The chosen candidate (the first when no other beats it on held-out data).
+    heldout : dict
+        Key -> held-out RMS (NaN where there are too few segments for that design).
+    """
+    sq = {}
+    for key, x in candidates.items():
+        e = heldout_residuals(x, y)
+        sq[key] = np.sum(np.reshape(e, (len(y), -1)) ** 2, axis=1)
+    heldout = {k: float(np.sqrt(np.mean(v))) for k, v in sq.items()}
+    finite = {k: v for k, v in sq.items() if np.all(np.isfinite(v))}
+    first = next(iter(candidates))
+    if not finite:
+        return first, heldout
+    best = min(finite, key=lambda k: finite[k].mean())
+    bound = finite[best].mean() + finite[best].std(ddof=1) / np.sqrt(len(y))
+    within = [k for k, v in finite.items() if v.mean() <= bound]
+    return min(within, key=lambda k: candidates[k].shape[1]), heldout
+
+
+def _refusal(temp: np.ndarray, min_span_c: float, what: str) -> str:
+    if len(temp) < 6:
+        return f"{what}: {len(temp)} resting segments with a temperature reading, at least 6 needed"
+    span = float(np.ptp(temp))
+    if span < min_span_c:
+        return (
+            f"{what}: the temperature span of the session's resting segments is {span:.2f} K, "
+            f"below the {min_span_c:g} K a temperature polynomial needs (temperature_min_span_c)"
+        )
+    return ""
+
+
+def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tuple:
+    """Bias polynomial of the gyroscope: coefficients (p, 3), std, held-out evidence."""
+    d_t = rest.temp_c - reference_c
+    n = len(d_t)
+    nuisance = [np.ones((n, 1))]
+    if n > 3 * (max_order + 5):  # enough segments to take a g-sensitivity out as well
+        nuisance.append(rest.acc_b)
+
+    def design(order):
+        return np.column_stack([*nuisance, _powers(d_t, order)])
+
+    y = rest.raw["gyr"]
+    order, heldout = select_model({k: design(k) for k in range(max_order + 1)}, y)
+    coef, std = _lstsq(design(order), y)
+    p = design(0).shape[1]
+    return coef[p:], std[p:], {"order": order, "heldout_rms": heldout, "unit": "rad/s"}
+
+
+def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_order: int):
+    """Scale polynomial of the gyroscope from the rate-table runs (None without a table)."""
+    table = fit.artifacts.get("table")
+    if table is None or "ratetable" not in fit.imu:
+        return None
+    rows, _, true = st.table_residuals(fit, None)
+    col = temperature_column(fit.imu["ratetable"])
+    if col is None or len(rows) < 8:
+        return None
+    means = st._means(fit.imu["ratetable"][list(GYR)].to_numpy(dtype=float), rows)
+    temp = st._means(fit.imu["ratetable"][[col]].to_numpy(dtype=float), rows)[:, 0]
+    k = np.asarray(table["matrix"], dtype=float)
+    u = np.linalg.solve(k, true.T).T
+    d_t = temp - reference_c
+    y = means - _powers(d_t, len(bias_poly)) @ bias_poly if len(bias_poly) else means
+    coefs, stds = [], []
+
+    # one order for the three axes: stacked, each axis with its own columns
+    def design(order):
+        blocks = [
+            np.column_stack([np.ones(len(u)), u[:, j], u[:, [j]] * _powers(d_t, order)])
+            for j in range(3)
+        ]
+        return blocks
+
+    def stacked(order):
+        blocks = design(order)
+        m = blocks[0].shape[1]
+        out = np.zeros((3 * len(u), 3 * m))
+        for j, b in enumerate(blocks):
+            out[j * len(u) : (j + 1) * len(u), j * m : (j + 1) * m] = b
+        return out
+
+    order, heldout = select_model({k: stacked(k) for k in range(SCALE_MAX_ORDER + 1)}, y.T.ravel())
+    designs = [lambda o, j=j: design(o)[j] for j in range(3)]
+    for j in range(3):
+        c, s = _lstsq(designs[j](order), y[:, [j]])
+        # u (1 + s(dT)): the coefficients of u dT^k over that of u
+        coefs.append(c[2:, 0] / c[1, 0])
+        stds.append(s[2:, 0] / abs(c[1, 0]))
+    return (
+        np.column_stack(coefs).reshape(order, 3),
+        np.column_stack(stds).reshape(order, 3),
+        {"order": order, "heldout_rms": heldout, "unit": "rad/s", "runs": len(rows)},
+    )
+
+
+def _acc(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tuple:
+    """Bias and scale polynomials of the accelerometer from ``|a| - g`` of resting means.
+
+    Candidates: bias orders 0 .. ``max_order`` per axis, each with no scale drift, a common
+    scale drift of order 1 or one per axis of order 1 (resting poses see the scale of an axis
+    only through the gravity along it, so a scale per axis needs poses along every axis at
+    several temperatures)."""
+    cal = fit.calibration.sensor("acc")
+    k, o = cal.matrix, cal.bias
+    g = fit.extra["options"].gravity_m_s2
+    u = rest.raw["acc"] - o
+    a = u @ k.T
+    norm = np.linalg.norm(a, axis=1)
+    dk = (a / norm[:, None]) @ k  # d^T K, shape (n, 3)
+    y = norm - g
+    d_t = rest.temp_c - reference_c
+    common = (dk * u).sum(axis=1, keepdims=True)
+    candidates, layout = {}, {}
+    for scale in ("none", "common", "per_axis"):
+        # the cube fit holds at the cube's temperatures: a constant bias change and scale
+        # change move it to reference_c
+        nuisance = [dk] + {"none": [], "common": [common], "per_axis": [dk * u]}[scale]
+        for order in range(max_order + 1):
+            cols = nuisance + [dk * d_t[:, None] ** kk for kk in range(1, order + 1)]
+            if scale != "none":
+                cols.append({"common": common, "per_axis": dk * u}[scale] * d_t[:, None])
+            candidates[(order, scale)] = np.column_stack(cols)
+            layout[(order, scale)] = sum(c.shape[1] for c in nuisance)
+    (order, scale), heldout = select_model(candidates, y)
+    coef, std = _lstsq(candidates[(order, scale)], y[:, None])
+    c, s = coef[layout[(order, scale)] :, 0], std[layout[(order, scale)] :, 0]
+    bias, bias_std = c[: 3 * order].reshape(order, 3), s[: 3 * order].reshape(order, 3)
+    rest_c, rest_s = c[3 * order :], s[3 * order :]
+    if scale == "common":
+        rest_c, rest_s = np.repeat(rest_c, 3), np.repeat(rest_s, 3)
+    q = 0 if scale == "none" else 1
+    evidence = {
+        "order": order,
+        "scale": scale,
+        "heldout_rms": {f"bias {o_}, scale {s_}": v for (o_, s_), v in heldout.items()},
+        "unit": "m/s^2 (|a| - g)",
+    }
+    return bias, bias_std, rest_c.reshape(q, 3), rest_s.reshape(q, 3), evidence
+
+
+def fit_temperature(
+    fit: SessionFit, *, max_order: int, min_span_c: float, margin_c: float
+) -> tuple[dict, dict]:
+    """Temperature polynomials of the gyroscope and the accelerometer of a session.
+
+    Parameters
+    ----------
+    fit : SessionFit
+        The session calibrated with the paper's model.
+    max_order : int
+        Highest polynomial order tried (>= 1).
+    min_span_c : float
+        Smallest temperature span (K) of the resting segments for a polynomial.
+    margin_c : float
+        How far outside the fitted span (K) the polynomial may be applied (stored in the term).
+
+    Returns
+    -------
+    polynomials : dict of str to TemperaturePolynomial
+        Sensor -> its polynomials, for the sensors where an order >= 1 won on held-out data.
+    evidence : dict
+        Sensor -> ``order``, ``heldout_rms`` (order -> RMS), ``unit``, or ``refused`` (the
+        reason); ``span_c`` and ``reference_c``.
+    """
+    if max_order < 1:
+        raise ValueError(f"temperature max_order must be >= 1, got {max_order}")
+    rest = resting_means(fit)
+    if not len(rest.temp_c):
+        reason = "the session has no temperature channel (or no resting segment with a reading)"
+        return {}, {"refused": reason}
+    lo, hi = float(rest.temp_c.min()), float(rest.temp_c.max())
+    reference_c = round(0.5 * (lo + hi), 2)
+    evidence: dict = {"span_c": [lo, hi], "reference_c": reference_c, "segments": len(rest.temp_c)}
+    polys = {}
+    refusal = _refusal(rest.temp_c, min_span_c, "temperature")
+    if refusal:
+        return {}, {**evidence, "refused": refusal}
+    session = np.concatenate(
+        [t[c].to_numpy(dtype=float) for t in fit.imu.values() if (c := temperature_column(t))]
+    )
+    beyond = float(np.nanmax(np.maximum(lo - session, session - hi)))
+    if beyond > margin_c:
+        refusal = (
+            f"temperature: the session's own samples reach {beyond:.2f} K outside the span of "
+            f"its resting segments ({lo:.2f}..{hi:.2f} deg C), more than the margin {margin_c:g} K"
+        )
+        return {}, {**evidence, "refused": refusal}
+
+    bias, bias_std, ev_g = _gyro(fit, rest, reference_c, max_order)
+    scale = _gyro_scale(fit, bias, reference_c, max_order)
+    ev_gyr = {"bias": ev_g}
+    if scale is not None:
+        ev_gyr["scale"] = scale[2]
+    if len(bias) or (scale is not None and len(scale[0])):
+        polys["gyr"] = TemperaturePolynomial(
+            "gyr", reference_c, (lo, hi), margin_c, bias,
+            scale[0] if scale is not None else np.zeros((0, 3)), bias_std,
+            scale[1] if scale is not None else np.zeros((0, 3)),
+            "bias: raw resting means against dT^k (constant and specific force as nuisance); "
+            "scale: rate-table run means against u dT^k (u = K^-1 w of eq. 33); "
+            "orders by leave-one-out residuals (one-standard-error rule)",
+        )  # fmt: skip
+    else:
+        ev_gyr["refused"] = "no polynomial order predicts held-out segments better than none"
+    evidence["gyr"] = ev_gyr
+
+    acc_rest = resting_means(fit, table=False)
+    refusal = _refusal(acc_rest.temp_c, min_span_c, "acc temperature")
+    if refusal:
+        evidence["acc"] = {"refused": refusal}
+    else:
+        b, b_std, s, s_std, ev_a = _acc(fit, acc_rest, reference_c, max_order)
+        evidence["acc"] = ev_a
+        if ev_a["order"] or ev_a["scale"] != "none":
+            polys["acc"] = TemperaturePolynomial(
+                "acc", reference_c, (lo, hi), margin_c, b, s, b_std, s_std,
+                "|a| - g of resting means (rate-table runs left out) linearised about the cube "
+                "fit, a constant bias and scale change as nuisance; model by leave-one-out "
+                "residuals (one-standard-error rule)",
+            )  # fmt: skip
+        else:
+            ev_a["refused"] = "no polynomial order predicts held-out segments better than none"
+    for s in ("gyr", "acc"):
+        evidence[s]["axes"] = list(AXES)
+    return polys, evidence

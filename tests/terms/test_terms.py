@@ -1,0 +1,254 @@
+"""Model terms: recovery of simulated coefficients within 3 reported standard deviations, the
+held-out improvement on a second session of the same unit, the switch per term, byte identity
+of auto and off on a clean session, the file format and apply's refusals."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from imucal.calibration import ImuCalibration
+from imucal.columns import ACC, GYR, MAG, SENSOR_COLUMNS, SENSORS, SI_UNITS
+from imucal.gap import statistics as st
+from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
+from imucal.modelterms import ModelTerms, TemperaturePolynomial
+from imucal.pipeline.full import PipelineOptions, calibrate_session
+from imucal.pipeline.stages import apply_calibration, calibration_of_what_ran
+from imucal.sim import ProtocolConfig, make_effect, make_truth
+from imucal.sim.effects import stream_rng
+from imucal.sim.session import SENSITIVITY
+from imucal.terms import (
+    TermSettings,
+    close_loop,
+    corrected_session,
+    decide,
+    final_calibration,
+    terms_summary,
+)
+from tests.conftest import REPO
+
+SHORT = ProtocolConfig(static_s=120.0, run_plateau_s=3.0, run_pause_s=1.5)
+RANGE = {"acc": 32767, "gyr": 32767, "mag": 32767}
+RATETABLE = {"axes": list(SHORT.ratetable_axes), "rates_dps": list(SHORT.rates_dps)}
+ON = TermSettings("on", "on", "on")
+
+
+@pytest.fixture(scope="module")
+def twin():
+    truth = make_truth("paper", stream_rng(0, "truth"))
+    options = PipelineOptions(9.81, SENSITIVITY, RANGE, RATETABLE)
+    return Twin(truth, SHORT, options, TWIN_RECORDINGS, True)
+
+
+def _loop(twin, seed, effects, settings=ON, diagnosis=None):
+    imu, ref = render_replica(twin, seed, effects)
+    fit = calibrate_session(imu, ref, twin.options)
+    res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=diagnosis,
+                     settings=settings)  # fmt: skip
+    return imu, ref, fit, res
+
+
+@pytest.fixture(scope="module")
+def drift(twin):
+    return _loop(twin, 11, (make_effect("temperature_drift"),))
+
+
+def _resting_residuals(twin, imu, ref, calibration):
+    """|a| - g (m/s^2) and |w| (rad/s) of the resting means (rate table left out), with the
+    session's readings calibrated by ``calibration`` (its terms included)."""
+    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
+    fit = calibrate_session(imu, ref, twin.options)
+    acc, gyr = [], []
+    for rec, rows in st.resting_rows(fit, None):
+        if rec == "ratetable":
+            continue
+        table, _ = apply_calibration(imu[rec], {"units": units}, calibration, source=rec)
+        acc.append(st._means(table[list(ACC)].to_numpy(float), rows))
+        gyr.append(st._means(table[list(GYR)].to_numpy(float), rows))
+    acc, gyr = np.vstack(acc), np.vstack(gyr)
+    return np.linalg.norm(acc, axis=1) - twin.options.gravity_m_s2, np.linalg.norm(gyr, axis=1)
+
+
+def test_temperature_recovers_the_simulated_drift_within_3_std(drift):
+    _, _, _, res = drift
+    poly = res["calibration"].terms.temperature
+    true = make_effect("temperature_drift")
+    gyr = poly["gyr"]
+    assert len(gyr.bias) >= 1
+    assert np.all(np.abs(gyr.bias[0] - true.gyr_per_k) < 3 * gyr.bias_std[0]), gyr.bias
+    # resting poses see the accelerometer's bias and scale drift only together along gravity:
+    # |a| moves by g s + b per kelvin for a pose along an axis (bias and scale are not
+    # separable without poses along every axis at several temperatures)
+    acc = poly["acc"]
+    g = 9.81
+    got = g * (acc.scale[0] if len(acc.scale) else 0) + (acc.bias[0] if len(acc.bias) else 0)
+    std = np.hypot(g * (acc.scale_std[0] if len(acc.scale) else 0),
+                   acc.bias_std[0] if len(acc.bias) else 0)  # fmt: skip
+    want = g * true.acc_scale_per_k + true.acc_per_k
+    assert np.all(np.abs(got - want) < 3 * std + 1e-12), (got, want, std)
+
+
+def test_temperature_term_improves_a_session_it_was_not_fitted_on(twin, drift):
+    """The terms of session 11 calibrate session 12 of the same unit (same warm-up): the
+    resting |a| - g and |w| shrink against the paper's calibration of session 11."""
+    _, _, fit, res = drift
+    imu, ref = render_replica(twin, 12, (make_effect("temperature_drift"),))
+    a0, w0 = _resting_residuals(twin, imu, ref, fit.calibration)
+    a1, w1 = _resting_residuals(twin, imu, ref, res["calibration"])
+    rms = lambda x: float(np.sqrt(np.mean(x**2)))  # noqa: E731
+    assert rms(a1) < 0.5 * rms(a0), (rms(a0), rms(a1))
+    assert rms(w1) < 0.5 * rms(w0), (rms(w0), rms(w1))
+
+
+def test_g_sensitivity_recovers_the_simulated_matrix_within_3_std(twin):
+    effect = make_effect("g_sensitivity")
+    _, _, _, res = _loop(twin, 11, (effect,))
+    g = res["calibration"].terms.g_sensitivity
+    true = twin.truth.calibration.gyr.matrix @ np.diag([effect.kx, effect.ky, effect.kz])
+    assert np.all(np.abs(g.matrix - true) < 3 * g.std), (g.matrix, true, g.std)
+
+
+def test_mag_delay_recovers_the_mean_age_of_the_held_sample(twin):
+    _, _, _, res = _loop(twin, 11, (make_effect("mag_latency", rate_hz=75.0, delay_s=0.05),))
+    m = res["calibration"].terms.mag_delay
+    # mean age: delay + half the sample period; the lag estimator reads ~1 ms high on clean
+    # sessions, so 10 % rather than 3 std of the spread over three phases
+    assert m.delay_s == pytest.approx(0.05 + 0.5 / 75.0, rel=0.1)
+
+
+def test_temperature_refused_without_a_channel_and_below_the_span(twin, drift):
+    _, _, _, res = _loop(twin, 11, (), TermSettings("on", "off", "off"))
+    assert res["calibration"] is None
+    assert "no temperature channel" in res["terms"]["temperature"]["reason"]
+    imu, ref, fit, _ = drift
+    res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=None,
+                     settings=TermSettings("on", "off", "off", temperature_min_span_c=8.0))  # fmt: skip
+    assert res["calibration"] is None
+    assert "below the 8 K" in res["terms"]["temperature"]["reason"]
+
+
+def test_auto_on_a_clean_session_adds_nothing_and_is_byte_identical_to_off(twin, tmp_path):
+    imu, ref = render_replica(twin, 11, ())
+    fit = calibrate_session(imu, ref, twin.options)
+    diagnosis = {
+        "settings": {"min_heldout_shrink": 0.3},
+        "effects": [{"name": "g_sensitivity", "accepted": False, "heldout_shrink": 0.05,
+                     "note": ""}],
+    }  # fmt: skip
+    paper = calibration_of_what_ran(
+        {s: {"calibration": fit.calibration.sensor(s).to_dict()} for s in SENSORS}
+    )
+    files = {}
+    for name, settings in (("auto", TermSettings()), ("off", TermSettings("off", "off", "off"))):
+        res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=diagnosis,
+                         settings=settings)  # fmt: skip
+        assert res["calibration"] is None
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps(final_calibration(paper, terms_summary(res))))
+        files[name] = path.read_bytes()
+    assert files["auto"] == files["off"]
+
+
+def test_decide_follows_the_switch_and_the_diagnosis():
+    diagnosis = {
+        "settings": {"min_heldout_shrink": 0.3},
+        "effects": [
+            {"name": "temperature_drift", "accepted": True, "heldout_shrink": 0.8},
+            {"name": "g_sensitivity", "accepted": False, "heldout_shrink": 0.1, "note": ""},
+        ],
+    }
+    assert decide("temperature", TermSettings(), diagnosis) == (
+        True, "auto: the diagnosis accepts temperature_drift, held-out shrink 0.80 "
+        "(at least 0.3 needed)",
+    )  # fmt: skip
+    include, reason = decide("g_sensitivity", TermSettings(), diagnosis)
+    assert not include and "does not accept g_sensitivity, held-out shrink 0.10" in reason
+    assert decide("mag_delay", TermSettings(), diagnosis)[0] is False
+    assert decide("temperature", TermSettings(temperature=False), diagnosis) == (
+        False, "off in the config",
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="expected one of"):
+        TermSettings(temperature="sometimes")
+
+
+def test_settings_defaults_are_the_schemas():
+    schema = yaml.safe_load((REPO / "workflow/schemas/config.schema.yaml").read_text())
+    props = schema["properties"]["terms"]["properties"]
+    assert TermSettings.from_config({k: v["default"] for k, v in props.items()}) == TermSettings()
+
+
+def _with_temperature(calibration: ImuCalibration, margin_c: float = 1.0) -> ImuCalibration:
+    poly = TemperaturePolynomial("gyr", 25.0, (22.0, 28.0), margin_c, [[1e-3, 2e-3, 3e-3]],
+                                 [[1e-4, 0, 0]], [[1e-5] * 3], [[1e-5, 0, 0]])  # fmt: skip
+    return calibration.with_terms(ModelTerms({"gyr": poly}))
+
+
+def _recording(n=50, temp=None):
+    rng = np.random.default_rng(0)
+    table = pd.DataFrame(rng.normal(size=(n, 9)), columns=[*ACC, *GYR, *MAG])
+    table.insert(0, "t_s", np.arange(n) * 0.01)
+    if temp is not None:
+        table["temp_c"] = temp
+    meta = {"units": {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}}
+    return table, meta
+
+
+def test_file_round_trip_and_format_1_still_read(drift):
+    cal = drift[3]["calibration"]
+    d = cal.to_dict()
+    assert d["format_version"] == 2 and "terms" in d
+    back = ImuCalibration.from_dict(json.loads(json.dumps(d)))
+    assert back.to_dict() == d
+    old = {k: v for k, v in d.items() if k != "terms"} | {"format_version": 1}
+    assert ImuCalibration.from_dict(old).terms.empty
+
+
+def test_apply_uses_the_temperature_term_and_refuses_what_it_cannot(drift):
+    cal = _with_temperature(drift[2].calibration)
+    table, meta = _recording(temp=np.full(50, 27.0))
+    out, m = apply_calibration(table, meta, cal, source="rec.parquet")
+    # at 27 deg C the gyro bias drift is 2 K * (1e-3, 2e-3, 3e-3), scale x (1 + 2e-4)
+    g = cal.gyr
+    raw = table[list(GYR)].to_numpy()
+    want = (raw - g.bias - 2 * np.array([1e-3, 2e-3, 3e-3])) / (1 + np.array([2e-4, 0, 0]))
+    np.testing.assert_allclose(out[list(GYR)].to_numpy(), want @ g.matrix.T, rtol=1e-12)
+    assert m["model_terms"] == ["temperature"]
+    assert m["temperature_outside_span"]["gyr"]["outside_fraction"] == 0
+    table, meta = _recording()
+    with pytest.raises(ValueError, match=r"rec\.parquet: .*no temperature column"):
+        apply_calibration(table, meta, cal, source="rec.parquet")
+    table, meta = _recording(temp=np.full(50, 30.5))
+    with pytest.raises(
+        ValueError, match=r"rec\.parquet: .*outside .* by 2\.50 K, more than the margin 1 K"
+    ):
+        apply_calibration(table, meta, cal, source="rec.parquet")
+    table, meta = _recording(temp=np.full(50, 28.5))
+    _, m = apply_calibration(table, meta, cal, source="rec.parquet")
+    assert m["temperature_outside_span"]["gyr"] == {"outside_fraction": 1.0, "max_outside_k": 0.5}
+
+
+def test_corrected_session_with_no_terms_is_the_session(twin, drift):
+    imu, _, fit, _ = drift
+    fixed = corrected_session({"cube": imu["cube"]}, fit.calibration, ModelTerms())
+    np.testing.assert_allclose(fixed["cube"][list(ACC)], imu["cube"][list(ACC)], atol=1e-12)
+
+
+def test_report_section_lists_the_terms_and_the_gap_before_and_after(drift, tmp_path):
+    from imucal.report.lab import _environment, _terms_section
+
+    (tmp_path / "terms.json").write_text(json.dumps(terms_summary(drift[3])))
+    (tmp_path / "after.json").write_text(
+        json.dumps({"gap": {"total": 1.5}, "remaining": {"total": 0.5}})
+    )
+    (tmp_path / "diagnosis.json").write_text(json.dumps({"gap": {"total": 40.0}}))
+    ctx = _terms_section(
+        [tmp_path / "terms.json", tmp_path / "after.json"], [tmp_path / "diagnosis.json"]
+    )
+    html = _environment().get_template("_terms.html.j2").render(terms=ctx)
+    assert "temperature gyr bias dT^1" in html and "g-sensitivity G" in html
+    assert "Gap before the terms (paper&#39;s model): 40" in html or "paper's model): 40" in html
+    assert "gap 1.5" in html
