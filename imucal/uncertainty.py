@@ -193,6 +193,29 @@ def two_step_covariance(
     return calibration_covariance(bias, m, cov12)
 
 
+def bias_matrix_covariance(
+    bias: np.ndarray, matrix: np.ndarray, matrix_bias: np.ndarray | None = None
+) -> np.ndarray:
+    """The joint covariance (12, 12) of ``(bias, matrix row by row)`` from its blocks.
+
+    Parameters
+    ----------
+    bias : ndarray, shape (3, 3)
+        Covariance of the bias.
+    matrix : ndarray, shape (9, 9)
+        Covariance of the matrix entries.
+    matrix_bias : ndarray, shape (9, 3), optional
+        Cross-covariance of the matrix entries with the bias (zero when omitted).
+    """
+    out = np.zeros((12, 12))
+    out[:3, :3] = np.asarray(bias, dtype=float)
+    out[3:, 3:] = np.asarray(matrix, dtype=float)
+    if matrix_bias is not None:
+        out[3:, :3] = np.asarray(matrix_bias, dtype=float)
+        out[:3, 3:] = out[3:, :3].T
+    return out
+
+
 def step1_only_covariance(
     upper: np.ndarray, bias: np.ndarray, covariance: np.ndarray
 ) -> np.ndarray:

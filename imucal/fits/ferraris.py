@@ -596,11 +596,7 @@ def fit_known_rotations(
             j_raw = uncertainty.numerical_jacobian(lambda t: solve(t).ravel(), raw.ravel())
             j_bias = -j_raw @ np.kron(durations[:, None], np.eye(3))
             cov_b = np.diag(std["bias"] ** 2)
-            cov12 = np.zeros((12, 12))
-            cov12[:3, :3] = cov_b
-            cov12[3:, 3:] = cov_m
-            cov12[3:, :3] = j_bias @ cov_b
-            cov12[:3, 3:] = (j_bias @ cov_b).T
+            cov12 = uncertainty.bias_matrix_covariance(cov_b, cov_m, j_bias @ cov_b)
             covariance = uncertainty.calibration_covariance(bias, matrix, cov12)
             std = uncertainty.std_of(covariance)
     calibration = SensorCalibration(

@@ -250,8 +250,8 @@ def fit_pose_to_pose(
         Starting matrix (positive determinant); default identity (readings in nominal rad/s).
     bias_std_rad_s : ndarray, shape (3,), optional
         Standard deviation of ``bias_rad_s``; with it the calibration carries the covariance of
-        its 21 parameters (bias and matrix taken as uncorrelated: the bias's effect on the
-        fitted matrix shows in the residual scatter the matrix covariance is scaled by).
+        its 21 parameters, the bias's effect on the fitted matrix included (a bias error turns
+        every interval's increment the same way).
 
     Returns
     -------
@@ -330,9 +330,16 @@ def fit_pose_to_pose(
     }
     covariance = None
     if bias_std_rad_s is not None:
-        cov12 = np.zeros((12, 12))
-        cov12[:3, :3] = np.diag(np.asarray(bias_std_rad_s, dtype=float).reshape(3) ** 2)
-        cov12[3:, 3:] = jm @ cov @ jm.T
+        # a bias error turns every interval's increment and so the fitted matrix: by the
+        # implicit function theorem d theta / d o = -(J^T J)^-1 J^T d r / d o
+        dr_db = uncertainty.numerical_jacobian(
+            lambda b: (end - _carry(_raw_increments(intervals, b), matrix, start)).ravel(), bias
+        )
+        to_matrix = jm @ -np.linalg.solve(jac.T @ jac, jac.T @ dr_db)  # d vec(K) / d o, (9, 3)
+        cov_b = np.diag(np.asarray(bias_std_rad_s, dtype=float).reshape(3) ** 2)
+        cov12 = uncertainty.bias_matrix_covariance(
+            cov_b, jm @ cov @ jm.T + to_matrix @ cov_b @ to_matrix.T, to_matrix @ cov_b
+        )
         covariance = uncertainty.calibration_covariance(bias, matrix, cov12)
         std = uncertainty.std_of(covariance)
     calibration = SensorCalibration(

@@ -96,6 +96,25 @@ def test_pose_to_pose_recovers_gyro_matrix(irregular):
     assert np.sqrt(np.mean(fit.angle_errors_deg**2)) < 3 * np.degrees(1.6e-3) * np.sqrt(2)
 
 
+def test_the_bias_uncertainty_enters_the_matrix_covariance():
+    rng = np.random.default_rng(21)
+    ups, intervals = make_session(rng)
+    bias_std = np.array([2e-3, 3e-3, 1e-3])
+    fit = fit_pose_to_pose(ups[:-1], ups[1:], intervals, BIAS, bias_std_rad_s=bias_std)
+    cov = np.asarray(fit.calibration.covariance)
+    # the covariance's matrix-bias block is d vec(K) / d o times the bias's covariance: a bias
+    # moved by a small step moves the fitted matrix by that derivative (first order; 10 %)
+    to_matrix = cov[3:12, :3] / bias_std**2
+    step = np.array([1e-3, -1e-3, 5e-4])
+    moved = fit_pose_to_pose(ups[:-1], ups[1:], intervals, BIAS + step)
+    change = (moved.calibration.matrix - fit.calibration.matrix).ravel()
+    np.testing.assert_allclose(change, to_matrix @ step, atol=0.1 * np.abs(change).max())
+    # and the matrix's variance holds that part on top of the fit's own
+    alone = fit_pose_to_pose(ups[:-1], ups[1:], intervals, BIAS, bias_std_rad_s=1e-12 * bias_std)
+    extra = np.diag(cov)[3:12] - np.diag(np.asarray(alone.calibration.covariance))[3:12]
+    np.testing.assert_allclose(extra, (to_matrix**2) @ bias_std**2, rtol=1e-6, atol=1e-15)
+
+
 def test_gravity_direction_errors_zero_with_true_calibration_and_no_noise():
     rng = np.random.default_rng(3)
     matrix = gyro_truth()
