@@ -94,6 +94,7 @@ def diagnose_partial_session(
     static: pd.DataFrame | None,
     *,
     motion: tuple[Mapping[str, MotionRecording], MotionTwin] | None = None,
+    reference_not_scored: str | None = None,
     dataset: str,
     calibration: Mapping | None,
     sensitivity: Mapping[str, float],
@@ -109,6 +110,9 @@ def diagnose_partial_session(
     motion : (dict of str to MotionRecording, MotionTwin) or None
         The recordings with an orientation reference and their twin
         (:func:`imucal.gap.motion.motion_part`), None when the session has none.
+    reference_not_scored : str, optional
+        Why the session's recordings with a reference are not scored
+        (:func:`imucal.gap.motion.reference_part`); kept in the result.
     dataset : str
     calibration, sensitivity, gravity_m_s2, settings
         As in :func:`imucal.gap.static.diagnose_static`.
@@ -123,21 +127,31 @@ def diagnose_partial_session(
     """
     streams = split_streams(static) if static is not None else {}
     if motion is None:
+        extra = {"reference_not_scored": reference_not_scored} if reference_not_scored else {}
         if static is None:
-            return unscored_diagnosis(
-                dataset,
+            reason = (
                 "the session has neither a static recording nor a recording with an "
                 "orientation reference; the twin of a partial session renders only these (its "
-                "other recordings are hand-held motions nothing measures independently)",
+                "other recordings are hand-held motions nothing measures independently)"
             )
+            if reference_not_scored:
+                reason = (
+                    "the session has no static recording, and its recordings with an "
+                    f"orientation reference cannot be scored: {reference_not_scored}"
+                )
+            return {**unscored_diagnosis(dataset, reason), **extra}
         if not streams:
-            return unscored_diagnosis(
-                dataset, "the static recording has no stream of >= 100 samples"
-            )
-        return diagnose_static(
+            return {
+                **unscored_diagnosis(
+                    dataset, "the static recording has no stream of >= 100 samples"
+                ),
+                **extra,
+            }
+        result = diagnose_static(
             static, dataset=dataset, calibration=calibration, sensitivity=sensitivity,
             gravity_m_s2=gravity_m_s2, settings=settings,
         )  # fmt: skip
+        return {**result, **extra}
     t0 = time.perf_counter()
     recordings, motion_twin = motion
     parts, sessions, libraries = {}, {}, {}

@@ -371,9 +371,14 @@ def recorded_motion(
         gyr = errormodel.apply(cals["gyr"].matrix, cals["gyr"].bias, values[ok])
         mag = None
         if "mag" in (calibration or {}) and set(MAG) <= set(table.columns):
-            raw = table[list(MAG)].to_numpy(dtype=float)[ok]
-            if np.all(np.isfinite(raw)):
-                mag = errormodel.apply(cals["mag"].matrix, cals["mag"].bias, raw)
+            # the magnetometer's own rows (a stream of its own in some loggers), at the
+            # gyroscope's times
+            raw = table[list(MAG)].to_numpy(dtype=float)
+            fresh = np.all(np.isfinite(raw), axis=1)
+            if np.count_nonzero(fresh) >= MIN_INTERVALS:
+                t_mag = table[TIME].to_numpy(dtype=float)[fresh]
+                at_gyr = np.column_stack([np.interp(t, t_mag, raw[fresh][:, k]) for k in range(3)])
+                mag = errormodel.apply(cals["mag"].matrix, cals["mag"].bias, at_gyr)
         t_ref = reference[TIME].to_numpy(dtype=float)
         quat = reference[list(QUAT)].to_numpy(dtype=float)
         alignment = align_orientation_reference(t, gyr, t_ref, quat, where=where[name])
@@ -685,9 +690,25 @@ def motion_part(
     Returns
     -------
     recordings : dict of str to MotionRecording
+        The recordings whose reference could be aligned (the others are named in the twin's
+        notes with the reason).
     twin : MotionTwin
+
+    Raises
+    ------
+    ValueError
+        When no recording's reference can be aligned (each reason in the message).
     """
-    recordings = recorded_motion(tables, references, calibration, where)
+    recordings, skipped = {}, []
+    for name in references:
+        try:
+            recordings |= recorded_motion(tables, {name: references[name]}, calibration, where)
+        except ValueError as err:  # a reference the gyroscope cannot be aligned with
+            skipped.append(f"{name}: {err}")
+    if not recordings:
+        raise ValueError(
+            "no recording's reference could be aligned with its gyroscope: " + "; ".join(skipped)
+        )
     rests = {}
     for name, rec in recordings.items():
         rows = segments[
@@ -700,4 +721,33 @@ def motion_part(
     twin = build_motion_twin(
         recordings, tables, calibration, rests, sensitivity, gravity_m_s2, windows_s
     )
-    return recordings, twin
+    notes = [f"not scored, the reference could not be aligned: {why}" for why in skipped]
+    return recordings, dataclasses.replace(twin, notes=[*twin.notes, *notes])
+
+
+def reference_part(
+    tables: Mapping[str, pd.DataFrame],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    calibration: Mapping | None,
+    segments: pd.DataFrame,
+    where: Mapping[str, str],
+    sensitivity: Mapping[str, float],
+    gravity_m_s2: float,
+    windows_s: Sequence[float] = WINDOWS_S,
+) -> tuple[tuple | None, str | None]:
+    """:func:`motion_part` (same parameters), or why the recordings with a reference cannot be
+    scored.
+
+    Returns
+    -------
+    part : (dict of str to MotionRecording, MotionTwin) or None
+    not_scored : str or None
+        The reason when ``part`` is None (no reference could be aligned with its gyroscope).
+    """
+    try:
+        part = motion_part(
+            tables, references, calibration, segments, where, sensitivity, gravity_m_s2, windows_s
+        )
+    except ValueError as err:
+        return None, str(err)
+    return part, None

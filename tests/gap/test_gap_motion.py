@@ -14,7 +14,7 @@ from imucal.calibration import SensorCalibration
 from imucal.columns import GYR, QUAT, SEGMENT_COLUMNS, SENSOR_COLUMNS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session
-from imucal.gap.motion import motion_part, motion_statistics
+from imucal.gap.motion import motion_part, motion_statistics, reference_part
 from imucal.gap.twin import StaticTwin, render_static
 from imucal.sim import make_truth
 from imucal.sim.effects import stream_rng
@@ -145,3 +145,28 @@ def test_a_static_recording_and_a_reference_are_scored_together():
     # what neither part can show is listed once, with the reason of the part that cannot
     assert "g_sensitivity" not in result["not_observable"]
     assert "mag_latency" in result["not_observable"]
+
+
+def test_a_reference_that_cannot_be_aligned_is_named_not_scored():
+    s, calibration, _ = session_inputs(5)
+    other = simulate_orientation_session(11, matrix=MATRIX, bias=BIAS, mounting=MOUNTING)
+    table = pd.DataFrame({TIME: s.t_module, **dict(zip(GYR, s.gyr.T))})
+    wrong = pd.DataFrame({TIME: other.t_reference, **dict(zip(QUAT, other.quat_reference.T))})
+    part, reason = reference_part(
+        {"moves": table}, {"moves": (wrong, {"up": "+z"})}, calibration,
+        pd.DataFrame(columns=list(SEGMENT_COLUMNS)), {"moves": "d.yaml: recordings.moves.reference"},
+        {}, 9.81,
+    )  # fmt: skip
+    assert part is None and "recordings.moves.reference" in reason
+    result = diagnose_partial_session(
+        None, motion=None, reference_not_scored=reason, dataset="sim", calibration=calibration,
+        sensitivity={}, gravity_m_s2=9.81, settings=SETTINGS,
+    )  # fmt: skip
+    assert result["scope"] == "none" and result["reference_not_scored"] == reason
+    assert "cannot be scored" in result["reason"]
+    # a static recording beside it is still diagnosed, and the reference's reason is kept
+    with_static = diagnose_partial_session(
+        static_recording(3), motion=None, reference_not_scored=reason, dataset="sim",
+        calibration=calibration, sensitivity={}, gravity_m_s2=9.81, settings=SETTINGS,
+    )  # fmt: skip
+    assert with_static["scope"] == "static" and with_static["reference_not_scored"] == reason

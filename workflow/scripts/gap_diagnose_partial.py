@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session
 from imucal.gap.figures import plot_effects, plot_gap_map
-from imucal.gap.motion import motion_part
+from imucal.gap.motion import reference_part
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 
@@ -18,13 +18,13 @@ logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 info = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 inputs = dict(snakemake.input.items())
 calibration = read_json(snakemake.input.calibration)
-motion = None
+motion = not_scored = None
 if "orientation" in inputs:
     references = {}
     for path in snakemake.input.orientation:
         table, metadata = read_recording(path)
         references[metadata["recording"]] = (table, metadata)
-    motion = motion_part(
+    motion, not_scored = reference_part(
         {name: read_recording(inputs[f"moving_{name}"])[0] for name in references},
         references,
         calibration,
@@ -37,6 +37,7 @@ if "orientation" in inputs:
 result = diagnose_partial_session(
     read_recording(inputs["static"])[0] if "static" in inputs else None,
     motion=motion,
+    reference_not_scored=not_scored,
     dataset=snakemake.wildcards.dataset,
     calibration=calibration,
     sensitivity=info.sensitivity,
