@@ -812,6 +812,10 @@ def _terms_section(
         g = model["g_sensitivity"]
         values.append({"term": "g-sensitivity G", "value": _plus_minus(g["matrix"], g["std"]),
                        "unit": g["unit"]})  # fmt: skip
+    if "lever_arm" in model:
+        r = model["lever_arm"]
+        values.append({"term": "lever arm r", "value": _plus_minus(r["r_m"], r["std_m"]),
+                       "unit": r["unit"]})  # fmt: skip
     if "mag_delay" in model:
         m = model["mag_delay"]
         values.append({"term": "magnetometer delay", "value": _plus_minus(m["delay_s"], m["std_s"]),

@@ -23,6 +23,7 @@ from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration
 from imucal.terms.gsensitivity import fit_g_sensitivity
+from imucal.terms.leverarm import fit_lever_arm
 from imucal.terms.magdelay import fit_mag_delay
 from imucal.terms.selection import TermSettings, decide
 from imucal.terms.temperature import fit_temperature
@@ -112,7 +113,12 @@ def close_loop(
             # the other terms are estimated on the session without the drift
             fixed = corrected_session(imu, base.calibration, ModelTerms(polys))
             fit = calibrate_session(fixed, reference, options, segments)
-    for term, estimator in (("g_sensitivity", fit_g_sensitivity), ("mag_delay", fit_mag_delay)):
+    estimators = {
+        "g_sensitivity": fit_g_sensitivity,
+        "lever_arm": fit_lever_arm,
+        "mag_delay": fit_mag_delay,
+    }
+    for term, estimator in estimators.items():
         if record[term]["included"]:
             value, evidence = estimator(fit)
             record[term]["evidence"] = evidence

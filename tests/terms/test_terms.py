@@ -15,7 +15,7 @@ from imucal.calibration import ImuCalibration
 from imucal.columns import ACC, GYR, MAG, SENSOR_COLUMNS, SENSORS, SI_UNITS
 from imucal.gap import statistics as st
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
-from imucal.modelterms import ModelTerms, TemperaturePolynomial
+from imucal.modelterms import LeverArm, ModelTerms, TemperaturePolynomial
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration, calibration_of_what_ran
 from imucal.sim import ProtocolConfig, make_effect, make_truth
@@ -34,7 +34,7 @@ from tests.conftest import REPO
 SHORT = ProtocolConfig(static_s=120.0, run_plateau_s=3.0, run_pause_s=1.5)
 RANGE = {"acc": 32767, "gyr": 32767, "mag": 32767}
 RATETABLE = {"axes": list(SHORT.ratetable_axes), "rates_dps": list(SHORT.rates_dps)}
-ON = TermSettings("on", "on", "on")
+ON = TermSettings("on", "on", "on", "on")
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +143,10 @@ def test_auto_on_a_clean_session_adds_nothing_and_is_byte_identical_to_off(twin,
         {s: {"calibration": fit.calibration.sensor(s).to_dict()} for s in SENSORS}
     )
     files = {}
-    for name, settings in (("auto", TermSettings()), ("off", TermSettings("off", "off", "off"))):
+    for name, settings in (
+        ("auto", TermSettings()),
+        ("off", TermSettings("off", "off", "off", "off")),
+    ):
         res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=diagnosis,
                          settings=settings)  # fmt: skip
         assert res["calibration"] is None
@@ -252,3 +255,36 @@ def test_report_section_lists_the_terms_and_the_gap_before_and_after(drift, tmp_
     assert "temperature gyr bias dT^1" in html and "g-sensitivity G" in html
     assert "Gap before the terms (paper&#39;s model): 40" in html or "paper's model): 40" in html
     assert "gap 1.5" in html
+
+
+def test_lever_arm_recovers_the_simulated_r_within_3_std(twin):
+    effect = make_effect("lever_arm")
+    _, _, _, res = _loop(twin, 11, (effect,), TermSettings("off", "off", "off", lever_arm="on"))
+    r = res["calibration"].terms.lever_arm
+    true = np.array([effect.x_m, effect.y_m, effect.z_m])
+    assert np.all(np.abs(r.r_m - true) < 3 * r.std_m), (r.r_m, true, r.std_m)
+    # the held-out run means (half the rate levels, predicted from the other half) lose the
+    # centripetal term: what is left is the noise of a run mean
+    held = res["terms"]["lever_arm"]["evidence"]["heldout_rms"]
+    assert held["with"] < 0.05 * held["without"], held
+
+
+def test_apply_takes_out_the_centripetal_acceleration_and_needs_the_gyroscope(drift):
+    cal = drift[2].calibration
+    r = np.array([0.03, 0.02, 0.01])
+    with_arm = cal.with_terms(ModelTerms(lever_arm=LeverArm(r, np.full(3, 1e-4))))
+    table, meta = _recording()
+    # a constant raw rate: the tangential term is zero, the centripetal one w x (w x r)
+    table[list(GYR)] = np.array([0.5, -1.0, 3.0])
+    plain, _ = apply_calibration(table, meta, cal, source="rec.parquet")
+    out, m = apply_calibration(table, meta, with_arm, source="rec.parquet")
+    w = plain[list(GYR)].to_numpy()
+    np.testing.assert_allclose(
+        plain[list(ACC)].to_numpy() - out[list(ACC)].to_numpy(),
+        np.cross(w, np.cross(w, r)),
+        atol=1e-12,
+    )
+    assert m["model_terms"] == ["lever_arm"]
+    table[list(GYR)] = np.nan
+    with pytest.raises(ValueError, match=r"rec\.parquet: .*lever arm, which needs the gyroscope"):
+        apply_calibration(table, meta, with_arm, source="rec.parquet")
