@@ -62,7 +62,7 @@ class TemperaturePolynomial:
     reference_c : float
         Temperature (deg C) at which the calibration's bias and matrix hold.
     span_c : tuple of float
-        Lowest and highest temperature (deg C) of the data the polynomials were fitted on.
+        Lowest and highest temperature (deg C) of the samples the polynomials were fitted on.
     margin_c : float
         How far outside ``span_c`` (K) a sample may be and still be calibrated (flagged);
         beyond it the calibration is refused.

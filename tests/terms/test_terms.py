@@ -295,3 +295,14 @@ def test_apply_takes_out_the_centripetal_acceleration_and_needs_the_gyroscope(dr
     table[list(GYR)] = np.nan
     with pytest.raises(ValueError, match=r"rec\.parquet: .*lever arm, which needs the gyroscope"):
         apply_calibration(table, meta, with_arm, source="rec.parquet")
+
+
+def test_the_sessions_own_samples_are_inside_the_calibrated_span(drift):
+    """The span is that of the samples the polynomials were fitted on (not of the segment
+    means): the session's coldest and warmest samples are in its first and last rest."""
+    imu, _, _, res = drift
+    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
+    for name, table in imu.items():
+        _, meta = apply_calibration(table, {"units": units}, res["calibration"], source=name)
+        for sensor, flag in meta["temperature_outside_span"].items():
+            assert flag["outside_fraction"] == 0, (name, sensor, flag)
