@@ -72,7 +72,8 @@ def _solve(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def heldout_table_rms(fit: SessionFit) -> dict:
     """RMS (m/s^2) of the calibrated acc means of the runs of half B of the rate levels,
-    predicted by a fit on half A, without and with the lever arm (rest runs in both halves)."""
+    predicted by a fit on half A, without and with the lever arm (rest runs in both halves);
+    ``values``: how many run-mean components the RMS is over."""
     out = {}
     rows_a, rows_b = table_runs(fit, "A"), table_runs(fit, "B")
     moving_b = rows_b[rows_b["rate_dps"] != 0]
@@ -80,6 +81,7 @@ def heldout_table_rms(fit: SessionFit) -> dict:
         coef, _ = _solve(*_design(fit, rows_a, lever))
         x, y = _design(fit, moving_b, lever)
         out[name] = float(np.sqrt(np.mean((y - x @ coef) ** 2))) if len(y) else float("nan")
+    out["values"] = len(y)
     return out
 
 

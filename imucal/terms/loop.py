@@ -23,6 +23,7 @@ from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration
 from imucal.terms.gsensitivity import fit_g_sensitivity
+from imucal.terms.heldout import heldout_comparison
 from imucal.terms.leverarm import fit_lever_arm
 from imucal.terms.magdelay import fit_mag_delay
 from imucal.terms.selection import TermSettings, decide
@@ -87,7 +88,9 @@ def close_loop(
     Returns
     -------
     dict
-        ``terms``: term -> ``setting``, ``included`` (bool), ``reason``, ``evidence``;
+        ``terms``: term -> ``setting``, ``included`` (bool), ``reason``, ``evidence``, and for
+        a term in the model ``heldout`` (achieved held-out shrink beside the diagnosis's
+        prediction, :func:`imucal.terms.heldout.heldout_comparison`);
         ``calibration``: the recalibrated :class:`ImuCalibration` with its terms, or None when
         no term is included (the paper's calibration stands); ``corrected``: the corrected
         recordings (None likewise).
@@ -124,6 +127,8 @@ def close_loop(
             record[term]["evidence"] = evidence
             if value is not None:
                 found[term] = value
+    for term in found:
+        record[term]["heldout"] = heldout_comparison(term, record[term]["evidence"], diagnosis)
     for term, r in record.items():
         if r["included"] and term not in found:
             r["included"] = False

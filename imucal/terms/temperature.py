@@ -208,7 +208,8 @@ def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> t
     order, heldout = select_model({k: design(k) for k in range(max_order + 1)}, y)
     coef, std = _lstsq(design(order), y)
     p = design(0).shape[1]
-    return coef[p:], std[p:], {"order": order, "heldout_rms": heldout, "unit": "rad/s"}
+    evidence = {"order": order, "heldout_rms": heldout, "unit": "rad/s", "segments": n}
+    return coef[p:], std[p:], evidence
 
 
 def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_order: int):
@@ -299,6 +300,9 @@ def _acc(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tu
         "scale": scale,
         "heldout_rms": {f"bias {o_}, scale {s_}": v for (o_, s_), v in heldout.items()},
         "unit": "m/s^2 (|a| - g)",
+        "segments": len(y),
+        "without": "bias 0, scale none",
+        "with": f"bias {order}, scale {scale}",
     }
     return bias, bias_std, rest_c.reshape(q, 3), rest_s.reshape(q, 3), evidence
 

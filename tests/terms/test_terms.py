@@ -306,3 +306,37 @@ def test_the_sessions_own_samples_are_inside_the_calibrated_span(drift):
         _, meta = apply_calibration(table, {"units": units}, res["calibration"], source=name)
         for sensor, flag in meta["temperature_outside_span"].items():
             assert flag["outside_fraction"] == 0, (name, sensor, flag)
+
+
+@pytest.mark.slow  # a diagnosis with 8 replicas: about 35 s
+def test_lever_arm_heldout_improvement_reaches_the_diagnosis_prediction(twin):
+    from imucal.gap.diagnosis import DiagnosisSettings, diagnose
+
+    imu, ref = render_replica(twin, 11, (make_effect("lever_arm"),))
+    diagnosis = diagnose(imu, ref, twin.options, dataset="lever_arm",
+                         settings=DiagnosisSettings(replicas=8))  # fmt: skip
+    fit = calibrate_session(imu, ref, twin.options)
+    res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=diagnosis,
+                     settings=TermSettings("off", "off", "off", "auto"))  # fmt: skip
+    r = res["terms"]["lever_arm"]
+    assert r["included"], r["reason"]
+    h = r["heldout"]
+    # the achieved shrink of the mean square is a lower bound of that of the excess the
+    # diagnosis's shrink measures: the term must not fall short of it by 3 of its std
+    assert h["predicted_shrink"] is not None and not h["short_of_prediction"], h
+    assert h["achieved_shrink"] + 3 * h["achieved_std"] >= h["predicted_shrink"], h
+
+
+def test_heldout_comparison_is_one_sided_against_the_prediction():
+    from imucal.terms.heldout import heldout_comparison
+
+    evidence = {"heldout_rms": {"without": 1.0, "with": 0.5, "values": 16}}
+    # achieved 1 - 0.25 = 0.75, std 0.25 * sqrt(4 / 16) = 0.125
+    for predicted, short in ((0.5, False), (0.95, False), (1.2, True)):
+        diagnosis = {"effects": [{"name": "lever_arm", "heldout_shrink": predicted}]}
+        h = heldout_comparison("lever_arm", evidence, diagnosis)
+        assert h["achieved_shrink"] == pytest.approx(0.75)
+        assert h["achieved_std"] == pytest.approx(0.125)
+        assert h["short_of_prediction"] is short
+    assert heldout_comparison("lever_arm", evidence, None)["short_of_prediction"] is None
+    assert "note" in heldout_comparison("mag_delay", {}, None)
