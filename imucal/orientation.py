@@ -199,3 +199,35 @@ def integrate_rates(t_s: np.ndarray, rates: np.ndarray) -> np.ndarray:
     out[0] = (1.0, 0.0, 0.0, 0.0)
     out[1:] = scan
     return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def interpolate_orientation(t_s: np.ndarray, quat: np.ndarray, tau_s: np.ndarray) -> np.ndarray:
+    """Orientations at times ``tau_s`` by normalised linear interpolation of the neighbours.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Times of ``quat``, s, increasing, no NaN rows (the neighbours of a gap are not checked).
+    quat : ndarray, shape (n, 4)
+        Unit quaternions, scalar first.
+    tau_s : ndarray, shape (m,)
+        Times to interpolate at, s; outside ``t_s`` the end samples are held.
+
+    Returns
+    -------
+    ndarray, shape (m, 4)
+    """
+    t = np.asarray(t_s, dtype=float)
+    q = np.asarray(quat, dtype=float)
+    tau = np.asarray(tau_s, dtype=float)
+    i = np.clip(np.searchsorted(t, tau, side="right") - 1, 0, t.size - 2)
+    frac = np.clip((tau - t[i]) / (t[i + 1] - t[i]), 0.0, 1.0)[:, None]
+    out = (1.0 - frac) * q[i] + frac * q[i + 1]
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def up_vector(up: str) -> np.ndarray:
+    """Unit vector of a declared up axis (``'+z'``, ``'-y'``, ``'x'``...), shape (3,)."""
+    out = np.zeros(3)
+    out["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    return out

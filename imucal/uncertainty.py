@@ -193,6 +193,21 @@ def two_step_covariance(
     return calibration_covariance(bias, m, cov12)
 
 
+def step1_only_covariance(
+    upper: np.ndarray, bias: np.ndarray, covariance: np.ndarray
+) -> np.ndarray:
+    """Covariance (21, 21) of a calibration ``matrix = S'`` (no ``T_R``) from that of
+    ``(S' upper entries, o)`` (9, 9): :func:`two_step_covariance` without a step 2."""
+    return two_step_covariance(
+        np.asarray(upper, dtype=float),
+        np.asarray(bias, dtype=float),
+        np.asarray(covariance, dtype=float),
+        np.zeros(3),
+        np.zeros((3, 3)),
+        np.zeros((3, 9)),
+    )
+
+
 @dataclass(frozen=True)
 class GoodnessOfFit:
     """Chi-square of a fit against its white-noise model and the inflation it implies.

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from imucal.calibration import SensorCalibration
+from imucal.uncertainty import goodness_of_fit, numerical_jacobian
 
 #: Eq. 32 has 9 unknowns and one equation per position.
 MIN_POSITIONS = 9
@@ -460,9 +460,37 @@ def fit_cube(
     )
 
 
+@dataclass(frozen=True)
+class HeldOut:
+    """Leave-one-position-out ``|a| - g`` of the cube fit, and what its covariance predicts.
+
+    Attributes
+    ----------
+    before : ndarray, shape (n_pos,)
+        ``|mean_i| - g`` of the raw readings, m/s^2.
+    after : ndarray, shape (n_pos,)
+        ``|S'_(-i) (mean_i - o_(-i))| - g`` with ``S'_(-i), o_(-i)`` fitted (eq. 32) on all
+        positions but ``i``, m/s^2; NaN where that fit fails (the others do not constrain it).
+    predicted_std : ndarray, shape (n_pos,)
+        The standard deviation of ``after`` that the held-out fit's reported covariance and the
+        noise of ``mean_i`` predict, both inflated by the held-out fit's goodness of fit
+        (:func:`imucal.uncertainty.goodness_of_fit`: positions that scatter beyond their noise
+        do so held out too), m/s^2; NaN where the fit fails.
+    """
+
+    before: np.ndarray
+    after: np.ndarray
+    predicted_std: np.ndarray
+
+    @property
+    def z(self) -> np.ndarray:
+        """``after / predicted_std``: about unit spread when the covariance is honest."""
+        return self.after / self.predicted_std
+
+
 def heldout_errors(
     positions: Sequence[np.ndarray], gravity_m_s2: float, *, method: str = "means"
-) -> tuple[np.ndarray, np.ndarray]:
+) -> HeldOut:
     """Leave-one-position-out ``|a| - g``: each position against the fit on the others.
 
     Parameters
@@ -476,11 +504,7 @@ def heldout_errors(
 
     Returns
     -------
-    before : ndarray, shape (n_pos,)
-        ``|mean_i| - g`` of the raw readings, m/s^2.
-    after : ndarray, shape (n_pos,)
-        ``|S'_(-i) (mean_i - o_(-i))| - g`` with ``S'_(-i), o_(-i)`` fitted (eq. 32) on all
-        positions but ``i``, m/s^2; NaN where that fit fails (the others do not constrain it).
+    HeldOut
 
     Raises
     ------
@@ -490,7 +514,8 @@ def heldout_errors(
     Notes
     -----
     The in-sample errors of :func:`fit_cube` shrink with the 9 fitted parameters (to zero for 9
-    positions); a held-out position shows how the calibration does on a pose it did not see.
+    positions); a held-out position shows how the calibration does on a pose it did not see, and
+    its spread against ``predicted_std`` whether the reported covariance is honest there.
     """
     arrays = [np.asarray(p, dtype=float) for p in positions]
     if len(arrays) < MIN_POSITIONS + 1:
@@ -500,13 +525,29 @@ def heldout_errors(
         )
     means = np.array([p.mean(axis=0) for p in arrays])
     after = np.full(len(arrays), np.nan)
+    predicted = np.full(len(arrays), np.nan)
     for i in range(len(arrays)):
         try:
             fit = fit_cube(arrays[:i] + arrays[i + 1 :], gravity_m_s2, method=method)
         except ValueError:  # the others alone do not constrain S' and o
             continue
-        after[i] = np.linalg.norm(fit.upper @ (means[i] - fit.bias)) - gravity_m_s2
-    return np.linalg.norm(means, axis=1) - gravity_m_s2, after
+
+        def magnitude(theta: np.ndarray, mean: np.ndarray = means[i]) -> np.ndarray:
+            upper, bias = _unpack(theta)
+            return np.array([np.linalg.norm(upper @ (mean - bias))])
+
+        theta = _pack(fit.upper, fit.bias)
+        after[i] = magnitude(theta)[0] - gravity_m_s2
+        inflation = goodness_of_fit(fit.chi2, fit.dof).inflation if fit.dof >= 1 else 1.0
+        jac = numerical_jacobian(magnitude, theta)
+        direction = fit.upper @ (means[i] - fit.bias)
+        direction /= np.linalg.norm(direction)
+        gain = fit.upper.T @ direction  # d|S'(m - o)| / dm
+        noise = np.cov(arrays[i].T) / len(arrays[i]) if len(arrays[i]) > 1 else np.zeros((3, 3))
+        # positions that scatter beyond their noise (the inflation) do so held out as well
+        variance = inflation * ((jac @ fit.covariance @ jac.T)[0, 0] + gain @ noise @ gain)
+        predicted[i] = np.sqrt(variance)
+    return HeldOut(np.linalg.norm(means, axis=1) - gravity_m_s2, after, predicted)
 
 
 def cube_crlb(
@@ -560,34 +601,3 @@ def cube_crlb(
         jac[:, 9 + 2 * j : 11 + 2 * j] = u_inv @ (gravity_m_s2 * tangent.T)
         fisher += counts[j] * jac.T @ (info_weight[:, None] * jac)
     return np.linalg.inv(fisher)[:9, :9]
-
-
-def make_calibration(fit: CubeFit, rotation: np.ndarray, method: str) -> SensorCalibration:
-    """Accelerometer calibration ``T_R,acc S'_acc`` from the cube fit and the step-2 rotation.
-
-    Parameters
-    ----------
-    fit : CubeFit
-    rotation : ndarray, shape (3, 3)
-        ``T_R,acc`` from :mod:`imucal.fits.alignment` (rotation from the S' frame to frame B; exact
-        or the paper's small-angle matrix, as the alignment built it).
-    method : str
-        Description of the variants used, for the report.
-
-    Returns
-    -------
-    SensorCalibration
-        With std of the bias only (the matrix std needs the rotation's uncertainty).
-    """
-    r = np.asarray(rotation, dtype=float)
-    # the paper's small-angle T_R (eq. 5) is only orthonormal to first order: no orthonormality test
-    if r.shape != (3, 3) or not np.all(np.isfinite(r)) or np.linalg.det(r) <= 0:
-        raise ValueError(f"rotation must be a finite 3x3 matrix with det > 0, got {r.tolist()}")
-    return SensorCalibration(
-        sensor="acc",
-        bias=fit.bias,
-        matrix=r @ fit.upper,
-        unit="m/s^2",
-        std={"bias": fit.std_bias},
-        method=method,
-    )

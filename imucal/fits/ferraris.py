@@ -343,6 +343,81 @@ def fit_known_orientations(
     )
 
 
+@dataclass(frozen=True)
+class HeldOutPositions:
+    """Leave-one-position-out errors of the known-orientation fit, and what it predicts.
+
+    Attributes
+    ----------
+    errors_m_s2 : ndarray, shape (n_pos, 3)
+        ``K_(-i) (mean_i - o_(-i)) - g d_i`` with the fit on the other positions, m/s^2; NaN
+        where that fit fails.
+    z2 : ndarray, shape (n_pos,)
+        ``e^T P^-1 e`` with ``P`` the covariance the held-out fit predicts for ``e``: its
+        parameters' reported covariance at the position, the noise of ``mean_i`` and the
+        fit's placement tilt across ``d_i``. Chi-square with 3 dof when the covariance is
+        honest (mean 3, 95 % below 7.81).
+    """
+
+    errors_m_s2: np.ndarray
+    z2: np.ndarray
+
+
+def heldout_positions(
+    positions: Sequence[np.ndarray],
+    directions: np.ndarray,
+    gravity_m_s2: float,
+    *,
+    weighting: str = "tilt",
+) -> HeldOutPositions:
+    """Each position against the known-orientation fit on the others.
+
+    Parameters
+    ----------
+    positions, directions, gravity_m_s2, weighting
+        As in :func:`fit_known_orientations`; each fit on the others needs at least
+        ``MIN_POSITIONS + 1`` of them for standard deviations.
+
+    Returns
+    -------
+    HeldOutPositions
+
+    Raises
+    ------
+    ValueError
+        With fewer than ``MIN_POSITIONS + 2`` positions.
+    """
+    n_pos = len(positions)
+    if n_pos < MIN_POSITIONS + 2:
+        raise ValueError(
+            f"{n_pos} positions: leaving one out needs at least {MIN_POSITIONS + 2} (the fit on "
+            f"the others needs {MIN_POSITIONS + 1} for its standard deviations)"
+        )
+    d = np.asarray(directions, dtype=float)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    errors = np.full((n_pos, 3), np.nan)
+    z2 = np.full(n_pos, np.nan)
+    for i in range(n_pos):
+        rest = [k for k in range(n_pos) if k != i]
+        try:
+            fit = fit_known_orientations(
+                [positions[k] for k in rest], d[rest], gravity_m_s2, weighting=weighting
+            )
+        except ValueError:  # the others do not span 3-D
+            continue
+        cal = fit.calibration
+        samples = np.asarray(positions[i], dtype=float)
+        mean = samples.mean(axis=0)
+        errors[i] = cal.matrix @ (mean - cal.bias) - gravity_m_s2 * d[i]
+        parameters = uncertainty.calibrated_covariance(
+            cal.matrix, cal.bias, cal.covariance, mean[None, :]
+        )[0]
+        noise = cal.matrix @ (np.cov(samples.T) / len(samples)) @ cal.matrix.T
+        tilt = (fit.placement_std_rad * gravity_m_s2) ** 2 * (np.eye(3) - np.outer(d[i], d[i]))
+        z2[i] = errors[i] @ np.linalg.solve(parameters + noise + tilt, errors[i])
+    return HeldOutPositions(errors, z2)
+
+
 # --------------------------------------------------------------------------------------------
 # Gyroscope: rotations through known angles
 # --------------------------------------------------------------------------------------------

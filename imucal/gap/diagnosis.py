@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from imucal.gap.attribution import Candidate, attribute, confusable
+from imucal.gap.blocks import StaticBlocks, decimate_static_table, window_segments
 from imucal.gap.effects import EffectModel, library, misalignment_report
 from imucal.gap.null import build_null, holm, run_replicas
 from imucal.gap.statistics import HALVES, PROTOCOL_STATISTICS, clip_fractions, compute_statistics
@@ -223,20 +224,28 @@ def diagnose(
     dataset: str,
     segments: pd.DataFrame | None = None,
     settings: DiagnosisSettings = DiagnosisSettings(),
+    static_blocks: StaticBlocks | None = None,
 ) -> dict:
     """Diagnose the sim-to-real gap of one session.
 
     Parameters
     ----------
     imu : dict of str to DataFrame
-        Ingested IMU recordings (SI).
+        Ingested IMU recordings (SI). A ``static`` recording longer than
+        :data:`imucal.gap.blocks.STATIC_WINDOW_S` is cut into its window and block means
+        (:func:`imucal.gap.blocks.decimate_static`), unless ``static_blocks`` is given.
     reference : DataFrame or None
         Ingested reference.
     options : PipelineOptions
     dataset : str
     segments : DataFrame, optional
-        The workflow's segments table (automatic segmentation when None).
+        The workflow's segments table (automatic segmentation when None); the static
+        recording's rows are cut to its window.
     settings : DiagnosisSettings
+    static_blocks : StaticBlocks, optional
+        The block means of the static recording when ``imu['static']`` is already its window
+        (:func:`imucal.gap.blocks.read_decimated_static` reads both from the file batch by
+        batch, so that a long recording is never held whole).
 
     Returns
     -------
@@ -245,9 +254,15 @@ def diagnose(
         ``all_locations``, ``timing_s``, ``settings``.
     """
     t0 = time.perf_counter()
+    imu = dict(imu)
+    if static_blocks is None and "static" in imu:
+        imu["static"], static_blocks = decimate_static_table(imu["static"])
+    if static_blocks is not None and segments is not None:
+        segments = window_segments(segments, imu["static"])
     fit = None
     try:
         fit = calibrate_session(imu, reference, options, segments)
+        fit.extra["static_blocks"] = static_blocks
         stats = {h: compute_statistics(fit, h) for h in HALVES}
         twin = build_twin(fit, fit.extra["options"])
         reps = run_replicas(twin, settings.replicas, settings.seed)

@@ -50,10 +50,12 @@ from imucal.gap.statistics import HALVES
 from imucal.gap.twin import Replica, identity_calibration, quantum
 from imucal.orientation import (
     integrate_rates,
+    interpolate_orientation,
     interval_means,
     quat_conjugate,
     quat_multiply,
     quat_rotate,
+    up_vector,
 )
 from imucal.sim import World
 from imucal.sim.effects import RecordingContext, stream_rng
@@ -141,12 +143,6 @@ class MotionRecording:
         )
 
 
-def _up_vector(up: str) -> np.ndarray:
-    v = np.zeros(3)
-    v["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
-    return v
-
-
 def interval_residuals(rec: MotionRecording, gravity_m_s2: float) -> tuple:
     """The calibrated gyroscope against the mounted reference rate over the reference's intervals.
 
@@ -166,7 +162,7 @@ def interval_residuals(rec: MotionRecording, gravity_m_s2: float) -> tuple:
     gyro = interval_means(rec.t_s, rec.gyr, to_module(start), to_module(end))
     mounting = rec.alignment.mounting.matrix
     first = np.searchsorted(rec.t_reference, start)
-    up_body = quat_rotate(quat_conjugate(rec.quat[first]), _up_vector(rec.up))
+    up_body = quat_rotate(quat_conjugate(rec.quat[first]), up_vector(rec.up))
     ok = np.all(np.isfinite(gyro), axis=1)
     return (
         gyro[ok],
@@ -457,7 +453,7 @@ def build_motion_twin(
         q_mount = Rotation.from_matrix(rec.alignment.mounting.matrix)
         start = Rotation.from_quat(q_body[[1, 2, 3, 0]]) * q_mount.inv()
         # the world of the twin has +z up (the simulator's): carry the reference's up there
-        tilt, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [_up_vector(rec.up)])
+        tilt, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up_vector(rec.up)])
         start = tilt * start
         spec[name] = _Recording(
             t_s=rec.t_s,
@@ -508,14 +504,6 @@ def _dip_rad(recordings: Mapping[str, MotionRecording]) -> float:
     return float(np.mean(dips)) if dips else World().dip_rad
 
 
-def _orientation_at(t_s: np.ndarray, quat: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """Orientations (scalar first) at times ``tau`` by normalised linear interpolation."""
-    i = np.clip(np.searchsorted(t_s, tau, side="right") - 1, 0, t_s.size - 2)
-    frac = np.clip((tau - t_s[i]) / (t_s[i + 1] - t_s[i]), 0.0, 1.0)[:, None]
-    out = (1.0 - frac) * quat[i] + frac * quat[i + 1]
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
-
-
 def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str, MotionRecording]:
     """One replica of every recording with a reference (see :class:`MotionTwin`).
 
@@ -532,7 +520,7 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
     for name, r in twin.recordings.items():
         # true orientation B -> twin world at the module samples, from the first reference one
         q_rel = integrate_rates(r.t_s, r.omega_b)
-        q_tau = _orientation_at(r.t_s, q_rel, np.array([r.start[0]]))[0]
+        q_tau = interpolate_orientation(r.t_s, q_rel, np.array([r.start[0]]))[0]
         q_b = quat_multiply(quat_multiply(r.start[1:], quat_conjugate(q_tau)), q_rel)
         rotation = Rotation.from_quat(q_b[:, [1, 2, 3, 0]])
         state = KinematicState(r.t_s, rotation, r.omega_b, np.zeros_like(r.omega_b))
@@ -555,7 +543,7 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
             )
         tau = r.alignment.to_module_time(taken)
         q_ref = quat_multiply(
-            _orientation_at(r.t_s, q_b, tau),
+            interpolate_orientation(r.t_s, q_b, tau),
             Rotation.from_matrix(r.alignment.mounting.matrix).as_quat()[[3, 0, 1, 2]],
         )
         rng = stream_rng(seed, f"reference/{name}")

@@ -56,6 +56,7 @@ from imucal.columns import (
     TIME,
     temperature_column,
 )
+from imucal.gap.blocks import long_series
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
 
@@ -140,10 +141,15 @@ Key = tuple  # (stage, sensor, axis, segment, statistic)
 
 
 def _rows(fit: SessionFit, recording: str, kinds) -> pd.DataFrame:
-    seg = fit.segments
-    kinds = [kinds] if isinstance(kinds, str) else list(kinds)
-    rows = seg[(seg["recording"] == recording) & seg["kind"].isin(kinds)]
-    return rows.sort_values("start_s")
+    """The segments of ``recording`` of the given kind(s) in time order (cached per fit: the
+    statistics ask for the same rows many times; callers select, they never write)."""
+    kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+    cache = fit.extra.setdefault("_cache", {}).setdefault("rows", {})
+    if (recording, kinds) not in cache:
+        seg = fit.segments
+        rows = seg[(seg["recording"] == recording) & seg["kind"].isin(kinds)]
+        cache[(recording, kinds)] = rows.sort_values("start_s")
+    return cache[(recording, kinds)]
 
 
 def _alternate(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
@@ -175,10 +181,15 @@ def _phase_half(labels, half: str | None) -> list:
     return [p for p in labels if (p in ("x", "z")) == (half == "A")]
 
 
+def _bounds(rows: pd.DataFrame) -> zip:
+    """(start_index, end_index) of each row."""
+    return zip(rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int), strict=True)
+
+
 def _means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
     out = []
-    for r in rows.itertuples(index=False):
-        x = table[int(r.start_index) : int(r.end_index)]
+    for a, b in _bounds(rows):
+        x = table[a:b]
         x = x[np.all(np.isfinite(x), axis=1)]
         out.append(x.mean(axis=0) if len(x) else np.full(table.shape[1], np.nan))
     return np.array(out).reshape(-1, table.shape[1])
@@ -307,10 +318,16 @@ def _clipping(fit: SessionFit, half) -> dict:
 
 
 def _noise(fit: SessionFit, half) -> dict:
+    """White noise and the 10 s Allan deviation from the static recording's full-rate rows (its
+    window when it is long); the trend and the Allan deviation at a fifth of the recording from
+    its block means (:func:`imucal.gap.blocks.long_series`: the rows themselves when short)."""
     table = fit.imu["static"]
     t = table[TIME].to_numpy(dtype=float)
     sl = _time_half(len(t), half)
     fs = 1 / np.median(np.diff(t))
+    series, samples, _ = long_series(fit.imu, fit.extra.get("static_blocks"))
+    t_long = series[TIME].to_numpy(dtype=float)
+    sl_long = _time_half(len(t_long), half)
     out = {}
     for s in SENSORS:
         x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl]
@@ -319,18 +336,22 @@ def _noise(fit: SessionFit, half) -> dict:
         x, tt = x[good], tt[good]
         rate = fs if s != "mag" else 1 / np.median(np.diff(tt))
         white = np.std(np.diff(x, axis=0), axis=0) / np.sqrt(2)
-        slope = np.polyfit(tt - tt.mean(), x, 1)[0]
         m10 = max(int(round(10 * rate)), 1)
-        mlong = max(int(len(x) / 5), 1)
+        xl = series[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl_long]
+        tl = t_long[sl_long]
+        good = np.all(np.isfinite(xl), axis=1)
+        xl, tl = xl[good], tl[good]
+        slope = np.polyfit(tl - tl.mean(), xl, 1)[0]
+        mlong = max(int(len(xl) / 5), 1)
+        # the white-noise line at the cluster's number of samples (rows x samples per row)
+        white_long = white / np.sqrt(mlong * samples[s])
         for j, a in enumerate(AXES):
             ad10 = allan_deviation(x[:, [j]], m10)[0]
-            adl = allan_deviation(x[:, [j]], mlong)[0]
+            adl = allan_deviation(xl[:, [j]], mlong)[0]
             out[("noise", s, a, "static", "adev_10s_excess")] = float(
                 np.log(ad10 / (white[j] / np.sqrt(m10)))
             )
-            out[("noise", s, a, "static", "adev_long_excess")] = float(
-                np.log(adl / (white[j] / np.sqrt(mlong)))
-            )
+            out[("noise", s, a, "static", "adev_long_excess")] = float(np.log(adl / white_long[j]))
             out[("noise", s, a, "static", "trend_per_s")] = float(slope[j])
     return out
 
@@ -808,7 +829,7 @@ def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
             rows = rows[rows["rate_dps"] == 0]
         rows = _alternate(rows, half)
         if rec == "static":
-            t = fit.imu[rec][TIME].to_numpy(dtype=float)
+            t = _resting_source(fit, rec)[0][TIME].to_numpy(dtype=float)
             edges = np.linspace(0, len(t), 9).astype(int)
             rows = pd.DataFrame({"start_index": edges[:-1], "end_index": edges[1:],
                                  "start_s": t[edges[:-1]], "end_s": t[edges[1:] - 1]})  # fmt: skip
@@ -861,19 +882,50 @@ def _white_variance(x: np.ndarray, floor: float) -> np.ndarray:
     return np.maximum(np.var(np.diff(x, axis=0), axis=0) / 2, floor) / len(x)
 
 
+def _resting_source(fit: SessionFit, recording: str) -> tuple[pd.DataFrame, float, tuple, dict]:
+    """The rows a recording's resting means are taken from: the table (block means for a long
+    static recording), its first sample's time, the calibrated gyro, acc and mag (n, 3) and
+    the samples per row of each sensor."""
+    if recording != "static":
+        table = fit.imu[recording]
+        cal = tuple(calibrated(fit, recording, s) for s in ("gyr", "acc", "mag"))
+        return table, float(table[TIME].iloc[0]), cal, dict.fromkeys(SENSORS, 1.0)
+    blocks = fit.extra.get("static_blocks")
+    table, samples, start = long_series(fit.imu, blocks)
+    if blocks is None:
+        cal = tuple(calibrated(fit, recording, s) for s in ("gyr", "acc", "mag"))
+        return table, start, cal, samples
+    cache = fit.extra.setdefault("calibrated", {})
+    for s in SENSORS:
+        if ("static blocks", s) not in cache:
+            c = fit.calibration.sensor(s)
+            # the calibration is affine: the calibrated block mean is the block mean calibrated
+            out = c.apply(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), unit=c.unit)
+            out.flags.writeable = False
+            cache[("static blocks", s)] = out
+    cal = tuple(cache[("static blocks", s)] for s in ("gyr", "acc", "mag"))
+    return table, start, cal, samples
+
+
 def resting_means(fit: SessionFit, half) -> RestingMeans:
     """The calibrated means of every resting segment of the session (segments with fewer than 3
-    complete gyro and accelerometer samples are skipped)."""
+    complete gyro and accelerometer samples are skipped). Cached per fit and half, read-only."""
+    cache = fit.extra.setdefault("_cache", {}).setdefault("resting", {})
+    if half not in cache:
+        cache[half] = _resting_means(fit, half)
+    return cache[half]
+
+
+def _resting_means(fit: SessionFit, half) -> RestingMeans:
     sens = fit.extra["options"].sensitivity
     rows_out = {k: [] for k in RestingMeans.__dataclass_fields__}
     for rec, rows in resting_rows(fit, half):
-        table = fit.imu[rec]
-        t0 = float(table[TIME].iloc[0])
-        w, a, m = (calibrated(fit, rec, s) for s in ("gyr", "acc", "mag"))
+        table, t0, (w, a, m), samples = _resting_source(fit, rec)
         col = temperature_column(table)
         temp = table[col].to_numpy(dtype=float) if col else None
-        for r in rows.itertuples(index=False):
-            sl = slice(int(r.start_index), int(r.end_index))
+        mids = 0.5 * (rows["start_s"].to_numpy(float) + rows["end_s"].to_numpy(float)) - t0
+        for (start, end), mid in zip(_bounds(rows), mids, strict=True):
+            sl = slice(start, end)
             ws = w[sl][np.all(np.isfinite(w[sl]), axis=1)]
             as_ = a[sl][np.all(np.isfinite(a[sl]), axis=1)]
             if len(ws) < 3 or len(as_) < 3:
@@ -888,13 +940,12 @@ def resting_means(fit: SessionFit, half) -> RestingMeans:
                     up = up_
                     north = np.cross(up, east)
             rows_out["recording"].append(rec)
-            rows_out["mid_s"].append(0.5 * (r.start_s + r.end_s) - t0)
+            rows_out["mid_s"].append(mid)
             rows_out["gyr"].append(ws.mean(axis=0))
-            rows_out["gyr_var"].append(_white_variance(ws, float(sens["gyr"]) ** 2 / 12))
+            q_gyr, q_acc = (float(sens[s]) ** 2 / 12 / samples[s] for s in ("gyr", "acc"))
+            rows_out["gyr_var"].append(_white_variance(ws, q_gyr))
             rows_out["acc"].append(as_.mean(axis=0))
-            rows_out["acc_var"].append(
-                float(np.mean(_white_variance(as_, float(sens["acc"]) ** 2 / 12)))
-            )
+            rows_out["acc_var"].append(float(np.mean(_white_variance(as_, q_acc))))
             rows_out["north"].append(north)
             rows_out["east"].append(east)
             rows_out["up"].append(up)
@@ -905,6 +956,8 @@ def resting_means(fit: SessionFit, half) -> RestingMeans:
     vectors = {k: np.array(rows_out[k], dtype=float).reshape(-1, 3)
                for k in ("gyr", "gyr_var", "acc", "north", "east", "up")}  # fmt: skip
     scalars = {k: np.array(rows_out[k], dtype=float) for k in ("mid_s", "acc_var", "temp")}
+    for v in (*vectors.values(), *scalars.values()):
+        v.flags.writeable = False
     return RestingMeans(recording=rows_out["recording"], **vectors, **scalars)
 
 

@@ -36,16 +36,18 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from imucal.calibration import ImuCalibration, SensorCalibration
-from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME, temperature_column
+from imucal.gap.blocks import COUNT_COLUMNS, STATIC_WINDOW_S, StaticBlocks
 from imucal.gap.statistics import HALVES, compute_statistics
 from imucal.gap.streams import STREAMS, Stream, static_statistics, white_std
 from imucal.ingest import counts_to_si, reference_to_table
 from imucal.io.raw import MtManagerExport
 from imucal.pipeline.full import PipelineOptions, SessionFit, calibrate_session, calibrated
-from imucal.sim import ProtocolConfig, World, simulate_session
+from imucal.sim import SENSITIVITY, ProtocolConfig, World, plan_session, simulate_session
 from imucal.sim.effects import RecordingContext, stream_rng
 from imucal.sim.motion import evaluate_motion
 from imucal.sim.packets import build_packet_log
@@ -101,6 +103,10 @@ class Twin:
         statistics against them have a null.
     notes : list of str
         How each ingredient was estimated.
+    static_blocks : BlockSpec or None
+        The block means of a long static recording (:mod:`imucal.gap.blocks`): the replica
+        renders the recording's window at full rate (``config.static_s``) and its blocks with
+        :func:`render_static_blocks`. None when the static recording is rendered whole.
     """
 
     truth: Truth
@@ -110,6 +116,7 @@ class Twin:
     has_reference: bool
     extra_columns: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    static_blocks: BlockSpec | None = None
 
     def describe(self) -> dict:
         """JSON-ready summary (noise, world, protocol timing)."""
@@ -121,6 +128,7 @@ class Twin:
             "recordings": list(self.recordings),
             "range_counts": dict(replica_options(self).range_counts),
             "has_reference": self.has_reference,
+            "static_blocks": self.static_blocks.describe() if self.static_blocks else None,
             "protocol": {
                 k: (list(v) if isinstance(v, tuple) else v) for k, v in self.config.__dict__.items()
             },
@@ -132,7 +140,154 @@ class Twin:
         statistics on the given ``halves``."""
         imu, reference = render_replica(self, seed, effects)
         fit = calibrate_session(imu, reference, replica_options(self, effects))
+        if self.static_blocks is not None:
+            fit.extra["static_blocks"] = render_static_blocks(self, seed, effects)
         return Replica(seed, fit, {h: compute_statistics(fit, h) for h in halves})
+
+
+@dataclass(frozen=True)
+class BlockSpec:
+    """What the block means of a twin replica's long static recording are rendered from.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (k,)
+        Mean time of each block since the recording's first row (s), the session's.
+    samples : dict
+        Sensor -> ndarray, shape (k,): samples of the sensor in each block, the session's.
+    samples_per_block : int
+        Rows per block.
+    rate_hz : float
+        Rows per second of the recording.
+    temperature : tuple or None
+        (column name, ndarray (k,) of block-mean temperatures, deg C), carried over to the
+        replicas block by block.
+    """
+
+    t_s: np.ndarray
+    samples: dict
+    samples_per_block: int
+    rate_hz: float
+    temperature: tuple | None = None
+
+    @classmethod
+    def of(cls, blocks: StaticBlocks, rate_hz: float) -> BlockSpec:
+        """The spec of a session's block means (``rate_hz``: its window's row rate)."""
+        table = blocks.table
+        col = temperature_column(table)
+        return cls(
+            table[TIME].to_numpy(dtype=float) - blocks.start_s,
+            {s: table[COUNT_COLUMNS[s]].to_numpy(dtype=float) for s in SENSORS
+             if COUNT_COLUMNS[s] in table.columns},
+            blocks.samples_per_block,
+            rate_hz,
+            (col, table[col].to_numpy(dtype=float)) if col else None,
+        )  # fmt: skip
+
+    def describe(self) -> dict:
+        """JSON-ready summary."""
+        return {
+            "blocks": int(len(self.t_s)),
+            "samples_per_block": int(self.samples_per_block),
+            "duration_s": float(self.t_s[-1] + 0.5 * self.samples_per_block / self.rate_hz),
+        }
+
+
+def quantised_moments(value: np.ndarray, std: float, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance of ``step * round((value + e) / step)`` with ``e ~ N(0, std^2)``.
+
+    Parameters
+    ----------
+    value : ndarray
+        Noise-free readings (SI), any shape.
+    std : float
+        White-noise std (SI).
+    step : float
+        Quantisation step (SI per count).
+
+    Returns
+    -------
+    mean, var : ndarray
+        Same shape as ``value`` (SI, SI^2). With ``std`` well above ``step`` they tend to
+        ``value`` and ``std^2 + step^2 / 12``; below it the rounding's bias and its smaller
+        spread are kept (the session's block means carry them too).
+    """
+    u = np.asarray(value, dtype=float) / step
+    s = std / step
+    if s > 3:  # the rounding error is uniform and independent of the value to < 1e-30
+        return u * step, np.full(u.shape, std**2 + step**2 / 12)
+    half = int(np.ceil(6 * s)) + 2
+    k = np.rint(u)[..., None] + np.arange(-half, half + 1)
+    if s > 0:
+        cdf = stats.norm.cdf((k + 0.5 - u[..., None]) / s) - stats.norm.cdf(
+            (k - 0.5 - u[..., None]) / s
+        )
+    else:
+        cdf = (k == np.rint(u)[..., None]).astype(float)
+    mean = np.sum(k * cdf, axis=-1)
+    var = np.sum(k**2 * cdf, axis=-1) - mean**2
+    return mean * step, np.maximum(var, 0.0) * step**2
+
+
+def render_static_blocks(twin: Twin, seed: int, effects: tuple = ()) -> StaticBlocks:
+    """The block means of a replica's long static recording, drawn at the block rate.
+
+    The replica's static plan (a hold, :func:`imucal.sim.plan_session` with the replica's seed,
+    so the same attitude as its rendered window) is evaluated at the session's block times;
+    the effects' ``on_truth``, ``on_true_signals`` and ``on_readings`` act on the block rate
+    (``rate_hz / samples_per_block``; their time-dependent terms are slow against a block);
+    the packet hook is not called (a block mean does not see receive times or a lost sample).
+    Each block mean is the mean of its quantised samples (:func:`quantised_moments`) plus a
+    Gaussian of their variance over the block's samples of that sensor.
+
+    Parameters
+    ----------
+    twin : Twin
+        With ``static_blocks``.
+    seed : int
+    effects : tuple of imucal.sim.Effect
+
+    Returns
+    -------
+    StaticBlocks
+    """
+    spec = twin.static_blocks
+    truth = twin.truth
+    for effect in effects:
+        truth = effect.on_truth(truth)
+    plans, starts = plan_session(twin.config, seed)
+    motion = plans["static"].motion
+    t = spec.t_s
+    ctx = RecordingContext(
+        "static", spec.rate_hz / spec.samples_per_block, starts["static"] + t[0],
+        SENSITIVITY, seed, motion, truth.calibration, {},
+    )  # fmt: skip
+    state = evaluate_motion(motion, t)
+    true = true_signals(state, truth.world)
+    for effect in effects:
+        true = effect.on_true_signals(true, state, ctx)
+    zero = dict.fromkeys(SENSORS, 0.0)
+    readings = sensor_readings(truth.calibration, true, zero, stream_rng(seed, "blocks/static"))
+    for effect in effects:
+        readings = effect.on_readings(readings, true, state, ctx)
+    rng = stream_rng(seed, "noise/static blocks")
+    columns = {TIME: t}
+    for s in SENSORS:
+        if s not in spec.samples:
+            continue
+        step = float(SENSITIVITY[s])  # the quantiser of the replica's window
+        mean, var = quantised_moments(readings.sensor(s), truth.noise[s], step)
+        n = spec.samples[s][:, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            values = mean + rng.standard_normal(mean.shape) * np.sqrt(var / n)
+        values[spec.samples[s] == 0] = np.nan
+        columns.update(zip(SENSOR_COLUMNS[s], values.T, strict=True))
+        columns[COUNT_COLUMNS[s]] = spec.samples[s]
+    if spec.temperature is not None:
+        columns[spec.temperature[0]] = spec.temperature[1]
+    table = pd.DataFrame(columns)
+    n_rows = int(spec.samples_per_block * len(t))
+    return StaticBlocks(table, spec.samples_per_block, 0.0, n_rows)
 
 
 def replica_options(twin: Twin, effects: tuple = ()) -> PipelineOptions:
@@ -353,9 +508,18 @@ def build_twin(fit: SessionFit, options: PipelineOptions) -> Twin:
         "sensor ranges: none below the int16 full scale (the paper's model has no range); "
         f"declared {dict(options.range_counts)} counts"
     )
+    spec = None
+    blocks = fit.extra.get("static_blocks")
+    if blocks is not None:
+        t = fit.imu["static"][TIME].to_numpy(dtype=float)
+        spec = BlockSpec.of(blocks, (len(t) - 1) / (t[-1] - t[0]))
+        notes.append(
+            f"static recording of {blocks.n_rows} rows: its first {STATIC_WINDOW_S:g} s at full "
+            f"rate and {len(blocks.table)} block means of {blocks.samples_per_block} rows"
+        )
     return Twin(
         truth, config, options, tuple(r for r in TWIN_RECORDINGS if r in fit.imu),
-        fit.reference is not None, extra, notes,
+        fit.reference is not None, extra, notes, spec,
     )  # fmt: skip
 
 

@@ -10,7 +10,7 @@ import hashlib
 import json
 import os
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -187,6 +187,30 @@ def read_recording(path: str | Path) -> tuple[pd.DataFrame, dict]:
 def recording_column_names(path: str | Path) -> list[str]:
     """Column names of an ingested recording, read from the parquet schema alone."""
     return list(pq.read_schema(_existing(path, "ingested recording (parquet)")).names)
+
+
+def read_recording_batches(
+    path: str | Path, batch_rows: int = 100_000
+) -> tuple[int, Iterator[pd.DataFrame]]:
+    """An ingested recording in consecutive row batches, so that a long one is never held whole.
+
+    Parameters
+    ----------
+    path : str or Path
+    batch_rows : int
+        Largest number of rows of a batch (a batch may be shorter at a row-group boundary).
+
+    Returns
+    -------
+    n_rows : int
+        Rows of the whole recording (from the parquet metadata).
+    batches : iterator of DataFrame
+        The rows in file order, every column.
+    """
+    path = _existing(path, "ingested recording (parquet)")
+    file = pq.ParquetFile(path)
+    batches = (b.to_pandas() for b in file.iter_batches(batch_size=batch_rows))
+    return file.metadata.num_rows, batches
 
 
 def read_recording_column(path: str | Path, column: str) -> np.ndarray:

@@ -225,6 +225,9 @@ def _acc_known_orientation(s: _Session) -> dict:
     )
     artifact = stages.plain(fit)
     artifact.update(calibration=fit.calibration.to_dict(), gravity_m_s2=s.gravity_m_s2)
+    if len(positions) >= ferraris.MIN_POSITIONS + 2:
+        held = ferraris.heldout_positions(positions, directions, s.gravity_m_s2)
+        artifact.update(heldout_error_m_s2=held.errors_m_s2.tolist(), heldout_z2=held.z2.tolist())
     return artifact
 
 
@@ -263,15 +266,15 @@ def _acc_cube(s: _Session) -> dict:
     artifact = stages.plain(fit)
     artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
     if len(positions) > MIN_CUBE_POSITIONS:
-        before, after = accelerometer.heldout_errors(positions, s.gravity_m_s2)
+        held = accelerometer.heldout_errors(positions, s.gravity_m_s2)
         artifact.update(
-            heldout_error_before_m_s2=before.tolist(), heldout_error_after_m_s2=after.tolist()
+            heldout_error_before_m_s2=held.before.tolist(),
+            heldout_error_after_m_s2=held.after.tolist(),
+            heldout_predicted_std_m_s2=held.predicted_std.tolist(),
         )
     if recording in s.notes:  # how the poses were found (e.g. the tremor-adaptive detector)
         artifact["segmentation"] = s.notes[recording]
-    artifact["calibration"] = accelerometer.make_calibration(
-        fit, np.eye(3), "cube fit (eq. 32), sensor frame (no T_R)"
-    ).to_dict()
+    artifact["calibration"] = stages.cube_calibration(artifact).to_dict()
     return artifact
 
 
@@ -584,25 +587,13 @@ def final_calibration(outcomes: list[Outcome]) -> dict[str, Any]:
     return {"sensors": sensors, "missing": missing}
 
 
-def _step1_only_covariance(upper, bias, covariance) -> np.ndarray:
-    """Covariance (21, 21) of a calibration ``matrix = S'`` (no T_R) from that of (S', o)."""
-    return uncertainty.two_step_covariance(
-        np.asarray(upper, dtype=float),
-        np.asarray(bias, dtype=float),
-        np.asarray(covariance, dtype=float),
-        np.zeros(3),
-        np.zeros((3, 3)),
-        np.zeros((3, 9)),
-    )
-
-
 def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
     artifact = done[stage]
     if stage == "mag_step1":
         from imucal.fits import magnetometer
 
         fit = magnetometer.EllipsoidFit.from_dict(dict(artifact))
-        cov = _step1_only_covariance(fit.upper, fit.bias, fit.selected.covariance)
+        cov = uncertainty.step1_only_covariance(fit.upper, fit.bias, fit.selected.covariance)
         return SensorCalibration(
             "mag",
             fit.bias,
@@ -617,7 +608,7 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
         cov9 = upper_bias_covariance(
             artifact["matrix"], np.asarray(artifact["covariance"]) + np.outer(shift, shift)
         )
-        cov = _step1_only_covariance(artifact["upper"], artifact["bias"], cov9)
+        cov = uncertainty.step1_only_covariance(artifact["upper"], artifact["bias"], cov9)
         return SensorCalibration(
             "gyr",
             artifact["bias"],
@@ -640,13 +631,15 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
             "tool-free: T_R,gyr (eqs. 28-31) and eq. 36 scale",
         ).to_dict()
     if stage == "gyr_bias":
+        bias, std = stages.gyr_bias_value(artifact, "ls")  # the wander's variance where it shows
         return SensorCalibration(
             "gyr",
-            artifact["bias_ls_rad_s"],
+            bias,
             np.eye(3),
             "rad/s",
-            {"bias": np.asarray(artifact["std_ls_rad_s"])},
+            {"bias": std},
             "bias only (nominal scale, sensor frame)",
+            quality=stages.gyr_bias_quality(artifact),
         ).to_dict()
     return dict(artifact["calibration"])
 

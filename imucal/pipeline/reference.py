@@ -21,7 +21,7 @@ from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, MAG, QUAT, TIME
 from imucal.fits import magnetometer
 from imucal.fits.reference import fit_gyro_to_reference, fit_mag_to_reference
-from imucal.orientation import quat_conjugate, quat_rotate
+from imucal.orientation import quat_conjugate, quat_rotate, up_vector
 from imucal.uncertainty import (
     numerical_jacobian,
     std_of,
@@ -153,8 +153,7 @@ def rest_directions(
     t_ref, quat = _orientation(reference)
     t_ref_m = _module_time(time, t_ref)
     present = np.all(np.isfinite(quat), axis=1)
-    up_world = np.zeros(3)
-    up_world["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    up_world = up_vector(up)
     t, acc = _series(table, ACC)
     positions, directions, labels = [], [], []
     for row in rests.itertuples(index=False):

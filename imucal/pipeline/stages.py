@@ -158,11 +158,11 @@ def align_acc(
         name: align_constant_component(phases, method=name, exact=exact)
         for name in ALIGNMENT_METHODS
     }
-    fit = uncertainty.goodness_of_fit(cube_fit["chi2"], cube_fit["dof"])
+    fit, step1 = cube_quality(cube_fit)
     covariance = uncertainty.two_step_covariance(
         upper,
         bias,
-        fit.inflation * np.asarray(cube_fit["covariance"], dtype=float),
+        step1,
         alignments[method].alpha_rad,
         alignments[method].covariance,
         alignment_sensitivity(
@@ -185,7 +185,7 @@ def align_acc(
         {
             # the cube fit's covariance is its Cramer-Rao bound to first order (noise-weighted
             # Jacobian at the solution): only the inflation sets it apart
-            "cube": {**fit.to_dict(), "std_over_crlb": float(np.sqrt(fit.inflation))},
+            "cube": fit,
             "alignment": {"rule": ALIGNMENT_RULE},
         },
     )
@@ -195,6 +195,46 @@ def align_acc(
         "step2": {"used": method, **{k: a.to_dict() for k, a in alignments.items()}},
         "warnings": list(cube_fit.get("warnings", [])),
     }
+
+
+def cube_quality(cube_fit: Mapping) -> tuple[dict, np.ndarray]:
+    """The cube fit's goodness of fit and its covariance of (S' entries, o), inflated by its rule.
+
+    Returns
+    -------
+    quality : dict
+        :meth:`imucal.uncertainty.GoodnessOfFit.to_dict` with ``std_over_crlb`` (the cube fit's
+        covariance is its Cramer-Rao bound to first order, the noise-weighted Jacobian at the
+        solution: only the inflation sets it apart); without degrees of freedom (as many
+        positions as parameters) the rule says so and nothing is inflated.
+    covariance : ndarray, shape (9, 9)
+    """
+    covariance = np.asarray(cube_fit["covariance"], dtype=float)
+    if cube_fit["dof"] < 1:
+        rule = "no goodness of fit: as many position means as parameters, nothing inflated"
+        return {"dof": int(cube_fit["dof"]), "inflation": 1.0, "rule": rule}, covariance
+    fit = uncertainty.goodness_of_fit(cube_fit["chi2"], cube_fit["dof"])
+    quality = {**fit.to_dict(), "std_over_crlb": float(np.sqrt(fit.inflation))}
+    return quality, fit.inflation * covariance
+
+
+def cube_calibration(cube_fit: Mapping) -> SensorCalibration:
+    """The accelerometer from the cube fit alone (eq. 32; sensor frame, no ``T_R``) with the
+    covariance of every parameter, inflated by the fit's goodness of fit."""
+    upper = np.asarray(cube_fit["upper"], dtype=float)
+    bias = np.asarray(cube_fit["bias"], dtype=float)
+    quality, step1 = cube_quality(cube_fit)
+    covariance = uncertainty.step1_only_covariance(upper, bias, step1)
+    return SensorCalibration(
+        "acc",
+        bias,
+        upper,
+        "m/s^2",
+        uncertainty.std_of(covariance),
+        "cube fit (eq. 32), sensor frame (no T_R)",
+        covariance,
+        {"cube": quality},
+    )
 
 
 def estimate_gyr_bias(
@@ -256,7 +296,8 @@ def gyr_bias_value(bias: Mapping, estimator: str) -> tuple[np.ndarray, np.ndarra
     if estimator not in ("ls", "mean"):
         raise ValueError(f"gyroscope bias estimator {estimator!r}: expected 'ls' or 'mean'")
     std = np.asarray(bias[f"std_{estimator}_rad_s"], dtype=float)
-    flagged = np.array([q["inflation"] > 1 for q in gyr_bias_quality(bias)] or [False] * 3)
+    quality = gyr_bias_quality(bias)
+    flagged = np.array([quality[f"bias_{a}"]["inflation"] > 1 if quality else False for a in AXES])
     wander = np.asarray(bias.get("wander_var_rad2_s2", np.zeros(3)), dtype=float)
     return (
         np.asarray(bias[f"bias_{estimator}_rad_s"], dtype=float),
@@ -264,19 +305,20 @@ def gyr_bias_value(bias: Mapping, estimator: str) -> tuple[np.ndarray, np.ndarra
     )
 
 
-def gyr_bias_quality(bias: Mapping) -> list[dict]:
-    """Per axis the goodness of fit of the static blocks' means (empty for a single block)."""
+def gyr_bias_quality(bias: Mapping) -> dict[str, dict]:
+    """Per axis (key ``bias_x``...) the goodness of fit of the static blocks' means; empty for
+    a single block (nothing to compare it with)."""
     dof = int(bias.get("dof_blocks", 0))
     if dof < 1:
-        return []
-    return [
-        {
+        return {}
+    return {
+        f"bias_{a}": {
             **uncertainty.goodness_of_fit(c, dof).to_dict(),
             "rule": "when chi2 > the 0.999 quantile: the variance of the block means beyond the "
             "white noise (the bias's wander) is added to the bias's variance",
         }
-        for c in bias["chi2_blocks"]
-    ]
+        for a, c in zip(AXES, bias["chi2_blocks"], strict=True)
+    }
 
 
 def align_gyr(
@@ -652,7 +694,7 @@ def combine_gyr(
             covariance,
             {
                 **quality,
-                **{f"bias_{a}": q for a, q in zip(AXES, gyr_bias_quality(bias), strict=True)},
+                **gyr_bias_quality(bias),
                 "tool_free": {"rule": TOOL_FREE_RULE},
             },
         )

@@ -22,6 +22,7 @@ from imucal.sim.reference import ReferenceClock
 from imucal.sim.session import (
     SENSITIVITY,
     Session,
+    plan_session,
     preset_effects,
     simulate,
     simulate_session,
@@ -51,6 +52,7 @@ __all__ = [
     "make_effect",
     "make_truth",
     "parse_effect",
+    "plan_session",
     "preset_effects",
     "simulate",
     "simulate_session",

@@ -220,6 +220,34 @@ def _render_recording(
     return log, clipped
 
 
+def plan_session(
+    config: ProtocolConfig, seed: int
+) -> tuple[dict[str, RecordingPlan], dict[str, float]]:
+    """The nominal plan of every recording and its start on the session clock.
+
+    Parameters
+    ----------
+    config : ProtocolConfig
+    seed : int
+        Seeds the protocol's random choices (the ``protocol`` stream, as
+        :func:`simulate_session`).
+
+    Returns
+    -------
+    plans : dict
+        Recording -> :class:`~imucal.sim.protocol.RecordingPlan`, in protocol order.
+    starts : dict
+        Recording -> start (s) on the session clock (``SESSION_GAP_S`` between recordings).
+    """
+    protocol_rng = stream_rng(seed, "protocol")
+    plans = {rec: planner(config, protocol_rng) for rec, planner in PLANNERS.items()}
+    starts, t = {}, 0.0
+    for rec, plan in plans.items():
+        starts[rec] = t
+        t += plan.motion.duration_s + SESSION_GAP_S
+    return plans, starts
+
+
 def simulate_session(
     truth: Truth,
     seed: int,
@@ -272,12 +300,7 @@ def simulate_session(
     config = ProtocolConfig() if config is None else config
     for effect in effects:
         truth = effect.on_truth(truth)
-    protocol_rng = stream_rng(seed, "protocol")
-    plans = {rec: planner(config, protocol_rng) for rec, planner in PLANNERS.items()}
-    starts, t = {}, 0.0
-    for rec, plan in plans.items():
-        starts[rec] = t
-        t += plan.motion.duration_s + SESSION_GAP_S
+    plans, starts = plan_session(config, seed)
     origin = _seq_origin(plans, starts, stream_rng(seed, "seq"))
     logs, clipped, rendered, realised = {}, {}, {}, {}
     for rec, plan in plans.items():

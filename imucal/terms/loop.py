@@ -101,6 +101,38 @@ def close_loop(
         record[term] = {"setting": getattr(settings, term), "included": wanted, "reason": reason}
     if not any(r["included"] for r in record.values()):
         return {"terms": record, "calibration": None, "corrected": None}
+    try:
+        found, base = _estimate(imu, reference, options, segments, record, settings)
+        for term in found:
+            record[term]["heldout"] = heldout_comparison(term, record[term]["evidence"], diagnosis)
+        for term, r in record.items():
+            if r["included"] and term not in found:
+                r["included"] = False
+                refused = _refusals(r.get("evidence", {}))
+                r["reason"] += f"; refused: {refused}"
+        if not found:
+            return {"terms": record, "calibration": None, "corrected": None}
+        terms = ModelTerms(**found)
+        corrected = corrected_session(imu, base.calibration, terms)
+        refit = calibrate_session(corrected, reference, options, segments)
+    except ValueError as err:
+        # the data do not carry the paper's chain or a term's estimate through (degenerate
+        # motion, a stage that cannot run in process): the paper's calibration stands
+        for r in record.values():
+            if r["included"]:
+                r["included"] = False
+                r["reason"] += f"; could not be estimated on these data: {err}"
+        return {"terms": record, "calibration": None, "corrected": None}
+    return {
+        "terms": record,
+        "calibration": refit.calibration.with_terms(terms),
+        "corrected": corrected,
+    }
+
+
+def _estimate(imu, reference, options, segments, record: dict, settings: TermSettings):
+    """The included terms' estimates (term -> value) and the paper's fit they are against;
+    each term's evidence goes into ``record``."""
     fit = base = calibrate_session(imu, reference, options, segments)
     found: dict = {}
     if record["temperature"]["included"]:
@@ -127,23 +159,7 @@ def close_loop(
             record[term]["evidence"] = evidence
             if value is not None:
                 found[term] = value
-    for term in found:
-        record[term]["heldout"] = heldout_comparison(term, record[term]["evidence"], diagnosis)
-    for term, r in record.items():
-        if r["included"] and term not in found:
-            r["included"] = False
-            refused = _refusals(r.get("evidence", {}))
-            r["reason"] += f"; refused: {refused}"
-    if not found:
-        return {"terms": record, "calibration": None, "corrected": None}
-    terms = ModelTerms(**found)
-    corrected = corrected_session(imu, base.calibration, terms)
-    refit = calibrate_session(corrected, reference, options, segments)
-    return {
-        "terms": record,
-        "calibration": refit.calibration.with_terms(terms),
-        "corrected": corrected,
-    }
+    return found, base
 
 
 def _refusals(evidence: Mapping) -> str:

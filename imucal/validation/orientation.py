@@ -30,12 +30,14 @@ import numpy as np
 from imucal.orientation import (
     body_rates,
     integrate_rates,
+    interpolate_orientation,
     interval_means,
     quat_angle_deg,
     quat_conjugate,
     quat_from_matrix,
     quat_multiply,
     quat_rotate,
+    up_vector,
 )
 from imucal.validation.mounting import Mounting, estimate_mounting
 from imucal.validation.timing import TimeAlignment, estimate_time_alignment
@@ -286,14 +288,6 @@ def rate_agreement(
     return out
 
 
-def _at(t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """Integrated orientation at times ``tau`` (normalised linear interpolation of neighbours)."""
-    i = np.clip(np.searchsorted(t, tau, side="right") - 1, 0, t.size - 2)
-    frac = ((tau - t[i]) / (t[i + 1] - t[i]))[:, None]
-    out = (1.0 - frac) * q[i] + frac * q[i + 1]
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
-
-
 def window_errors(
     t_module: np.ndarray,
     gyr_b: np.ndarray,
@@ -350,7 +344,10 @@ def window_errors(
         errors = np.array([])
         if np.any(fits):
             i, j, a, b = i[fits], j[fits], a[fits], b[fits]
-            rel_g = quat_multiply(quat_conjugate(_at(t_m, integrated, a)), _at(t_m, integrated, b))
+            rel_g = quat_multiply(
+                quat_conjugate(interpolate_orientation(t_m, integrated, a)),
+                interpolate_orientation(t_m, integrated, b),
+            )
             rel_r = quat_multiply(quat_conjugate(q_valid[i]), q_valid[j])
             rel_r_b = quat_multiply(quat_multiply(q_mount, rel_r), quat_conjugate(q_mount))
             errors = quat_angle_deg(quat_multiply(quat_conjugate(rel_g), rel_r_b))
@@ -479,8 +476,7 @@ def gravity_errors(
     """
     t_m, acc = _check(t_module, acc_b, 3, "module")
     t_r, q_r = _check(t_reference, quat_reference, 4, "reference")
-    up_world = np.zeros(3)
-    up_world["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    up_world = up_vector(up)
     t_r_m = alignment.to_module_time(t_r)
     present = np.all(np.isfinite(q_r), axis=1)
     angles: list[float | None] = []
@@ -553,8 +549,7 @@ def field_direction_errors(
     mean = world.mean(axis=0)
     mean /= np.linalg.norm(mean)
     angles = np.degrees(np.arccos(np.clip(world @ mean, -1.0, 1.0)))
-    up_world = np.zeros(3)
-    up_world["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    up_world = up_vector(up)
     return {
         "n": int(angles.size),
         "median_deg": float(np.median(angles)),

@@ -11,8 +11,9 @@ import pytest
 
 from imucal import errormodel
 from imucal.columns import ACC, GYR, TIME
-from imucal.fits.accelerometer import cube_crlb, fit_cube, heldout_errors, make_calibration
+from imucal.fits.accelerometer import cube_crlb, fit_cube, heldout_errors
 from imucal.io.dataset import read_dataset
+from imucal.pipeline.stages import cube_calibration, plain
 from imucal.plots.inertial import plot_cube_magnitude_errors
 from imucal.segments.protocol import segment_cube
 from imucal.sim.protocol import CUBE_UP_B
@@ -97,18 +98,34 @@ def test_cube_figure_shows_the_fit_residuals():
 def test_heldout_errors_leave_each_position_out():
     matrix, bias = make_truth()
     positions = make_positions(matrix, bias, np.random.default_rng(4))
-    before, after = heldout_errors(positions, G)
+    held = heldout_errors(positions, G)
     raw = np.array([np.linalg.norm(p.mean(axis=0)) - G for p in positions])
-    assert np.allclose(before, raw)
+    assert np.allclose(held.before, raw)
     # a held-out position is off by its own mean's noise through the norm (NOISE / sqrt(n))
     # plus the fit's error at it (3 positions of slack for 9 unknowns: a few times that)
-    assert np.all(np.abs(after) < 10 * NOISE / np.sqrt(N_SAMPLES))
+    assert np.all(np.abs(held.after) < 10 * NOISE / np.sqrt(N_SAMPLES))
+    # and the predicted std says so: at least the mean's noise, at most the bound above
+    assert np.all(held.predicted_std > 0.9 * NOISE / np.sqrt(N_SAMPLES))
+    assert np.all(held.predicted_std < 10 * NOISE / np.sqrt(N_SAMPLES))
     # a position pushed off the sphere is seen held out, not absorbed by the fit
     positions[0] = positions[0] * 1.01
-    _, shifted = heldout_errors(positions, G)
-    assert shifted[0] == pytest.approx(0.01 * G, rel=0.3)
+    shifted = heldout_errors(positions, G)
+    assert shifted.after[0] == pytest.approx(0.01 * G, rel=0.3)
+    assert abs(shifted.z[0]) > 10
     with pytest.raises(ValueError, match="at least 10"):
         heldout_errors(positions[:9], G)
+
+
+def test_heldout_errors_are_as_large_as_their_predicted_std():
+    # over 40 sessions of 12 positions, held-out z = after / predicted_std has unit variance
+    # when the covariance is honest: 480 values (12 per session share fits, so fewer are
+    # independent, about 40 x 3); the RMS of z within 0.85-1.2 at that size
+    matrix, bias = make_truth()
+    z = np.concatenate(
+        [heldout_errors(make_positions(matrix, bias, np.random.default_rng(100 + k)), G).z
+         for k in range(40)]
+    )  # fmt: skip
+    assert 0.85 < np.sqrt(np.mean(z**2)) < 1.2
 
 
 def test_cube_fit_refuses_fewer_than_nine_positions():
@@ -159,15 +176,25 @@ def test_saturated_position_dropped_then_too_few_refused():
         fit_cube(positions[:9], G, saturated=masks[:9])
 
 
-def test_make_calibration_composes_rotation_and_upper():
+def test_cube_calibration_carries_the_covariance_and_inflates_by_the_chi_square():
     matrix, bias = make_truth()
-    rotation, _ = errormodel.upper_triangular_factor(matrix)
+    rotation, upper = errormodel.upper_triangular_factor(matrix)
     fit = fit_cube(make_positions(matrix, bias, np.random.default_rng(8)), G)
-    cal = make_calibration(fit, rotation, "cube means + full-phase alignment")
-    # the matrix error is that of S' (rotation exact here): 5 CRLB std of the largest entry
-    assert np.max(np.abs(cal.matrix - matrix)) < 5 * crlb_std(matrix)[:6].max()
-    with pytest.raises(ValueError, match="det > 0"):
-        make_calibration(fit, -np.eye(3), "mirror")
+    cal = cube_calibration(plain(fit))
+    # white noise: chi-square below its 0.999 quantile, the std are the fit's own
+    assert cal.quality["cube"]["inflation"] == 1.0
+    np.testing.assert_allclose(cal.std["matrix"], fit.std_upper, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(cal.std["bias"], fit.std_bias, rtol=1e-9)
+    assert np.max(np.abs(cal.matrix - upper)) < 5 * crlb_std(matrix)[:6].max()
+    # a placement error per position (0.02 m/s^2, ten times the noise of a mean) scatters the
+    # positions beyond the noise: the covariance grows by chi2 / dof
+    rng = np.random.default_rng(9)
+    moved = [p + 0.02 * rng.standard_normal(3) for p in make_positions(matrix, bias, rng)]
+    scattered = fit_cube(moved, G)
+    inflated = cube_calibration(plain(scattered))
+    ratio = scattered.chi2 / scattered.dof
+    assert inflated.quality["cube"]["inflation"] == pytest.approx(ratio) and ratio > 5
+    np.testing.assert_allclose(inflated.std["bias"], np.sqrt(ratio) * scattered.std_bias, rtol=1e-9)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -7,7 +7,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
-from imucal.fits.ferraris import FACE_DIRECTIONS, fit_known_orientations, fit_known_rotations
+from imucal.fits.ferraris import (
+    FACE_DIRECTIONS,
+    fit_known_orientations,
+    fit_known_rotations,
+    heldout_positions,
+)
 
 G = 9.81
 ACC_NOISE = 0.02  # m/s^2 per axis and sample
@@ -73,6 +78,22 @@ def test_exactly_placed_faces_leave_only_sample_noise():
     # ~ 6e-4; 5 std = 3e-3 m/s^2; matrix entries ~ 9e-4 / (2 g) ~ 5e-5 -> 5 std ~ 3e-4
     assert np.max(np.abs(fit.calibration.bias - bias)) < 3e-3
     assert np.max(np.abs(fit.calibration.matrix - matrix)) < 3e-4
+
+
+def test_heldout_faces_are_as_far_off_as_their_predicted_covariance():
+    # each face against the fit on the other five (3 dof: the placement tilt is estimated from
+    # 3 residuals), over 60 sessions: with the tilt dominating, z2 / 3 follows F(3, 3), whose
+    # median is 1; half of the 360 values below it, binomial std 0.026 (fewer are independent,
+    # about 200: 0.035), 3.4 of them bound the share
+    directions = np.array(list(FACE_DIRECTIONS.values()))
+    z2 = np.concatenate(
+        [heldout_positions(face_positions(np.random.default_rng(200 + k), directions),
+                           directions, G).z2 for k in range(60)]
+    )  # fmt: skip
+    assert 0.38 < np.mean(z2 / 3 < 1.0) < 0.62
+    with pytest.raises(ValueError, match="at least 6"):
+        heldout_positions(face_positions(np.random.default_rng(1), directions[:5]),
+                          directions[:5], G)  # fmt: skip
 
 
 def test_acc_refusals():

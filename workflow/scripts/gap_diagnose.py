@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from imucal.constants import IMU_RECORDINGS
 from imucal.gap import DiagnosisSettings, diagnose
+from imucal.gap.blocks import read_decimated_static
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
@@ -17,7 +18,13 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 p = snakemake.params
 recordings = dict(snakemake.input.items())
-imu = {r: read_recording(recordings[r])[0] for r in IMU_RECORDINGS if r in recordings}
+imu = {
+    r: read_recording(recordings[r])[0] for r in IMU_RECORDINGS if r in recordings and r != "static"
+}
+# a long static recording is read batch by batch into its window and block means
+blocks = None
+if "static" in recordings:
+    imu["static"], blocks = read_decimated_static(recordings["static"])
 reference = read_recording(recordings["reference"])[0] if "reference" in recordings else None
 info = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 result = diagnose(
@@ -27,6 +34,7 @@ result = diagnose(
     dataset=snakemake.wildcards.dataset,
     segments=read_segments(snakemake.input.segments),
     settings=DiagnosisSettings.from_config(p.settings),
+    static_blocks=blocks,
 )
 write_json(result, snakemake.output.diagnosis)
 plot_gap_map(result).savefig(snakemake.output.gap_map, dpi=110)

@@ -3,7 +3,9 @@
 Usage (after the workflow's segment rule):
     python tests/benchmarks/holds/heldout.py results/tomisuarez2_imu [results/ck_explorer ...]
 Prints, per dataset, the poses used and the RMS and max of the raw ``|mean| - g`` and of the
-held-out ``|S'(mean - o)| - g`` (each pose against the fit on the others), m/s^2.
+held-out ``|S'(mean - o)| - g`` (each pose against the fit on the others), m/s^2, and of the
+held-out error over the standard deviation the held-out fit's reported covariance predicts
+(``z``, about 1 when the covariance is honest).
 """
 
 import sys
@@ -24,10 +26,10 @@ for folder in map(Path, sys.argv[1:]):
     positions = [acc[a:b] for a, b in zip(rows["start_index"], rows["end_index"])]
     _, meta = read_recording(folder / "segments.parquet")
     gravity = read_dataset(Path("data/real") / folder.name).gravity_m_s2
-    before, after = heldout_errors(positions, gravity)
+    held = heldout_errors(positions, gravity)
     print(f"{folder.name}: {len(positions)} poses; note: {meta.get('notes', {}).get('poses', '-')}")
-    for name, e in (("raw", before), ("held-out", after)):
+    for name, e in (("raw", held.before), ("held-out", held.after), ("z", held.z)):
         e = e[np.isfinite(e)]
         print(
-            f"  {name:9s} RMS {np.sqrt(np.mean(e**2)):.4f}  max {np.abs(e).max():.4f} m/s^2 (n={e.size})"
+            f"  {name:9s} RMS {np.sqrt(np.mean(e**2)):.4f}  max {np.abs(e).max():.4f} (n={e.size})"
         )
