@@ -168,6 +168,33 @@ class SensorCalibration:
         )
 
 
+def _rate_per_sample(
+    t_s: np.ndarray | None, omega: np.ndarray, source: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Times and the calibrated rate at every sample for the lever arm (rows without a gyro
+    reading interpolated in time from their neighbours)."""
+    if t_s is None:
+        raise ValueError(
+            f"{source}: the calibration has a lever arm; its tangential term needs the sample "
+            "times (t_s), none were given"
+        )
+    t = np.asarray(t_s, dtype=float)
+    ok = np.all(np.isfinite(omega), axis=1)
+    if t.shape != (len(omega),) or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
+        raise ValueError(
+            f"{source}: the lever arm needs a finite, increasing time per sample "
+            f"({len(omega)}), got shape {t.shape}"
+        )
+    if ok.sum() < 2:
+        raise ValueError(
+            f"{source}: the calibration has a lever arm, which needs the gyroscope's rate in "
+            f"the same recording; {int(ok.sum())} of {len(omega)} samples have a gyro reading"
+        )
+    if ok.all():
+        return t, omega
+    return t, np.column_stack([np.interp(t, t[ok], omega[ok, j]) for j in range(3)])
+
+
 @dataclass(frozen=True)
 class ImuCalibration:
     """Calibration of accelerometer, gyroscope and magnetometer, all in frame B.
@@ -197,6 +224,7 @@ class ImuCalibration:
         units: Mapping[str, str],
         *,
         temp_c: np.ndarray | None = None,
+        t_s: np.ndarray | None = None,
         source: str = "the recording",
     ) -> tuple[dict, dict]:
         """Calibrate the readings of the three sensors with the whole model.
@@ -213,6 +241,9 @@ class ImuCalibration:
         temp_c : ndarray, shape (n,), optional
             Temperature of each sample (deg C, finite); required when the model has a
             temperature term.
+        t_s : ndarray, shape (n,), optional
+            Time of each sample (s, increasing); required when the model has a lever arm (its
+            tangential term differentiates the gyroscope's rate).
         source : str
             What the readings come from (a file name), named in errors.
 
@@ -227,8 +258,9 @@ class ImuCalibration:
         Raises
         ------
         ValueError
-            For readings in another unit, a temperature term without ``temp_c``, or samples
-            farther outside the calibrated temperature span than its margin.
+            For readings in another unit, a temperature term without ``temp_c``, samples
+            farther outside the calibrated temperature span than its margin, or a lever arm
+            without ``t_s`` or without a gyroscope reading in the recording.
         """
         terms = self.terms
         flags: dict = {}
@@ -261,6 +293,10 @@ class ImuCalibration:
             out[s] = errormodel.apply(cal.matrix, np.zeros(3), bias_free)
         if terms.g_sensitivity is not None:
             out["gyr"] = out["gyr"] - out["acc"] @ terms.g_sensitivity.matrix.T
+        if terms.lever_arm is not None:
+            out["acc"] = out["acc"] - terms.lever_arm.acceleration(
+                *_rate_per_sample(t_s, out["gyr"], source)
+            )
         if terms.mag_delay is not None:
             out["mag"] = out["mag"] - terms.mag_delay.delay_s * np.cross(out["gyr"], out["mag"])
         return out, flags

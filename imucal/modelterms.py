@@ -10,7 +10,10 @@ calibrated values of one sample are
    constant term is the paper's bias and matrix, which hold at ``reference_c``);
 2. g-sensitivity of the gyroscope: ``w_B = v_gyr - G a_B`` with ``a_B`` the calibrated
    specific force of the same sample (``G`` in rad/s per m/s^2, frame B);
-3. magnetometer delay against acc/gyro: ``m_B = v_mag - delay (w_B x v_mag)``, the first-order
+3. lever arm of the accelerometer from the rotation centre of the rate table:
+   ``a_B = v_acc - w_B x (w_B x r) - dw_B/dt x r`` (``r`` in m, frame B; ``w_B`` the gyroscope's
+   calibrated rate of the same sample, its derivative over :data:`LEVER_ARM_DIFF_S`);
+4. magnetometer delay against acc/gyro: ``m_B = v_mag - delay (w_B x v_mag)``, the first-order
    advance of a field that turns in B at ``-w_B`` by the delay (s).
 
 This module holds the terms as frozen dataclasses with their dict form (part of
@@ -29,10 +32,16 @@ import numpy as np
 from imucal.columns import SENSORS, SI_UNITS
 
 #: Names of the optional terms, in the order they are applied.
-TERMS = ("temperature", "g_sensitivity", "mag_delay")
+TERMS = ("temperature", "g_sensitivity", "lever_arm", "mag_delay")
 
 #: Sensors a temperature polynomial may be estimated for.
 TEMPERATURE_SENSORS = ("acc", "gyr")
+
+#: Time (s) over which the lever arm's angular acceleration is taken (central difference of the
+#: rate ``LEVER_ARM_DIFF_S`` apart): long enough that the gyroscope's white noise, divided by it,
+#: adds less to the tangential term than the accelerometer's own noise (0.002 rad/s over 0.1 s
+#: at r = 5 cm is 1e-3 m/s^2), short against a rate table's spin-up (about 1 s).
+LEVER_ARM_DIFF_S = 0.1
 
 
 def _coefficients(values: Any, name: str) -> np.ndarray:
@@ -53,7 +62,7 @@ class TemperaturePolynomial:
     reference_c : float
         Temperature (deg C) at which the calibration's bias and matrix hold.
     span_c : tuple of float
-        Lowest and highest temperature (deg C) of the data the polynomials were fitted on.
+        Lowest and highest temperature (deg C) of the samples the polynomials were fitted on.
     margin_c : float
         How far outside ``span_c`` (K) a sample may be and still be calibrated (flagged);
         beyond it the calibration is refused.
@@ -230,6 +239,78 @@ class GSensitivity:
         return cls(d["matrix"], d.get("std", np.zeros((3, 3))), d.get("method", ""))
 
 
+def angular_acceleration(t_s: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Derivative of the rate, central difference over :data:`LEVER_ARM_DIFF_S`.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Sample times (s), increasing.
+    omega : ndarray, shape (n, 3)
+        Rate (rad/s), finite.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        rad/s^2; at the ends the difference is one-sided over what the recording has.
+    """
+    h = 0.5 * LEVER_ARM_DIFF_S
+    lo = np.clip(t_s - h, t_s[0], t_s[-1])
+    hi = np.clip(t_s + h, t_s[0], t_s[-1])
+    span = np.where(hi > lo, hi - lo, np.inf)
+    ahead = np.column_stack([np.interp(hi, t_s, omega[:, j]) for j in range(3)])
+    behind = np.column_stack([np.interp(lo, t_s, omega[:, j]) for j in range(3)])
+    return (ahead - behind) / span[:, None]
+
+
+@dataclass(frozen=True)
+class LeverArm:
+    """Position of the accelerometer relative to the rate table's rotation centre, in B.
+
+    The accelerometer senses ``w x (w x r) + dw/dt x r`` on top of the specific force at the
+    centre; the term removes it with the gyroscope's rate of the same sample.
+
+    Attributes
+    ----------
+    r_m : ndarray, shape (3,)
+        Lever arm (m), frame B.
+    std_m : ndarray, shape (3,)
+        Standard deviations (m).
+    method : str
+    """
+
+    r_m: np.ndarray
+    std_m: np.ndarray
+    method: str = ""
+
+    def __post_init__(self) -> None:
+        for name in ("r_m", "std_m"):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ValueError(f"lever_arm.{name} must be 3 finite values (m), got {v!r}")
+            object.__setattr__(self, name, v)
+
+    def acceleration(self, t_s: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """``w x (w x r) + dw/dt x r`` (m/s^2, shape (n, 3)) for rates ``omega`` (rad/s, frame
+        B, shape (n, 3), finite) at times ``t_s`` (s, shape (n,))."""
+        w_dot = angular_acceleration(t_s, omega)
+        return np.cross(omega, np.cross(omega, self.r_m)) + np.cross(w_dot, self.r_m)
+
+    def to_dict(self) -> dict:
+        return {
+            "r_m": self.r_m.tolist(),
+            "std_m": self.std_m.tolist(),
+            "unit": "m (frame B; accelerometer relative to the rate table's rotation centre)",
+            "method": self.method,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> LeverArm:
+        if "r_m" not in d:
+            raise ValueError("lever_arm term lacks the key 'r_m'")
+        return cls(d["r_m"], d.get("std_m", np.zeros(3)), d.get("method", ""))
+
+
 @dataclass(frozen=True)
 class MagDelay:
     """Delay of the magnetometer behind acc/gyro (s): its reading is the field of
@@ -272,12 +353,14 @@ class ModelTerms:
     temperature : dict of str to TemperaturePolynomial
         Sensor -> its polynomials.
     g_sensitivity : GSensitivity or None
+    lever_arm : LeverArm or None
     mag_delay : MagDelay or None
     """
 
     temperature: dict = field(default_factory=dict)
     g_sensitivity: GSensitivity | None = None
     mag_delay: MagDelay | None = None
+    lever_arm: LeverArm | None = None
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.temperature) - set(TEMPERATURE_SENSORS))
@@ -288,16 +371,12 @@ class ModelTerms:
 
     @property
     def empty(self) -> bool:
-        return not self.temperature and self.g_sensitivity is None and self.mag_delay is None
+        return not self.names()
 
     def names(self) -> list[str]:
         """The terms present, in :data:`TERMS` order."""
-        present = {
-            "temperature": bool(self.temperature),
-            "g_sensitivity": self.g_sensitivity is not None,
-            "mag_delay": self.mag_delay is not None,
-        }
-        return [t for t in TERMS if present[t]]
+        return [t for t in TERMS if (bool(self.temperature) if t == "temperature" else
+                                     getattr(self, t) is not None)]  # fmt: skip
 
     def to_dict(self) -> dict:
         out: dict = {}
@@ -305,10 +384,9 @@ class ModelTerms:
             out["temperature"] = {
                 s: self.temperature[s].to_dict() for s in SENSORS if s in self.temperature
             }
-        if self.g_sensitivity is not None:
-            out["g_sensitivity"] = self.g_sensitivity.to_dict()
-        if self.mag_delay is not None:
-            out["mag_delay"] = self.mag_delay.to_dict()
+        for term in ("g_sensitivity", "lever_arm", "mag_delay"):
+            if getattr(self, term) is not None:
+                out[term] = getattr(self, term).to_dict()
         return out
 
     @classmethod
@@ -320,4 +398,5 @@ class ModelTerms:
             {s: TemperaturePolynomial.from_dict(s, t) for s, t in d.get("temperature", {}).items()},
             GSensitivity.from_dict(d["g_sensitivity"]) if "g_sensitivity" in d else None,
             MagDelay.from_dict(d["mag_delay"]) if "mag_delay" in d else None,
+            LeverArm.from_dict(d["lever_arm"]) if "lever_arm" in d else None,
         )

@@ -607,17 +607,25 @@ def _scale(fit: SessionFit, half) -> dict:
 
 
 def magnetometer_lag(fit: SessionFit, phase: str) -> float:
-    """Lag of the calibrated magnetometer behind the gyroscope during one phase (s).
+    """Lag of the calibrated magnetometer behind the gyroscope during one phase (s);
+    :func:`magnetometer_lag_fit` without its standard deviation."""
+    return magnetometer_lag_fit(fit, phase)[0]
+
+
+def magnetometer_lag_fit(fit: SessionFit, phase: str) -> tuple[float, float]:
+    """Lag of the calibrated magnetometer behind the gyroscope during one phase, and its
+    standard deviation (s; NaN without the phase).
 
     The field, fixed in the world, turns in B at minus the body rate about the phase axis, so
     ``angle_m(t) + angle_g(t) = c + rate(t) * lag`` with ``angle_m`` the unwrapped angle of
     the field's component across the axis and ``angle_g`` the integrated rate; the slope on
-    the rate is the lag (positive: the magnetometer reports late).
+    the rate is the lag (positive: the magnetometer reports late). The standard deviation is
+    that of least squares with the residual variance of the phase's field samples.
     """
     rows = _rows(fit, "rotation3d", "phase")
     r = rows[rows["label"] == phase]
     if r.empty:
-        return float("nan")
+        return float("nan"), float("nan")
     r = r.iloc[0]
     sl = slice(int(r.start_index), int(r.end_index))
     t = fit.imu["rotation3d"][TIME].to_numpy(dtype=float)[sl]
@@ -633,7 +641,9 @@ def magnetometer_lag(fit: SessionFit, phase: str) -> float:
     x = w[fresh]
     design = np.column_stack([np.ones_like(x), x])
     c, *_ = np.linalg.lstsq(design, y, rcond=None)
-    return float(c[1])
+    dof = max(len(y) - 2, 1)
+    sigma2 = float(np.sum((y - design @ c) ** 2) / dof)
+    return float(c[1]), float(np.sqrt(np.linalg.pinv(design.T @ design)[1, 1] * sigma2))
 
 
 def dip_angles(fit: SessionFit, half) -> np.ndarray:

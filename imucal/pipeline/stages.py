@@ -904,8 +904,9 @@ def apply_calibration(
     ------
     ValueError
         If the recording is already calibrated, a sensor is in another unit than the
-        calibration expects, or the model has a temperature term and the recording has no
-        temperature column or is farther outside the calibrated span than its margin.
+        calibration expects, the model has a temperature term and the recording has no
+        temperature column or is farther outside the calibrated span than its margin, or the
+        model has a lever arm and the recording has no gyroscope reading.
     """
     source = source or str(metadata.get("source", "?"))
     if metadata.get("calibrated"):
@@ -923,7 +924,8 @@ def apply_calibration(
         readings[sensor] = table[list(columns)].to_numpy(dtype=float)
         unit_of[sensor] = found.pop()
     temp = _temperature_per_sample(table, source) if calibration.terms.temperature else None
-    values, flags = calibration.calibrate(readings, unit_of, temp_c=temp, source=source)
+    t_s = table[TIME].to_numpy(dtype=float) if calibration.terms.lever_arm is not None else None
+    values, flags = calibration.calibrate(readings, unit_of, temp_c=temp, t_s=t_s, source=source)
     for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
         out[list(columns)] = values[sensor]
         cal = calibration.sensor(sensor)

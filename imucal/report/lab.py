@@ -812,15 +812,40 @@ def _terms_section(
         g = model["g_sensitivity"]
         values.append({"term": "g-sensitivity G", "value": _plus_minus(g["matrix"], g["std"]),
                        "unit": g["unit"]})  # fmt: skip
+    if "lever_arm" in model:
+        r = model["lever_arm"]
+        values.append({"term": "lever arm r", "value": _plus_minus(r["r_m"], r["std_m"]),
+                       "unit": r["unit"]})  # fmt: skip
     if "mag_delay" in model:
         m = model["mag_delay"]
         values.append({"term": "magnetometer delay", "value": _plus_minus(m["delay_s"], m["std_s"]),
                        "unit": m["unit"]})  # fmt: skip
+    heldout = []
+    for name, r in summary["terms"].items():
+        h = r.get("heldout")
+        if not h:
+            continue
+        if "note" in h:
+            heldout.append({"term": name, "residual": h["note"], "rms": "", "achieved": "",
+                            "predicted": "", "verdict": ""})  # fmt: skip
+            continue
+        predicted = h["predicted_shrink"]
+        verdict = ("no prediction" if predicted is None else
+                   "short of the prediction" if h["short_of_prediction"] else "as predicted or better")  # fmt: skip
+        heldout.append({
+            "term": name,
+            "residual": h["residual"],
+            "rms": f"{format_number(h['rms_without'], 3)} → {format_number(h['rms_with'], 3)}",
+            "achieved": _plus_minus(h["achieved_shrink"], h["achieved_std"]),
+            "predicted": format_number(predicted, 2) if predicted is not None else "-",
+            "verdict": verdict,
+        })  # fmt: skip
     gap_before = (before.get("gap") or {}).get("total")
     gap_after = (after.get("gap") or {}).get("total")
     return {
         "rows": rows,
         "coefficients": values,
+        "heldout": heldout,
         "in_model": summary["in_model"],
         "gap_before": format_number(gap_before),
         "gap_after": format_number(gap_after) if gap_after is not None else None,

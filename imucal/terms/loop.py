@@ -23,6 +23,8 @@ from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration
 from imucal.terms.gsensitivity import fit_g_sensitivity
+from imucal.terms.heldout import heldout_comparison
+from imucal.terms.leverarm import fit_lever_arm
 from imucal.terms.magdelay import fit_mag_delay
 from imucal.terms.selection import TermSettings, decide
 from imucal.terms.temperature import fit_temperature
@@ -86,7 +88,9 @@ def close_loop(
     Returns
     -------
     dict
-        ``terms``: term -> ``setting``, ``included`` (bool), ``reason``, ``evidence``;
+        ``terms``: term -> ``setting``, ``included`` (bool), ``reason``, ``evidence``, and for
+        a term in the model ``heldout`` (achieved held-out shrink beside the diagnosis's
+        prediction, :func:`imucal.terms.heldout.heldout_comparison`);
         ``calibration``: the recalibrated :class:`ImuCalibration` with its terms, or None when
         no term is included (the paper's calibration stands); ``corrected``: the corrected
         recordings (None likewise).
@@ -99,6 +103,8 @@ def close_loop(
         return {"terms": record, "calibration": None, "corrected": None}
     try:
         found, base = _estimate(imu, reference, options, segments, record, settings)
+        for term in found:
+            record[term]["heldout"] = heldout_comparison(term, record[term]["evidence"], diagnosis)
         for term, r in record.items():
             if r["included"] and term not in found:
                 r["included"] = False
@@ -142,7 +148,12 @@ def _estimate(imu, reference, options, segments, record: dict, settings: TermSet
             # the other terms are estimated on the session without the drift
             fixed = corrected_session(imu, base.calibration, ModelTerms(polys))
             fit = calibrate_session(fixed, reference, options, segments)
-    for term, estimator in (("g_sensitivity", fit_g_sensitivity), ("mag_delay", fit_mag_delay)):
+    estimators = {
+        "g_sensitivity": fit_g_sensitivity,
+        "lever_arm": fit_lever_arm,
+        "mag_delay": fit_mag_delay,
+    }
+    for term, estimator in estimators.items():
         if record[term]["included"]:
             value, evidence = estimator(fit)
             record[term]["evidence"] = evidence

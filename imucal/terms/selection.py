@@ -16,6 +16,7 @@ EFFECT_OF_TERM = {
     "temperature": "temperature_drift",
     "g_sensitivity": "g_sensitivity",
     "mag_delay": "mag_latency",
+    "lever_arm": "lever_arm",
 }
 SWITCHES = ("off", "on", "auto")
 
@@ -26,7 +27,7 @@ class TermSettings:
 
     Attributes
     ----------
-    temperature, g_sensitivity, mag_delay : str
+    temperature, g_sensitivity, mag_delay, lever_arm : str
         'off', 'on' or 'auto' (YAML's unquoted off/on arrive as False/True and are read so).
     temperature_max_order : int
         Highest order of a bias polynomial tried (>= 1).
@@ -39,6 +40,7 @@ class TermSettings:
     temperature: str = "auto"
     g_sensitivity: str = "auto"
     mag_delay: str = "auto"
+    lever_arm: str = "auto"
     temperature_max_order: int = 3
     temperature_min_span_c: float = 2.0
     temperature_margin_c: float = 1.0

@@ -20,6 +20,13 @@ leave-one-out residuals, the smallest order within one standard error of the bes
 (no temperature dependence) wins when no polynomial predicts the held-out segments better. A
 sensor is refused when its recording's temperature span is below ``min_span_c``. Standard
 deviations are those of least squares with the residual variance of the whole fit.
+
+The calibrated span of a sensor's polynomials is that of the temperature samples its
+estimators average (:func:`sample_span`: the resting segments, and for the gyroscope the
+rate-table runs), not that of the segment means: a segment's samples reach beyond its mean by
+the drift within it, and the session's first and last resting segments hold its coldest and
+warmest samples, so the session's own samples fall outside only where they precede or follow
+every segment.
 """
 
 from __future__ import annotations
@@ -87,6 +94,24 @@ def resting_means(fit: SessionFit, *, table: bool = True) -> Means:
     runs left out when ``table`` is False)."""
     segments = [(r, rows) for r, rows in st.resting_rows(fit, None) if table or r != "ratetable"]
     return _segment_means(fit, segments)
+
+
+def sample_span(fit: SessionFit, *, table: bool) -> tuple[float, float]:
+    """Lowest and highest temperature sample (deg C) of the resting segments, with the
+    rate-table runs at every rate when ``table`` (else without the rate table at all)."""
+    segments = [(r, rows) for r, rows in st.resting_rows(fit, None) if r != "ratetable"]
+    if table and "ratetable" in fit.imu:
+        segments.append(("ratetable", st._rows(fit, "ratetable", "run")))
+    found = []
+    for rec, rows in segments:
+        col = temperature_column(fit.imu[rec])
+        if col is None:
+            continue
+        temp = fit.imu[rec][col].to_numpy(dtype=float)
+        found += [temp[int(r.start_index) : int(r.end_index)] for r in rows.itertuples()]
+    temp = np.concatenate(found) if found else np.zeros(0)
+    temp = temp[np.isfinite(temp)]
+    return float(temp.min()), float(temp.max())
 
 
 def _powers(d_t: np.ndarray, order: int) -> np.ndarray:
@@ -183,7 +208,8 @@ def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> t
     order, heldout = select_model({k: design(k) for k in range(max_order + 1)}, y)
     coef, std = _lstsq(design(order), y)
     p = design(0).shape[1]
-    return coef[p:], std[p:], {"order": order, "heldout_rms": heldout, "unit": "rad/s"}
+    evidence = {"order": order, "heldout_rms": heldout, "unit": "rad/s", "segments": n}
+    return coef[p:], std[p:], evidence
 
 
 def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_order: int):
@@ -274,6 +300,9 @@ def _acc(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tu
         "scale": scale,
         "heldout_rms": {f"bias {o_}, scale {s_}": v for (o_, s_), v in heldout.items()},
         "unit": "m/s^2 (|a| - g)",
+        "segments": len(y),
+        "without": "bias 0, scale none",
+        "with": f"bias {order}, scale {scale}",
     }
     return bias, bias_std, rest_c.reshape(q, 3), rest_s.reshape(q, 3), evidence
 
@@ -300,7 +329,8 @@ def fit_temperature(
         Sensor -> its polynomials, for the sensors where an order >= 1 won on held-out data.
     evidence : dict
         Sensor -> ``order``, ``heldout_rms`` (order -> RMS), ``unit``, or ``refused`` (the
-        reason); ``span_c`` and ``reference_c``.
+        reason); ``span_c`` (of the resting segments' means), ``sample_span_c`` (per sensor,
+        of the samples: the polynomials' calibrated span) and ``reference_c``.
     """
     if max_order < 1:
         raise ValueError(f"temperature max_order must be >= 1, got {max_order}")
@@ -315,14 +345,18 @@ def fit_temperature(
     refusal = _refusal(rest.temp_c, min_span_c, "temperature")
     if refusal:
         return {}, {**evidence, "refused": refusal}
+    spans = {"gyr": sample_span(fit, table=True), "acc": sample_span(fit, table=False)}
+    evidence["sample_span_c"] = {s: list(v) for s, v in spans.items()}
     session = np.concatenate(
         [t[c].to_numpy(dtype=float) for t in fit.imu.values() if (c := temperature_column(t))]
     )
-    beyond = float(np.nanmax(np.maximum(lo - session, session - hi)))
+    lo_s, hi_s = spans["acc"]
+    beyond = float(np.nanmax(np.maximum(lo_s - session, session - hi_s)))
     if beyond > margin_c:
         refusal = (
             f"temperature: the session's own samples reach {beyond:.2f} K outside the span of "
-            f"its resting segments ({lo:.2f}..{hi:.2f} deg C), more than the margin {margin_c:g} K"
+            f"its resting segments ({lo_s:.2f}..{hi_s:.2f} deg C), more than the margin "
+            f"{margin_c:g} K"
         )
         return {}, {**evidence, "refused": refusal}
 
@@ -333,7 +367,7 @@ def fit_temperature(
         ev_gyr["scale"] = scale[2]
     if len(bias) or (scale is not None and len(scale[0])):
         polys["gyr"] = TemperaturePolynomial(
-            "gyr", reference_c, (lo, hi), margin_c, bias,
+            "gyr", reference_c, spans["gyr"], margin_c, bias,
             scale[0] if scale is not None else np.zeros((0, 3)), bias_std,
             scale[1] if scale is not None else np.zeros((0, 3)),
             "bias: raw resting means against dT^k (constant and specific force as nuisance); "
@@ -353,7 +387,7 @@ def fit_temperature(
         evidence["acc"] = ev_a
         if ev_a["order"] or ev_a["scale"] != "none":
             polys["acc"] = TemperaturePolynomial(
-                "acc", reference_c, (lo, hi), margin_c, b, s, b_std, s_std,
+                "acc", reference_c, spans["acc"], margin_c, b, s, b_std, s_std,
                 "|a| - g of resting means (rate-table runs left out) linearised about the cube "
                 "fit, a constant bias and scale change as nuisance; model by leave-one-out "
                 "residuals (one-standard-error rule)",

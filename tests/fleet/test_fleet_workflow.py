@@ -37,7 +37,7 @@ def test_the_fleet_target_calibrates_each_session_of_the_sheet(tmp_path) -> None
 
 
 def test_with_the_terms_off_the_fleet_calibrates_without_diagnosing(tmp_path) -> None:
-    off = "terms={temperature: 'off', g_sensitivity: 'off', mag_delay: 'off'}"
+    off = "terms={temperature: 'off', g_sensitivity: 'off', mag_delay: 'off', lever_arm: 'off'}"
     assert fleet_jobs(tmp_path, off) == {"calibration": "5", "fleet_report": "1"}
 
 

@@ -60,13 +60,20 @@ class MagLatency(Effect):
         if not self.delay_s >= 0:
             raise ValueError(f"mag_latency delay_s must be >= 0 s, got {self.delay_s}")
 
+    def held(self, t_s: np.ndarray, phase_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Index ``j`` and time (s) of the magnetometer sample a packet at ``t_s`` (module
+        time, shape (n,)) holds, for the recording's phase ``phase_s``; ``t_s`` minus the time is
+        the age of the reported value (its mean over the rows that carry a field is what a
+        delay estimated from those rows measures: with the field on every 10th packet only a
+        few ages recur, and their mean depends on the phase by up to ``1 / (4 rate_hz)``)."""
+        j = np.floor((np.asarray(t_s) - self.delay_s - phase_s) * self.rate_hz).astype(np.int64)
+        return j, phase_s + j / self.rate_hz
+
     def _held(self, n: int, ctx: RecordingContext) -> tuple[np.ndarray, np.ndarray]:
-        """Index ``j`` (shape (n,)) and time (s) of the magnetometer sample each packet holds."""
+        """:meth:`held` for the ``n`` packets of a recording, its phase drawn and recorded."""
         phase = float(ctx.rng(f"effect/{self.name}").uniform(0.0, 1.0 / self.rate_hz))
         ctx.record(self.name, "phase_s", phase)
-        t = np.arange(n) / ctx.rate_hz
-        j = np.floor((t - self.delay_s - phase) * self.rate_hz).astype(np.int64)
-        return j, phase + j / self.rate_hz
+        return self.held(np.arange(n) / ctx.rate_hz, phase)
 
     def on_true_signals(
         self, signals: Signals, state: KinematicState, ctx: RecordingContext
