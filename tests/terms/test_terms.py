@@ -5,6 +5,7 @@ of auto and off on a clean session, the file format and apply's refusals."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -29,12 +30,13 @@ from imucal.terms import (
     final_calibration,
     terms_summary,
 )
-from tests.conftest import REPO
 
 SHORT = ProtocolConfig(static_s=120.0, run_plateau_s=3.0, run_pause_s=1.5)
 RANGE = {"acc": 32767, "gyr": 32767, "mag": 32767}
 RATETABLE = {"axes": list(SHORT.ratetable_axes), "rates_dps": list(SHORT.rates_dps)}
 ON = TermSettings("on", "on", "on", "on")
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
