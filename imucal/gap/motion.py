@@ -57,6 +57,7 @@ from imucal.orientation import (
     quat_rotate,
     up_vector,
 )
+from imucal.segments.table import rows_of
 from imucal.sim import World
 from imucal.sim.effects import RecordingContext, stream_rng
 from imucal.sim.motion import KinematicState
@@ -711,9 +712,7 @@ def motion_part(
         )
     rests = {}
     for name, rec in recordings.items():
-        rows = segments[
-            (segments["recording"] == name) & segments["kind"].isin(["static", "position"])
-        ]
+        rows = rows_of(segments, name, "static", "position")
         mask = np.zeros(len(rec.t_s), dtype=bool)
         for lo, hi in zip(rows["start_s"].astype(float), rows["end_s"].astype(float)):
             mask |= (rec.t_s >= lo) & (rec.t_s <= hi)
@@ -725,18 +724,9 @@ def motion_part(
     return recordings, dataclasses.replace(twin, notes=[*twin.notes, *notes])
 
 
-def reference_part(
-    tables: Mapping[str, pd.DataFrame],
-    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
-    calibration: Mapping | None,
-    segments: pd.DataFrame,
-    where: Mapping[str, str],
-    sensitivity: Mapping[str, float],
-    gravity_m_s2: float,
-    windows_s: Sequence[float] = WINDOWS_S,
-) -> tuple[tuple | None, str | None]:
-    """:func:`motion_part` (same parameters), or why the recordings with a reference cannot be
-    scored.
+def reference_part(**inputs) -> tuple[tuple | None, str | None]:
+    """:func:`motion_part` of the same keyword arguments, or why the recordings with a reference
+    cannot be scored.
 
     Returns
     -------
@@ -745,9 +735,6 @@ def reference_part(
         The reason when ``part`` is None (no reference could be aligned with its gyroscope).
     """
     try:
-        part = motion_part(
-            tables, references, calibration, segments, where, sensitivity, gravity_m_s2, windows_s
-        )
+        return motion_part(**inputs), None
     except ValueError as err:
         return None, str(err)
-    return part, None

@@ -40,11 +40,11 @@ from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from imucal.calibration import ImuCalibration, SensorCalibration
-from imucal.columns import MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME, temperature_column
+from imucal.columns import SENSOR_COLUMNS, SENSORS, SEQ, TIME, temperature_column
 from imucal.gap.blocks import COUNT_COLUMNS, STATIC_WINDOW_S, StaticBlocks
 from imucal.gap.statistics import HALVES, compute_statistics
 from imucal.gap.streams import STREAMS, Stream, static_statistics, white_std
-from imucal.ingest import counts_to_si, reference_to_table
+from imucal.ingest import reference_to_table
 from imucal.io.raw import MtManagerExport
 from imucal.pipeline.full import PipelineOptions, SessionFit, calibrate_session, calibrated
 from imucal.sim import SENSITIVITY, ProtocolConfig, World, plan_session, simulate_session
@@ -549,9 +549,7 @@ def _mounting_rotvec(fit: SessionFit) -> np.ndarray:
 def _replica_tables(session, twin: Twin) -> tuple[dict, pd.DataFrame | None]:
     imu = {}
     for rec in twin.recordings:
-        frame = session.frame(rec)
-        frame = frame.astype({c: "float64" for c in MAG})
-        table = counts_to_si(frame, session.sensitivity)
+        table = session.si_frame(rec)
         for col, (t0, values) in twin.extra_columns.get(rec, {}).items():
             t = table[TIME].to_numpy(dtype=float)
             table[col] = np.interp(t - t[0], t0, values)

@@ -37,8 +37,8 @@ from imucal.validation.orientation import (
     field_direction_errors,
     gravity_errors,
     mount_orientation_reference,
-    orientation_errors,
     rate_agreement,
+    summarise_windows,
     window_errors,
 )
 from imucal.validation.timing import TimeAlignment
@@ -320,7 +320,7 @@ def _variant(
         "gyroscope": label,
         "mounting": alignment.mounting.to_dict(),
         "rates": rate_agreement(t, gyr_b, t_ref, quat, alignment, mounting),
-        "orientation": orientation_errors(t, gyr_b, t_ref, quat, alignment, mounting, windows_s),
+        "orientation": summarise_windows(windows, windows_s),
     }
     return out, alignment, windows
 

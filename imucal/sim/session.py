@@ -19,8 +19,9 @@ import pandas as pd
 import yaml
 
 from imucal.calibration import CONVENTION, FRAME
-from imucal.columns import SENSORS, SEQ_MODULUS
+from imucal.columns import MAG, SENSORS, SEQ_MODULUS
 from imucal.constants import SESSION_GAP_S
+from imucal.ingest import counts_to_si
 from imucal.sim.effects import Effect, RecordingContext, make_effect, stream_rng
 from imucal.sim.motion import evaluate_motion
 from imucal.sim.packets import PacketLog, build_packet_log, to_frame
@@ -104,6 +105,12 @@ class Session:
     def frame(self, recording: str) -> pd.DataFrame:
         """The raw-CSV table of an IMU recording."""
         return to_frame(self.logs[recording])
+
+    def si_frame(self, recording: str) -> pd.DataFrame:
+        """An IMU recording as the workflow's ingest gives it: SI units, NaN where a row has no
+        magnetometer sample."""
+        frame = self.frame(recording).astype({c: "float64" for c in MAG})
+        return counts_to_si(frame, self.sensitivity)
 
     def dataset_dict(self) -> dict:
         """Content of ``dataset.yaml``."""

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-import numpy as np
 import pandas as pd
 
 from imucal import errormodel
 from imucal.calibration import ImuCalibration
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_UNITS
+from imucal.io import to_jsonable
 from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration
@@ -180,7 +180,7 @@ def terms_summary(result: Mapping) -> dict:
     return {
         "format_version": 1,
         "in_model": cal.terms.names() if cal is not None else [],
-        "terms": _jsonable(result["terms"]),
+        "terms": to_jsonable(result["terms"]),
         "calibration": cal.to_dict() if cal is not None else None,
     }
 
@@ -217,15 +217,3 @@ def diagnosis_after(
         settings=settings,
     )  # fmt: skip
     return {**after, "in_model": result["calibration"].terms.names()}
-
-
-def _jsonable(x):
-    if isinstance(x, Mapping):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, float) and not np.isfinite(x):
-        return None
-    return x

@@ -22,7 +22,7 @@ a window both of its ends, and the time fit leaves out module samples inside a g
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -365,7 +365,17 @@ def orientation_errors(
     windows_s: Sequence[float],
     stride_s: float = 1.0,
 ) -> dict:
-    """Summary of :func:`window_errors` per window.
+    """:func:`window_errors` summarised per window (:func:`summarise_windows`)."""
+    found = window_errors(
+        t_module, gyr_b, t_reference, quat_reference, alignment, mounting, windows_s, stride_s
+    )
+    return summarise_windows(found, windows_s)
+
+
+def summarise_windows(
+    found: Mapping[str, tuple[np.ndarray, np.ndarray]], windows_s: Sequence[float]
+) -> dict:
+    """Summary of :func:`window_errors`' result per window.
 
     Returns
     -------
@@ -373,12 +383,9 @@ def orientation_errors(
         Per window (key ``f"{T:g}s"``): ``n``, ``median_deg``, ``rms_deg``, ``p95_deg``,
         ``max_deg`` (None when no window fits), ``window_s``.
     """
-    found = window_errors(
-        t_module, gyr_b, t_reference, quat_reference, alignment, mounting, windows_s, stride_s
-    )
     return {
         key: _stats(errors) | {"window_s": float(window)}
-        for (key, (_, errors)), window in zip(found.items(), windows_s)
+        for (key, (_, errors)), window in zip(found.items(), windows_s, strict=True)
     }
 
 

@@ -36,8 +36,6 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
-from imucal.columns import MAG
-from imucal.ingest import counts_to_si
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import make_effect, make_truth, simulate_session
 from imucal.sim.effects import stream_rng
@@ -90,12 +88,7 @@ def run_session(seed: int, effects: tuple[str, ...]) -> list[dict]:
         if path == "tool_free":
             truth = _without_gyro_xi(truth)
         session = simulate_session(truth, seed, effects=tuple(make_effect(e) for e in effects))
-        imu = {
-            rec: counts_to_si(
-                session.frame(rec).astype({c: "float64" for c in MAG}), session.sensitivity
-            )
-            for rec in session.logs
-        }
+        imu = {rec: session.si_frame(rec) for rec in session.logs}
         config = session.config
         options = PipelineOptions(
             session.truth.world.gravity_m_s2,

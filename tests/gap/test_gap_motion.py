@@ -153,9 +153,9 @@ def test_a_reference_that_cannot_be_aligned_is_named_not_scored():
     table = pd.DataFrame({TIME: s.t_module, **dict(zip(GYR, s.gyr.T))})
     wrong = pd.DataFrame({TIME: other.t_reference, **dict(zip(QUAT, other.quat_reference.T))})
     part, reason = reference_part(
-        {"moves": table}, {"moves": (wrong, {"up": "+z"})}, calibration,
-        pd.DataFrame(columns=list(SEGMENT_COLUMNS)), {"moves": "d.yaml: recordings.moves.reference"},
-        {}, 9.81,
+        tables={"moves": table}, references={"moves": (wrong, {"up": "+z"})},
+        calibration=calibration, segments=pd.DataFrame(columns=list(SEGMENT_COLUMNS)),
+        where={"moves": "d.yaml: recordings.moves.reference"}, sensitivity={}, gravity_m_s2=9.81,
     )  # fmt: skip
     assert part is None and "recordings.moves.reference" in reason
     result = diagnose_partial_session(

@@ -6,8 +6,6 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from imucal.columns import MAG
-from imucal.ingest import counts_to_si
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import make_truth, simulate_session
 from imucal.sim.effects import stream_rng
@@ -19,12 +17,7 @@ RANGE_COUNTS = {"acc": 32767, "gyr": 32767, "mag": 32767}
 def _session(seed: int):
     truth = make_truth("random", stream_rng(seed, "truth"))
     session = simulate_session(truth, seed)
-    imu = {
-        rec: counts_to_si(
-            session.frame(rec).astype({c: "float64" for c in MAG}), session.sensitivity
-        )
-        for rec in session.logs
-    }
+    imu = {rec: session.si_frame(rec) for rec in session.logs}
     config = session.config
     options = PipelineOptions(
         truth.world.gravity_m_s2,

@@ -25,14 +25,14 @@ if "orientation" in inputs:
         table, metadata = read_recording(path)
         references[metadata["recording"]] = (table, metadata)
     motion, not_scored = reference_part(
-        {name: read_recording(inputs[f"moving_{name}"])[0] for name in references},
-        references,
-        calibration,
-        read_segments(snakemake.input.segments),
-        {name: info.reference_where(name) for name in references},
-        info.sensitivity,
-        info.gravity_m_s2,
-        snakemake.params.windows_s,
+        tables={name: read_recording(inputs[f"moving_{name}"])[0] for name in references},
+        references=references,
+        calibration=calibration,
+        segments=read_segments(snakemake.input.segments),
+        where={name: info.reference_where(name) for name in references},
+        sensitivity=info.sensitivity,
+        gravity_m_s2=info.gravity_m_s2,
+        windows_s=snakemake.params.windows_s,
     )
 result = diagnose_partial_session(
     read_recording(inputs["static"])[0] if "static" in inputs else None,
