@@ -350,10 +350,15 @@ def _gyr_known_rotation(s: _Session) -> dict:
     known = np.array(
         [np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()]
     )
+    # the integrals' white noise is the static recording's sample noise; the bias's std (its
+    # wander added where the blocks show it) enters every integral times its duration
+    bias, bias_std = stages.gyr_bias_value(s.done["gyr_bias"], "ls")
     fit = ferraris.fit_known_rotations(
         cut_finite(s.tables[recording], rows, GYR),
         known,
-        _bias(s),
+        bias,
+        noise_std_rad_s=np.asarray(s.done["gyr_bias"]["noise_std_rad_s"], dtype=float),
+        bias_std_rad_s=bias_std,
         labels=[str(x) for x in rows["label"]],
     )
     artifact = stages.plain(fit)
