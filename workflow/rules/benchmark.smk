@@ -1,5 +1,6 @@
-# The Monte-Carlo check of the reported uncertainty (target `uncertainty_benchmark`, not in the
-# default run; docs/uncertainty.md): simulated sessions in chunks, then the z-score tables.
+# The Monte-Carlo check of the reported uncertainty (targets `uncertainty_benchmark` and
+# `uncertainty_partial`, not in the default run; docs/uncertainty.md): simulated sessions in
+# chunks, then the z-score tables.
 
 
 rule uncertainty_chunk:
@@ -12,10 +13,12 @@ rule uncertainty_chunk:
     params:
         per_chunk=config["uncertainty"]["chunk"],
         effects=uncertainty_effects,
+        protocol=uncertainty_protocol,
         imucal_version=IMUCAL_VERSION,
     shell:
         "python tests/benchmarks/mc_uncertainty.py run --first {wildcards.first} "
-        "--count {params.per_chunk} --effects '{params.effects}' --out {output} > {log} 2>&1"
+        "--count {params.per_chunk} --protocol {params.protocol} "
+        "--effects '{params.effects}' --out {output} > {log} 2>&1"
 
 
 rule uncertainty_table:
@@ -34,3 +37,8 @@ rule uncertainty_table:
 rule uncertainty_benchmark:
     input:
         expand("results/uncertainty/{setting}/table.md", setting=("clean", "effects")),
+
+
+rule uncertainty_partial:
+    input:
+        "results/uncertainty/partial/table.md",

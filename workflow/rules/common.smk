@@ -512,9 +512,13 @@ def fleet_calibrations(wildcards):
     return {name: calibration_path(name) for name in FLEET_SHEET["dataset"]}
 
 
-# The Monte-Carlo check of the reported uncertainty (rules in benchmark.smk).
+# The Monte-Carlo check of the reported uncertainty (rules in benchmark.smk). A setting is the
+# paper's protocol clean or with effects, or one partial protocol; 'partial' tables them all.
+UNCERTAINTY_PARTIAL = config["uncertainty"]["partial_protocols"]
+
+
 wildcard_constraints:
-    setting="clean|effects",
+    setting="|".join(["clean", "effects", "partial", *UNCERTAINTY_PARTIAL]),
 
 
 def uncertainty_effects(wildcards):
@@ -522,10 +526,18 @@ def uncertainty_effects(wildcards):
     return ",".join(config["uncertainty"]["effects"]) if wildcards.setting == "effects" else ""
 
 
+def uncertainty_protocol(wildcards):
+    """The protocol of a setting: 'full' for clean and effects, else the partial protocol."""
+    return "full" if wildcards.setting in ("clean", "effects") else wildcards.setting
+
+
 def uncertainty_chunks(wildcards):
-    """The chunk files of a setting: seeds 0 .. sessions - 1 in steps of the chunk size."""
+    """The chunk files of a setting: seeds 0 .. sessions - 1 in steps of the chunk size; for
+    'partial' those of every partial protocol."""
     u = config["uncertainty"]
+    settings = UNCERTAINTY_PARTIAL if wildcards.setting == "partial" else [wildcards.setting]
     return [
-        f"results/uncertainty/{wildcards.setting}/chunk{first}.json"
+        f"results/uncertainty/{setting}/chunk{first}.json"
+        for setting in settings
         for first in range(0, u["sessions"], u["chunk"])
     ]
