@@ -229,6 +229,7 @@ def fit_pose_to_pose(
     *,
     initial_matrix: np.ndarray | None = None,
     bias_std_rad_s: np.ndarray | None = None,
+    direction_covariance: np.ndarray | None = None,
 ) -> PoseToPoseFit:
     """Fit the gyroscope matrix to the gravity-direction change between static poses.
 
@@ -252,6 +253,11 @@ def fit_pose_to_pose(
         Standard deviation of ``bias_rad_s``; with it the calibration carries the covariance of
         its 21 parameters, the bias's effect on the fitted matrix included (a bias error turns
         every interval's increment the same way).
+    direction_covariance : ndarray, shape (6 n_int, 6 n_int), optional
+        Covariance of ``(start_directions.ravel(), end_directions.ravel())`` from an error
+        common to all of them (the accelerometer calibration that gave them). Such an error is
+        largely absorbed by the fitted matrix, so the residuals do not show it; it is carried
+        to the parameters like the bias's (``d theta / d directions`` at the solution).
 
     Returns
     -------
@@ -313,6 +319,22 @@ def fit_pose_to_pose(
     s2 = rss / dof if dof > 0 else np.nan
     cov = s2 * np.linalg.inv(jac.T @ jac)
     matrix = matrix_of(theta)
+    if direction_covariance is not None:
+        c_dir = np.asarray(direction_covariance, dtype=float)
+        if c_dir.shape != (6 * n, 6 * n) or not np.all(np.isfinite(c_dir)):
+            raise ValueError(
+                f"direction_covariance must be a finite ({6 * n}, {6 * n}) matrix over the "
+                f"start and end directions of {n} intervals, got shape {c_dir.shape}"
+            )
+        # implicit function theorem, as for the bias: d theta / d d = -(J^T J)^-1 J^T dr / d d
+        dr_dd = uncertainty.numerical_jacobian(
+            lambda d: (
+                d[3 * n :].reshape(n, 3) - _carry(increments, matrix, d[: 3 * n].reshape(n, 3))
+            ).ravel(),
+            np.concatenate([start.ravel(), end.ravel()]),
+        )
+        to_theta = -np.linalg.solve(jac.T @ jac, jac.T @ dr_dd)
+        cov = cov + to_theta @ c_dir @ to_theta.T
 
     # matrix-entry covariance by first-order propagation through compose
     step = 1e-7
