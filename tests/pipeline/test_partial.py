@@ -134,3 +134,23 @@ def test_known_angle_hand_turns_on_rotation3d_phases(session):
     # three 720-degree sections, noise-limited angles (~1e-4 rad) -> matrix error ~1e-5; the
     # phases also include their ramps, so the issue's 2e-3 limit is a loose, honest bound
     assert np.abs(gyr - truth["gyr"]["matrix"]).max() < 2e-3
+
+
+def test_rotation_sections_run_from_rest_to_rest():
+    """A section is widened to the middle of a rest beside it, not into another motion."""
+    import pandas as pd
+
+    segments = pd.DataFrame(
+        {
+            "recording": ["r"] * 5 + ["other"],
+            "label": ["s01", "x", "t01", "y", "p01", "s01"],
+            "kind": ["static", "phase", "transition", "phase", "position", "static"],
+            "start_index": [0, 100, 300, 350, 500, 0],
+            "end_index": [100, 300, 350, 500, 601, 1000],
+        }
+    )
+    phases = segments[segments["kind"] == "phase"]
+    wide = partial.rest_to_rest(segments, "r", phases)
+    assert wide["start_index"].tolist() == [50, 350]  # before y: a transition, kept
+    assert wide["end_index"].tolist() == [300, 551]  # after x: a transition, kept
+    assert phases["start_index"].tolist() == [100, 350]  # the input is not changed
