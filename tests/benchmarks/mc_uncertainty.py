@@ -18,7 +18,7 @@ of the size of xi, which no noise covariance describes).
 Usage::
 
     python tests/benchmarks/mc_uncertainty.py run --first 0 --count 20 --out chunk.json \\
-        [--protocol full|ferraris|poses|ratetable|static|tumble] \\
+        [--protocol full|ferraris|poses|ratetable|static|tumble|platform] \\
         [--effects temperature_drift,bias_instability,placement_error]
     python tests/benchmarks/mc_uncertainty.py table chunk*.json --out table.md
 
@@ -72,17 +72,22 @@ class PartialProtocol:
         own frame: the truth's upper-triangular factor, ``matrix = Q U``, no ``T_R``) or
         'acc upper' (the frame of the accelerometer's upper-triangular factor,
         ``Q_acc^T matrix``).
+    gyro_xi_zero : bool
+        The truth's gyroscope non-orthogonality set to zero, the tool-free path's own
+        assumption (as for the path ``tool_free`` of the whole protocol).
     """
 
     recordings: dict
     final: dict
     frame: dict
+    gyro_xi_zero: bool = False
 
 
 #: The partial protocols: Ferraris' six faces (the cube's first six positions, their up
 #: direction known) with known-angle turns (the rotation3d phases, 720 deg each); hand-placed
 #: poses with a static recording; the rate table alone; a static recording alone; a tumble
-#: (the rotation3d recording without its phases) for the magnetometer.
+#: (the rotation3d recording without its phases) for the magnetometer; the platform without
+#: cube and rate table (the tool-free gyroscope and the magnetometer's two steps).
 PARTIAL = {
     "ferraris": PartialProtocol(
         {"ferraris": "cube", "rotation3d": "rotation3d", "static": "static"},
@@ -99,6 +104,12 @@ PARTIAL = {
     ),
     "static": PartialProtocol({"static": "static"}, {"gyr": "gyr_bias"}, {"gyr": "B"}),
     "tumble": PartialProtocol({"tumble": "rotation3d"}, {"mag": "mag_step1"}, {"mag": "upper"}),
+    "platform": PartialProtocol(
+        {"rotation3d": "rotation3d", "static": "static"},
+        {"gyr": "gyr_scale", "mag": "mag_step2"},
+        {"gyr": "B", "mag": "B"},
+        gyro_xi_zero=True,
+    ),
 }
 PROTOCOLS = ("full", *PARTIAL)
 
@@ -241,6 +252,8 @@ def run_partial(seed: int, protocol: str, effects: tuple[str, ...]) -> list[dict
     """
     chosen = PARTIAL[protocol]
     truth = make_truth("random", stream_rng(seed, "truth"))
+    if chosen.gyro_xi_zero:
+        truth = _without_gyro_xi(truth)
     session = simulate_session(truth, seed, effects=tuple(make_effect(e) for e in effects))
     imu = {rec: session.si_frame(rec) for rec in session.logs}
     options = _options(session)
