@@ -115,6 +115,10 @@ PLANS: dict[str, Counter | str] = {
     "snakemake --cores 1 uncertainty_benchmark": Counter(
         uncertainty_chunk=20, uncertainty_table=2, uncertainty_benchmark=1
     ),
+    # 200 simulated sessions of each of the six partial protocols, in chunks of 20
+    "snakemake --cores 2 uncertainty_partial": Counter(
+        uncertainty_chunk=60, uncertainty_table=1, uncertainty_partial=1
+    ),
     "snakemake --report report.zip": NEEDS_FINISHED_RUN,
     # the SLURM profile plans the default DAG (each rule a cluster job)
     "snakemake --profile workflow/profiles/slurm": _DATASET + Counter(all=1),
