@@ -110,4 +110,3 @@ def fit_with_wander(x: np.ndarray, y: np.ndarray, white: np.ndarray, t_s: np.nda
     q = float(np.exp(best.x))
     _, coef, cov = _reml(x, y, base + q * walk)
     return WanderFit(coef, cov, q)
-
