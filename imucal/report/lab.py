@@ -853,10 +853,13 @@ def _terms_section(
         })  # fmt: skip
     gap_before = (before.get("gap") or {}).get("total")
     gap_after = (after.get("gap") or {}).get("total")
-    compared = gap_comparison(before, after)
+    compared = gap_comparison(before, after, summary["in_model"])
     return {
         "gap_compared": (
-            {k: (v if k == "verdict" else format_number(v)) for k, v in compared.items()}
+            {
+                k: (v if k in ("verdict", "still_explained") else format_number(v))
+                for k, v in compared.items()
+            }  # fmt: skip
             if compared
             else None
         ),

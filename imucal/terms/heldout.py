@@ -152,39 +152,51 @@ def heldout_comparison(term: str, evidence: Mapping, diagnosis: Mapping | None) 
     }
 
 
-def gap_comparison(before: Mapping, after: Mapping) -> dict | None:
+def gap_comparison(before: Mapping, after: Mapping, in_model: list) -> dict | None:
     """The gap the diagnosis predicted for the session with its explained effects modelled,
-    beside the gap of the session recalibrated with the terms: the same statistic, so the
-    comparison is two-sided.
+    beside what remains of the gap of the session recalibrated with the terms: the same
+    statistic, so the comparison is two-sided.
 
     The prediction is ``remaining.total`` of the diagnosis before (its twin with the
-    explained effects added); the achieved gap is ``gap.total`` of the diagnosis after. They
-    agree when they differ by less than the after diagnosis's ``null_p95`` (the 95th
-    percentile of the total when there is no gap: the statistic's own noise).
+    explained effects added). The achieved value is ``remaining.total`` of the diagnosis after:
+    the terms in the calibration, and in its twin the effects it still explains, those
+    without a term (a bias instability, a timing jitter). They agree when they differ by less
+    than the larger ``null_p95`` of the two diagnoses (the 95th percentile of the total when
+    there is no gap: the statistic's own noise). An effect that the diagnosis after still
+    explains although a term in the model stands for it means the term did not take it: the
+    verdict is then short of the prediction whatever the totals.
 
     Parameters
     ----------
     before, after : dict
         diagnosis.json of the session and of the session with the terms (gap/after.json).
+    in_model : list of str
+        The terms in the model.
 
     Returns
     -------
     dict or None
-        ``before``, ``predicted``, ``achieved``, ``tolerance`` and ``verdict`` ('as
-        predicted', 'better than predicted' or 'short of the prediction'); None when either
-        diagnosis lacks the numbers (no terms in the model, a diagnosis that did not run).
+        ``before``, ``predicted``, ``achieved``, ``tolerance``, ``still_explained`` (effects
+        the diagnosis after explains) and ``verdict`` ('as predicted', 'better than
+        predicted' or 'short of the prediction', with the term that did not take its effect);
+        None when either diagnosis lacks the numbers.
     """
     try:
         total = float(before["gap"]["total"])
         predicted = float(before["remaining"]["total"])
-        achieved = float(after["gap"]["total"])
-        tolerance = float(after["gap"]["null_p95"])
+        achieved = float(after["remaining"]["total"])
+        tolerance = max(float(before["gap"]["null_p95"]), float(after["gap"]["null_p95"]))
     except (KeyError, TypeError):
         return None
-    verdict = (
-        "short of the prediction" if achieved > predicted + tolerance
-        else "better than predicted" if achieved < predicted - tolerance
-        else "as predicted"
-    )  # fmt: skip
+    still = list(after.get("explained", []))
+    untaken = [t for t in in_model if EFFECT_OF_TERM.get(t) in still]
+    if untaken:
+        verdict = f"short of the prediction: the diagnosis after still explains the effect of {', '.join(untaken)}"
+    elif achieved > predicted + tolerance:
+        verdict = "short of the prediction"
+    elif achieved < predicted - tolerance:
+        verdict = "better than predicted"
+    else:
+        verdict = "as predicted"
     return {"before": total, "predicted": predicted, "achieved": achieved,
-            "tolerance": tolerance, "verdict": verdict}  # fmt: skip
+            "tolerance": tolerance, "still_explained": still, "verdict": verdict}  # fmt: skip

@@ -357,11 +357,18 @@ def test_pose_to_pose_gravity_held_out_improves_with_the_terms(drift):
 def test_gap_comparison_is_two_sided():
     from imucal.terms.heldout import gap_comparison
 
-    before = {"gap": {"total": 5000.0}, "remaining": {"total": 150.0}}
-    verdicts = {
-        achieved: gap_comparison(before, {"gap": {"total": achieved, "null_p95": 40.0}})["verdict"]
-        for achieved in (60.0, 180.0, 400.0)
-    }
+    before = {"gap": {"total": 5000.0, "null_p95": 30.0}, "remaining": {"total": 150.0},
+              "explained": ["temperature_drift", "bias_instability"]}  # fmt: skip
+
+    def after(remaining, explained=("bias_instability",)):
+        return {"gap": {"total": remaining + 100, "null_p95": 40.0},
+                "remaining": {"total": remaining}, "explained": list(explained)}  # fmt: skip
+
+    verdicts = {r: gap_comparison(before, after(r), ["temperature"])["verdict"]
+                for r in (60.0, 180.0, 400.0)}  # fmt: skip
     assert verdicts == {60.0: "better than predicted", 180.0: "as predicted",
                         400.0: "short of the prediction"}  # fmt: skip
-    assert gap_comparison(before, {"note": "no model term"}) is None
+    # the term's effect explained again after: the term did not take it
+    verdict = gap_comparison(before, after(100.0, ["temperature_drift"]), ["temperature"])
+    assert verdict["verdict"].startswith("short of the prediction: the diagnosis after still")
+    assert gap_comparison(before, {"note": "no model term"}, []) is None
