@@ -88,7 +88,8 @@ def _segment_means(fit: SessionFit, segments: list) -> Means:
             raw[s].append(st._means(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), rows))
         acc_b.append(st._means(np.asarray(calibrated(fit, rec, "acc")), rows))
         gyr = table[list(GYR)].to_numpy(dtype=float)
-        white.append([_white_variance(gyr[a:b]) for a, b in st._bounds(rows)])
+        quantum = float(fit.extra["options"].sensitivity["gyr"])
+        white.append([_white_variance(gyr[a:b], quantum) for a, b in st._bounds(rows)])
         start = float(table[TIME].iloc[0])
         mid.append(clock[rec] + st._mid_times(fit, rec, rows) - start)
         temp.append(t)
@@ -108,11 +109,12 @@ def _segment_means(fit: SessionFit, segments: list) -> Means:
                  out.gyr_white[ok], out.t_s[ok])  # fmt: skip
 
 
-def _white_variance(x: np.ndarray) -> np.ndarray:
-    """White-noise variance of the mean of the complete rows of ``x`` (n, 3), per column (NaN
-    with fewer than 3 rows)."""
+def _white_variance(x: np.ndarray, quantum: float) -> np.ndarray:
+    """White-noise variance of the mean of the complete rows of ``x`` (n, 3), per column, at
+    least the quantisation's (``quantum^2 / 12`` per sample: a resting quantised reading may
+    not change at all); NaN with fewer than 3 rows."""
     x = x[np.all(np.isfinite(x), axis=1)]
-    return np.var(np.diff(x, axis=0), axis=0) / 2 / len(x) if len(x) >= 3 else np.full(3, np.nan)
+    return st._white_variance(x, quantum**2 / 12) if len(x) >= 3 else np.full(3, np.nan)
 
 
 def resting_means(fit: SessionFit, *, table: bool = True) -> Means:
