@@ -75,6 +75,9 @@ class TemperaturePolynomial:
         Standard deviations of the coefficients.
     method : str
         How they were estimated (free text for the report).
+    bias_covariance : ndarray, shape (3, p, p), optional
+        Covariance of each axis's bias coefficients (rows and columns in ``bias``'s row
+        order); None when only the standard deviations are known.
     """
 
     sensor: str
@@ -86,6 +89,7 @@ class TemperaturePolynomial:
     bias_std: np.ndarray
     scale_std: np.ndarray
     method: str = ""
+    bias_covariance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.sensor not in TEMPERATURE_SENSORS:
@@ -111,6 +115,12 @@ class TemperaturePolynomial:
             )
         if self.bias_std.shape != self.bias.shape or self.scale_std.shape != self.scale.shape:
             raise ValueError(f"{self.sensor} temperature std must have the coefficients' shapes")
+        if self.bias_covariance is not None:
+            p = len(self.bias)
+            cov = np.asarray(self.bias_covariance, dtype=float).reshape(3, p, p)
+            if not np.all(np.isfinite(cov)):
+                raise ValueError(f"{self.sensor} temperature bias_covariance must be finite")
+            object.__setattr__(self, "bias_covariance", cov)
 
     @property
     def unit(self) -> str:
@@ -179,6 +189,7 @@ class TemperaturePolynomial:
 
         ``v = K (r - o - b(dT)) / (1 + s(dT))``: a bias coefficient moves ``v`` by ``-K[:, j]
         dT^k / (1 + s_j)``, a scale coefficient by ``-K[:, j] corrected_j dT^k / (1 + s_j)``.
+        An axis's bias coefficients with their covariance where it is known.
 
         Parameters
         ----------
@@ -190,8 +201,12 @@ class TemperaturePolynomial:
         d_t = np.asarray(temp_c, dtype=float)[:, None] - self.reference_c
         _, scale = self.drift(temp_c)
         per_axis = np.zeros((len(d_t), 3))  # variance of the bracket's axis j
-        for k, std in enumerate(self.bias_std, 1):
-            per_axis += (std * d_t**k) ** 2
+        if self.bias_covariance is not None and len(self.bias):
+            powers = d_t[:, :, None] ** np.arange(1, len(self.bias) + 1)  # (n, 3, p)
+            per_axis += np.einsum("njp,jpq,njq->nj", powers, self.bias_covariance, powers)
+        else:
+            for k, std in enumerate(self.bias_std, 1):
+                per_axis += (std * d_t**k) ** 2
         for k, std in enumerate(self.scale_std, 1):
             per_axis += (std * corrected * d_t**k) ** 2
         return (per_axis / (1.0 + scale) ** 2) @ (np.asarray(matrix) ** 2).T
@@ -210,6 +225,11 @@ class TemperaturePolynomial:
             "scale_std": self.scale_std.tolist(),
             "scale_unit": "1/K^k (row k-1: coefficient of (T - reference_c)^k)",
             "method": self.method,
+            **(
+                {"bias_covariance": self.bias_covariance.tolist()}
+                if self.bias_covariance is not None
+                else {}
+            ),
         }
 
     @classmethod
@@ -227,6 +247,7 @@ class TemperaturePolynomial:
             d.get("bias_std", np.zeros_like(np.asarray(d["bias"], dtype=float))),
             d.get("scale_std", np.zeros_like(np.asarray(d["scale"], dtype=float))),
             d.get("method", ""),
+            d.get("bias_covariance"),
         )
 
 

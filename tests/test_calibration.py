@@ -137,3 +137,28 @@ def test_parameter_variance_is_the_covariance_without_terms():
     assert set(var) == {"acc"}
     cov = calibrated_covariance(cal.acc.matrix, cal.acc.bias, a @ a.T, readings["acc"])
     np.testing.assert_allclose(var["acc"], np.diagonal(cov, axis1=1, axis2=2), rtol=1e-12)
+
+
+def test_temperature_variance_uses_the_bias_covariance_round_trip():
+    """An axis's correlated bias coefficients: the calibrated variance is ``d^T C d`` with
+    ``d = (dT, dT^2)``, as the spread of calibrations with coefficients drawn from ``C``; the
+    covariance survives the dict."""
+    from imucal.modelterms import TemperaturePolynomial
+
+    rng = np.random.default_rng(5)
+    cov = np.array([[1e-10, -0.9e-11], [-0.9e-11, 1e-12]])  # strongly anti-correlated
+    bias = np.array([[5e-4] * 3, [1e-5] * 3])
+    std = np.sqrt(np.diag(cov))[:, None].repeat(3, axis=1)
+    poly = TemperaturePolynomial("gyr", 25.0, (15.0, 35.0), 1.0, bias, np.zeros((0, 3)), std,
+                                 np.zeros((0, 3)), bias_covariance=[cov] * 3)  # fmt: skip
+    back = TemperaturePolynomial.from_dict("gyr", poly.to_dict())
+    np.testing.assert_array_equal(back.bias_covariance, poly.bias_covariance)
+    temp = np.linspace(15, 35, 9)
+    corrected = np.ones((9, 3))
+    predicted = back.variance(np.eye(3), corrected, temp)
+    draws = rng.multivariate_normal(np.zeros(2), cov, size=20000)  # (draws, 2)
+    d_t = temp - 25.0
+    spread = (draws @ np.vstack([d_t, d_t**2])).var(axis=0)
+    np.testing.assert_allclose(predicted[:, 0], spread, rtol=0.05, atol=1e-15)
+    independent = np.sum((std[:, :1] * np.vstack([d_t, d_t**2])) ** 2, axis=0)
+    assert np.max(independent[-1] / predicted[-1, 0]) > 3  # the correlation matters here

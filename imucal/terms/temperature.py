@@ -222,7 +222,8 @@ def _refusal(temp: np.ndarray, min_span_c: float, what: str) -> str:
 
 
 def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tuple:
-    """Bias polynomial of the gyroscope: coefficients (p, 3), std, held-out evidence."""
+    """Bias polynomial of the gyroscope: coefficients (p, 3), std (p, 3), each axis's
+    covariance (3, p, p), held-out evidence."""
     d_t = rest.temp_c - reference_c
     n = len(d_t)
     nuisance = [np.ones((n, 1))]
@@ -239,6 +240,7 @@ def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> t
     coef = np.column_stack([f.coef for f in fits])
     std = np.column_stack([np.sqrt(np.diag(f.cov)) for f in fits])
     p = design(0).shape[1]
+    covariance = np.array([f.cov[p:, p:] for f in fits])
     evidence = {
         "order": order,
         "heldout_rms": heldout,
@@ -246,7 +248,7 @@ def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> t
         "segments": n,
         "walk_per_s": [f.walk_per_s for f in fits],
     }
-    return coef[p:], std[p:], evidence
+    return coef[p:], std[p:], covariance, evidence
 
 
 def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_order: int):
@@ -397,7 +399,7 @@ def fit_temperature(
         )
         return {}, {**evidence, "refused": refusal}
 
-    bias, bias_std, ev_g = _gyro(fit, rest, reference_c, max_order)
+    bias, bias_std, bias_cov, ev_g = _gyro(fit, rest, reference_c, max_order)
     scale = _gyro_scale(fit, bias, reference_c, max_order)
     ev_gyr = {"bias": ev_g}
     if scale is not None:
@@ -410,6 +412,7 @@ def fit_temperature(
             "bias: raw resting means against dT^k (constant and specific force as nuisance); "
             "scale: rate-table run means against u dT^k (u = K^-1 w of eq. 33); "
             "orders by leave-one-out residuals (one-standard-error rule)",
+            bias_cov if len(bias) else None,
         )  # fmt: skip
     else:
         ev_gyr["refused"] = "no polynomial order predicts held-out segments better than none"
