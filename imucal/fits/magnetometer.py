@@ -503,7 +503,7 @@ class MagnetometerCalibration:
     calibration : SensorCalibration
         ``matrix = T_R S'`` and ``o`` (eq. 16), with the covariance of its parameters (step 1's,
         the alignment's own and step 1's carried through the alignment, to first order;
-        :mod:`imucal.fits.propagation`).
+        :mod:`imucal.fits.propagation`; None when fitted without).
     step1 : EllipsoidFit
     alignments : dict of str to AlignmentResult
         Step 2 by both methods, keys 'full' and 'paper'.
@@ -532,6 +532,8 @@ def calibrate_alignment(
     phases: dict[str, np.ndarray],
     method: str = "full",
     exact: bool = True,
+    *,
+    with_covariance: bool = True,
 ) -> MagnetometerCalibration:
     """Step 2 (eqs. 25-27): ``T_R,mag`` from the phases, by both methods; calibration by one.
 
@@ -545,6 +547,10 @@ def calibrate_alignment(
         Step-2 method whose ``T_R`` goes into the calibration (both are computed and reported).
     exact : bool
         Exact rotation or the paper's small-angle matrix (eq. 5) for ``T_R``.
+    with_covariance : bool
+        Carry step 1's uncertainty through the alignment into the calibration's covariance and
+        std (ten alignment refits, :func:`imucal.fits.propagation.alignment_sensitivity`);
+        False leaves them unknown, for callers that read the fitted values only.
 
     Returns
     -------
@@ -563,21 +569,23 @@ def calibrate_alignment(
     if method not in alignments:
         raise ValueError(f"unknown step-2 method {method!r}; expected one of {sorted(alignments)}")
     chosen = alignments[method]
-    sensitivity = alignment_sensitivity(
-        lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
-        phases,
-        step1.upper,
-        step1.bias,
-    )
-    covariance = two_step_covariance(
-        step1.upper,
-        step1.bias,
-        step1.selected.covariance,
-        chosen.alpha_rad,
-        chosen.covariance,
-        sensitivity,
-        exact,
-    )
+    covariance = None
+    if with_covariance:
+        sensitivity = alignment_sensitivity(
+            lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
+            phases,
+            step1.upper,
+            step1.bias,
+        )
+        covariance = two_step_covariance(
+            step1.upper,
+            step1.bias,
+            step1.selected.covariance,
+            chosen.alpha_rad,
+            chosen.covariance,
+            sensitivity,
+            exact,
+        )
     calibration = SensorCalibration(
         sensor="mag",
         bias=step1.bias,
