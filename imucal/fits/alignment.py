@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from imucal.columns import AXES, TIME, sensor_columns
+from imucal.columns import AXES, TIME, column_values, sensor_columns
 from imucal.errormodel import rotation_matrix
 
 METHODS = ("full", "paper")
@@ -576,12 +576,11 @@ def phase_samples(
                 f"phase {label!r} of {recording!r} spans rows [{start}, {end}), expected within "
                 f"[0, {len(table)}) of the ingested table"
             )
-        part = table.iloc[start:end]
-        values = part[list(cols)].to_numpy(dtype=float)
+        values = column_values(table, cols, slice(start, end))
         keep = ~np.isnan(values).any(axis=1)
         if not keep.any():
             raise ValueError(
                 f"phase {label!r} of {recording!r} (rows [{start}, {end})) has no {sensor} sample"
             )
-        out[label] = (part[TIME].to_numpy(dtype=float)[keep], values[keep])
+        out[label] = (table[TIME].to_numpy(dtype=float)[start:end][keep], values[keep])
     return out

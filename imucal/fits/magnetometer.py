@@ -26,7 +26,7 @@ from scipy.optimize import least_squares
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
-from imucal.columns import MAG, SI_UNITS, TIME
+from imucal.columns import MAG, SI_UNITS, TIME, column_values
 from imucal.fits.alignment import ALIGNMENT_RULE, align_constant_component
 from imucal.fits.propagation import alignment_sensitivity
 from imucal.uncertainty import std_of, two_step_covariance
@@ -200,7 +200,7 @@ def field_samples(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     missing = [c for c in (TIME, *MAG) if c not in table.columns]
     if missing:
         raise ValueError(f"recording lacks the columns {missing}; expected {[TIME, *MAG]}")
-    values = table[list(MAG)].to_numpy(dtype=float)
+    values = column_values(table, MAG)
     nan = np.isnan(values)
     partial = np.flatnonzero(nan.any(axis=1) & ~nan.all(axis=1))
     if partial.size:

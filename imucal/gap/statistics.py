@@ -54,6 +54,7 @@ from imucal.columns import (
     SENSORS,
     SEQ,
     TIME,
+    column_values,
     temperature_column,
 )
 from imucal.gap.blocks import long_series
@@ -302,7 +303,7 @@ def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> di
     for s in SENSORS:
         n = hit = 0
         for table in tables.values():
-            x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[_time_half(len(table), half)]
+            x = column_values(table, SENSOR_COLUMNS[s])[_time_half(len(table), half)]
             x = x[np.all(np.isfinite(x), axis=1)]
             limit = options.limit(s) - 1.5 * float(options.sensitivity[s])
             hit += int(np.any(np.abs(x) >= limit, axis=1).sum())
@@ -330,14 +331,14 @@ def _noise(fit: SessionFit, half) -> dict:
     sl_long = _time_half(len(t_long), half)
     out = {}
     for s in SENSORS:
-        x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl]
+        x = column_values(table, SENSOR_COLUMNS[s])[sl]
         tt = t[sl]
         good = np.all(np.isfinite(x), axis=1)
         x, tt = x[good], tt[good]
         rate = fs if s != "mag" else 1 / np.median(np.diff(tt))
         white = np.std(np.diff(x, axis=0), axis=0) / np.sqrt(2)
         m10 = max(int(round(10 * rate)), 1)
-        xl = series[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl_long]
+        xl = column_values(series, SENSOR_COLUMNS[s])[sl_long]
         tl = t_long[sl_long]
         good = np.all(np.isfinite(xl), axis=1)
         xl, tl = xl[good], tl[good]
@@ -531,7 +532,7 @@ def table_residuals(fit: SessionFit, half) -> tuple[pd.DataFrame, np.ndarray, np
     rows = _run_half(rows, half)
     k = np.asarray(table["matrix"], dtype=float)
     b = np.asarray(table["bias"], dtype=float)
-    raw = fit.imu["ratetable"][list(GYR)].to_numpy(dtype=float)
+    raw = column_values(fit.imu["ratetable"], GYR)
     means = _means(raw, rows)
     unit = {a: np.eye(3)[i] for i, a in enumerate(AXES)}
     true = np.array([np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)])
@@ -900,7 +901,7 @@ def _resting_source(fit: SessionFit, recording: str) -> tuple[pd.DataFrame, floa
         if ("static blocks", s) not in cache:
             c = fit.calibration.sensor(s)
             # the calibration is affine: the calibrated block mean is the block mean calibrated
-            out = c.apply(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), unit=c.unit)
+            out = c.apply(column_values(table, SENSOR_COLUMNS[s]), unit=c.unit)
             out.flags.writeable = False
             cache[("static blocks", s)] = out
     cal = tuple(cache[("static blocks", s)] for s in ("gyr", "acc", "mag"))
@@ -966,7 +967,7 @@ def mean_temperature(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.
     col = temperature_column(fit.imu[recording])
     if col is None:
         return None
-    return _means(fit.imu[recording][[col]].to_numpy(dtype=float), rows)[:, 0]
+    return _means(column_values(fit.imu[recording], [col]), rows)[:, 0]
 
 
 def _temperature(fit: SessionFit, half) -> dict:

@@ -17,7 +17,7 @@ import pandas as pd
 
 from imucal import validation
 from imucal.calibration import ImuCalibration
-from imucal.columns import GYR, SEQ, TIME
+from imucal.columns import GYR, SEQ, TIME, column_values, sensor_columns
 from imucal.io.dataset import Dataset
 from imucal.pipeline import stages
 from imucal.segments.filtering import lowpass_recording
@@ -272,10 +272,8 @@ def reference_alignment(
     """
     t_mod = validation.packet_times(rotation3d[TIME].to_numpy(), rotation3d[SEQ].to_numpy())
     t_ref = validation.packet_times(reference[TIME].to_numpy(), reference[SEQ].to_numpy())
-    gyr_mod = calibration.sensor("gyr").apply(
-        rotation3d[list(GYR)].to_numpy(dtype=float), unit="rad/s"
-    )
-    gyr_ref = reference[list(GYR)].to_numpy(dtype=float)
+    gyr_mod = calibration.sensor("gyr").apply(column_values(rotation3d, GYR), unit="rad/s")
+    gyr_ref = column_values(reference, GYR)
     return validation.estimate_time_alignment(t_mod, gyr_mod, t_ref, gyr_ref, 6)
 
 
@@ -285,11 +283,9 @@ def calibrated(fit: SessionFit, recording: str, sensor: str) -> np.ndarray:
     Computed once per fit (the diagnosis's statistics ask for the same recording many times)
     and returned read-only, so that no caller can change what the next one gets.
     """
-    from imucal.columns import sensor_columns
-
     cache = fit.extra.setdefault("calibrated", {})
     if (recording, sensor) not in cache:
-        values = fit.imu[recording][list(sensor_columns(sensor))].to_numpy(dtype=float)
+        values = column_values(fit.imu[recording], sensor_columns(sensor))
         cal = fit.calibration.sensor(sensor)
         out = cal.apply(values, unit=cal.unit)
         out.flags.writeable = False

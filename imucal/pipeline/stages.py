@@ -23,7 +23,16 @@ from matplotlib.figure import Figure
 
 from imucal import errormodel, uncertainty
 from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
-from imucal.columns import ACC, AXES, GYR, MAG, PARAMETER_STD_SUFFIX, TIME, temperature_column
+from imucal.columns import (
+    ACC,
+    AXES,
+    GYR,
+    MAG,
+    PARAMETER_STD_SUFFIX,
+    TIME,
+    column_values,
+    temperature_column,
+)
 from imucal.fits import accelerometer, gyroscope
 from imucal.fits.alignment import (
     ALIGNMENT_RULE,
@@ -501,7 +510,7 @@ def estimate_gyr_scale(
         raise ValueError("eq. 36 needs a calibrated magnetometer or accelerometer; got neither")
     noise = np.asarray(bias["noise_std_rad_s"], dtype=float)
     phases = rows_of(segments, "rotation3d", "phase")
-    gyr = rotation3d[list(GYR)].to_numpy(dtype=float)
+    gyr = column_values(rotation3d, GYR)
     clipped = [
         r.label
         for r in phases.itertuples()
@@ -516,13 +525,11 @@ def estimate_gyr_scale(
     for phase in phases.itertuples(index=False):
         before, after = _adjacent_static(segments, phase)
         window = rotation3d.iloc[int(before.start_index) : int(after.end_index)]
-        parts = [
-            rotation3d.iloc[int(s.start_index) : int(s.end_index)] for s in (before, phase, after)
-        ]
+        parts = [slice(int(s.start_index), int(s.end_index)) for s in (before, phase, after)]
         angles, angle_var = {}, {}
         for name, cal, cols in measuring:
             vectors = [
-                errormodel.apply(cal.matrix, cal.bias, p[list(cols)].to_numpy(dtype=float))
+                errormodel.apply(cal.matrix, cal.bias, column_values(rotation3d, cols, p))
                 for p in parts
             ]
             try:
@@ -536,7 +543,7 @@ def estimate_gyr_scale(
         angle_std = _mean_angle_std(
             np.array(measured), np.array([angle_var[n] for n in angles if n in angle_var])
         )
-        raw = window[list(GYR)].to_numpy(dtype=float)
+        raw = column_values(window, GYR)
         fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
         rate = errormodel.apply(rotation, o, raw[fresh])
         k = AXES.index(phase.label)

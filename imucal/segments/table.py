@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from imucal.columns import SEGMENT_COLUMNS, TIME
+from imucal.columns import SEGMENT_COLUMNS, TIME, column_values
 
 
 def segment_row(recording, label, kind, t, a, b, axis="", rate_dps=np.nan, sense=0, turns=np.nan,
@@ -56,7 +56,7 @@ def rows_of(segments: pd.DataFrame, recording: str, *kinds: str) -> pd.DataFrame
 def cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[np.ndarray]:
     """The samples of ``columns`` each segment row holds: one array (n_k, len(columns)) a row."""
     return [
-        table.iloc[int(r.start_index) : int(r.end_index)][list(columns)].to_numpy(dtype=float)
+        column_values(table, columns, slice(int(r.start_index), int(r.end_index)))
         for r in rows.itertuples(index=False)
     ]
 
@@ -68,8 +68,8 @@ def cut_finite(
     a NaN in ``columns`` left out (streams merged on time: rows of another sensor)."""
     out = []
     for r in rows.itertuples(index=False):
-        part = table.iloc[int(r.start_index) : int(r.end_index)]
-        values = part[list(columns)].to_numpy(dtype=float)
+        part = slice(int(r.start_index), int(r.end_index))
+        values = column_values(table, columns, part)
         keep = np.isfinite(values).all(axis=1)
-        out.append((part[TIME].to_numpy(dtype=float)[keep], values[keep]))
+        out.append((table[TIME].to_numpy(dtype=float)[part][keep], values[keep]))
     return out
