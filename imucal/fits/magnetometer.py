@@ -549,8 +549,10 @@ def calibrate_alignment(
         Exact rotation or the paper's small-angle matrix (eq. 5) for ``T_R``.
     with_covariance : bool
         Carry step 1's uncertainty through the alignment into the calibration's covariance and
-        std (ten alignment refits, :func:`imucal.fits.propagation.alignment_sensitivity`);
-        False leaves them unknown, for callers that read the fitted values only.
+        std (ten alignment refits, :func:`imucal.fits.propagation.alignment_sensitivity`), the
+        alignments' own for residuals correlated in time; False leaves the calibration's unknown
+        and gives the alignments the plain one (``correlated=False``), for callers that read
+        the fitted values only.
 
     Returns
     -------
@@ -563,7 +565,9 @@ def calibrate_alignment(
     """
     step1_phases = {label: step1.apply(np.asarray(v, dtype=float)) for label, v in phases.items()}
     alignments = {
-        name: align_constant_component(step1_phases, method=name, exact=exact)
+        name: align_constant_component(
+            step1_phases, method=name, exact=exact, correlated=with_covariance
+        )
         for name in ("full", "paper")
     }
     if method not in alignments:

@@ -46,9 +46,10 @@ class PipelineOptions:
         session's (its own holds are rendered without tremor).
     with_covariance : bool
         Carry the parameters' uncertainty into the calibration (the covariance and std of each
-        sensor; step 1's through the alignment costs ten alignment refits per sensor). The
-        diagnosis's twin replicas go without: nothing they are measured by reads it. It does
-        not change the fitted values.
+        sensor; step 1's through the alignment costs ten alignment refits per sensor) and give
+        the alignments their covariance for residuals correlated in time (else the plain one).
+        The diagnosis's twin replicas go without: nothing they are measured by reads it. It
+        does not change the fitted values.
     """
 
     gravity_m_s2: float

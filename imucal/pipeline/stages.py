@@ -154,7 +154,8 @@ def align_acc(
     Only phases whose axis is horizontal sweep gravity; :func:`align_constant_component` skips
     the others (the z phase) and says why. Both methods are computed; ``method`` is used.
     Without ``with_covariance`` the calibration has no covariance and no std (step 1's
-    uncertainty is not carried through the alignment), for callers that read fitted values only.
+    uncertainty is not carried through the alignment) and the alignments' own covariance is
+    the plain one (``correlated=False``), for callers that read fitted values only.
 
     Returns
     -------
@@ -167,7 +168,7 @@ def align_acc(
     raw = _phases(rotation3d_lowpass, segments, "acc")
     phases = {label: errormodel.apply(upper, bias, values) for label, values in raw.items()}
     alignments = {
-        name: align_constant_component(phases, method=name, exact=exact)
+        name: align_constant_component(phases, method=name, exact=exact, correlated=with_covariance)
         for name in ALIGNMENT_METHODS
     }
     fit, step1 = cube_quality(cube_fit)
@@ -357,13 +358,16 @@ def align_gyr(
         ``S'_gyr`` from the rate table; the identity (unit scale) without one.
     with_covariance : bool
         Measure ``sensitivity`` (``d alpha / d (S', o)``, which :func:`combine_gyr` carries
-        into the covariance); without it the artifact has none.
+        into the covariance) and the alignments' covariance for residuals correlated in time;
+        without it the artifact has no sensitivity and the plain covariance
+        (``correlated=False``), for callers that read fitted values only.
     """
     s = np.eye(3) if upper is None else np.asarray(upper, dtype=float)
     raw = _phases(rotation3d_lowpass, segments, "gyr")
     phases = {label: errormodel.apply(s, bias, values) for label, values in raw.items()}
     alignments = {
-        name: align_rotation_axis(phases, method=name, exact=exact) for name in ALIGNMENT_METHODS
+        name: align_rotation_axis(phases, method=name, exact=exact, correlated=with_covariance)
+        for name in ALIGNMENT_METHODS
     }
     artifact = {"used": method, **{k: a.to_dict() for k, a in alignments.items()}}
     if not with_covariance:
