@@ -34,6 +34,7 @@ from scipy.optimize import least_squares
 
 from imucal.columns import AXES, TIME, column_values, sensor_columns
 from imucal.errormodel import rotation_matrix
+from imucal.segments.table import row_bounds
 
 METHODS = ("full", "paper")
 #: Phase-segment kind and labels in the segments table.
@@ -564,8 +565,9 @@ def phase_samples(
             "expected the phases x, y, z of the rotation3d recording"
         )
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for row in rows.itertuples(index=False):
-        label, start, end = str(row.label), int(row.start_index), int(row.end_index)
+    for label, (start, end) in zip(
+        rows["label"].astype(str).tolist(), row_bounds(rows), strict=True
+    ):
         if label not in AXES or label in out:
             raise ValueError(
                 f"phase label {label!r} of {recording!r} is unknown or repeated; expected each of "

@@ -60,6 +60,7 @@ from imucal.columns import (
 from imucal.gap.blocks import long_series
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
+from imucal.segments.table import row_bounds
 
 HALVES = (None, "A", "B")
 
@@ -182,14 +183,9 @@ def _phase_half(labels, half: str | None) -> list:
     return [p for p in labels if (p in ("x", "z")) == (half == "A")]
 
 
-def _bounds(rows: pd.DataFrame) -> zip:
-    """(start_index, end_index) of each row."""
-    return zip(rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int), strict=True)
-
-
 def _means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
     out = []
-    for a, b in _bounds(rows):
+    for a, b in row_bounds(rows):
         x = table[a:b]
         x = x[np.all(np.isfinite(x), axis=1)]
         out.append(x.mean(axis=0) if len(x) else np.full(table.shape[1], np.nan))
@@ -418,8 +414,8 @@ def cube_direction_residuals(fit: SessionFit, half) -> tuple[np.ndarray, np.ndar
     acc = calibrated(fit, "cube", "acc")
     means = _means(acc, rows)
     var = []
-    for r in rows.itertuples(index=False):
-        x = acc[int(r.start_index) : int(r.end_index)]
+    for a, b in row_bounds(rows):
+        x = acc[a:b]
         var.append(np.mean(np.var(np.diff(x, axis=0), axis=0) / 2) / max(len(x), 1))
     norm = np.linalg.norm(means, axis=1)
     ok = np.isfinite(norm) & (norm > 0)
@@ -925,7 +921,7 @@ def _resting_means(fit: SessionFit, half) -> RestingMeans:
         col = temperature_column(table)
         temp = table[col].to_numpy(dtype=float) if col else None
         mids = 0.5 * (rows["start_s"].to_numpy(float) + rows["end_s"].to_numpy(float)) - t0
-        for (start, end), mid in zip(_bounds(rows), mids, strict=True):
+        for (start, end), mid in zip(row_bounds(rows), mids, strict=True):
             sl = slice(start, end)
             ws = w[sl][np.all(np.isfinite(w[sl]), axis=1)]
             as_ = a[sl][np.all(np.isfinite(a[sl]), axis=1)]
