@@ -7,14 +7,13 @@
 # each library effect alone over a grid of magnitudes and scores its detection limit.
 
 
+# The diagnosis runs the paper's chain in process (imucal.pipeline.full) on the ingested
+# recordings and the segments: it waits for none of the fit rules and runs beside them.
 rule gap_diagnose:
     input:
         unpack(ingested),
         dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
-        acc="results/{dataset}/acc.json",
-        gyr="results/{dataset}/gyr.json",
-        mag="results/{dataset}/mag.json",
     output:
         diagnosis="results/{dataset}/gap/diagnosis.json",
         gap_map="results/{dataset}/gap/gap_map.png",
