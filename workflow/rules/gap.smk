@@ -8,7 +8,8 @@
 
 
 # The diagnosis runs the paper's chain in process (imucal.pipeline.full) on the ingested
-# recordings and the segments: it waits for none of the fit rules and runs beside them.
+# recordings and the segments: it waits for none of the fit rules and runs beside them, started
+# first (priority) as the longest job on the way to calibration.json and the report.
 rule gap_diagnose:
     input:
         unpack(ingested),
@@ -24,6 +25,7 @@ rule gap_diagnose:
         "results/{dataset}/benchmarks/gap_diagnose.tsv"
     wildcard_constraints:
         dataset=datasets_pattern(full=True),
+    priority: 10
     conda:
         "../envs/imucal.yaml"
     params:
