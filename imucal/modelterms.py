@@ -167,6 +167,35 @@ class TemperaturePolynomial:
         scale = sum((c * d_t**k for k, c in enumerate(self.scale, 1)), np.zeros((len(d_t), 3)))
         return bias, scale
 
+    def correct(self, values: np.ndarray, bias: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+        """``(reading - bias - b(dT)) / (1 + s(dT))`` per axis (n, 3): the reading freed of
+        the constant bias and the drift, at the scale of ``reference_c``."""
+        drift, scale = self.drift(temp_c)
+        return (values - bias - drift) / (1.0 + scale)
+
+    def variance(self, matrix: np.ndarray, corrected: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) the coefficients' standard deviations give the calibrated values
+        ``matrix @ corrected`` (first order, coefficients independent).
+
+        ``v = K (r - o - b(dT)) / (1 + s(dT))``: a bias coefficient moves ``v`` by ``-K[:, j]
+        dT^k / (1 + s_j)``, a scale coefficient by ``-K[:, j] corrected_j dT^k / (1 + s_j)``.
+
+        Parameters
+        ----------
+        matrix : ndarray, shape (3, 3)
+        corrected : ndarray, shape (n, 3)
+            :meth:`correct` of the readings.
+        temp_c : ndarray, shape (n,)
+        """
+        d_t = np.asarray(temp_c, dtype=float)[:, None] - self.reference_c
+        _, scale = self.drift(temp_c)
+        per_axis = np.zeros((len(d_t), 3))  # variance of the bracket's axis j
+        for k, std in enumerate(self.bias_std, 1):
+            per_axis += (std * d_t**k) ** 2
+        for k, std in enumerate(self.scale_std, 1):
+            per_axis += (std * corrected * d_t**k) ** 2
+        return (per_axis / (1.0 + scale) ** 2) @ (np.asarray(matrix) ** 2).T
+
     def to_dict(self) -> dict:
         return {
             "reference_c": self.reference_c,
@@ -223,6 +252,11 @@ class GSensitivity:
             if m.shape != (3, 3) or not np.all(np.isfinite(m)):
                 raise ValueError(f"g_sensitivity.{name} must be a finite 3x3 matrix, got {m!r}")
             object.__setattr__(self, name, m)
+
+    def variance(self, acc_b: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) of ``matrix @ a_B`` from the entries' standard deviations (first
+        order, independent) for the specific force ``acc_b`` (n, 3, m/s^2)."""
+        return np.asarray(acc_b) ** 2 @ (self.std**2).T
 
     def to_dict(self) -> dict:
         return {
@@ -296,6 +330,15 @@ class LeverArm:
         w_dot = angular_acceleration(t_s, omega)
         return np.cross(omega, np.cross(omega, self.r_m)) + np.cross(w_dot, self.r_m)
 
+    def variance(self, t_s: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) of :meth:`acceleration` from ``std_m`` (independent axes): it is
+        ``L r`` with ``L = [w]x [w]x + [dw/dt]x``."""
+        w_dot = angular_acceleration(t_s, omega)
+        eye = np.eye(3)
+        # column j of L is L e_j
+        cols = [np.cross(omega, np.cross(omega, e)) + np.cross(w_dot, e) for e in eye]
+        return sum((c * s) ** 2 for c, s in zip(cols, self.std_m, strict=True))
+
     def to_dict(self) -> dict:
         return {
             "r_m": self.r_m.tolist(),
@@ -333,6 +376,14 @@ class MagDelay:
             if not np.isfinite(v):
                 raise ValueError(f"mag_delay.{name} must be finite, got {v}")
             object.__setattr__(self, name, v)
+
+    def correction(self, omega: np.ndarray, mag: np.ndarray) -> np.ndarray:
+        """``delay (w_B x m_B)`` (n, 3), what the term takes from the calibrated field."""
+        return self.delay_s * np.cross(omega, mag)
+
+    def variance(self, omega: np.ndarray, mag: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) of :meth:`correction` from ``std_s``."""
+        return (self.std_s * np.cross(omega, mag)) ** 2
 
     def to_dict(self) -> dict:
         return {"delay_s": self.delay_s, "std_s": self.std_s, "unit": "s", "method": self.method}

@@ -20,7 +20,7 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME, column_values
-from imucal.constants import EARTH_RATE_RAD_S, SESSION_GAP_S
+from imucal.constants import EARTH_RATE_RAD_S
 from imucal.gap import statistics as st
 from imucal.pipeline.full import SessionFit, calibrated
 from imucal.sim.effects import EFFECTS, make_effect
@@ -187,17 +187,6 @@ def estimate_saturation(fit: SessionFit, half) -> Estimate:
     return Estimate(params, detect)
 
 
-def _session_clock(fit: SessionFit) -> dict:
-    """Start of each recording on the twin's session clock (s)."""
-    starts, t = {}, 0.0
-    for name in ("rotation3d", "cube", "ratetable", "static"):
-        if name in fit.imu:
-            starts[name] = t
-            tt = fit.imu[name][TIME].to_numpy(dtype=float)
-            t += tt[-1] - tt[0] + SESSION_GAP_S
-    return starts
-
-
 def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
     """Start, rise (deg C) and time constant (s) of the session's temperature channel, fitted
     with the simulator's warm-up curve on the twin's session clock (recordings without a
@@ -205,7 +194,7 @@ def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
     from scipy.optimize import curve_fit
 
     ts, temps = [], []
-    for name, start in _session_clock(fit).items():
+    for name, start in st.session_clock(fit).items():
         col = st.temperature_column(fit.imu[name])
         if col is None:
             continue
@@ -385,7 +374,7 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
     n = len(rest)
     if n < 4:
         return None
-    clock = _session_clock(fit)
+    clock = st.session_clock(fit)
     t = np.array([clock[rec] for rec in rest.recording]) + rest.mid_s
     d_t = (
         np.nan_to_num(rest.temp - np.nanmean(rest.temp))

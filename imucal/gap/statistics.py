@@ -57,6 +57,7 @@ from imucal.columns import (
     column_values,
     temperature_column,
 )
+from imucal.constants import SESSION_GAP_S
 from imucal.gap.blocks import long_series
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
@@ -808,6 +809,20 @@ def _reference(fit: SessionFit, half) -> dict:
             np.mean(w) - fit.reference_start_s
         )
     }
+
+
+def session_clock(fit: SessionFit) -> dict:
+    """Start of each recording (s) on the session clock of the simulator and the twin: the
+    recordings one after another in the protocol's order (rotation3d, cube, ratetable,
+    static), ``SESSION_GAP_S`` apart. Real recordings carry no common clock; this is the
+    assumption the diagnosis and the temperature term make about their order."""
+    starts, t = {}, 0.0
+    for name in ("rotation3d", "cube", "ratetable", "static"):
+        if name in fit.imu:
+            starts[name] = t
+            tt = fit.imu[name][TIME].to_numpy(dtype=float)
+            t += tt[-1] - tt[0] + SESSION_GAP_S
+    return starts
 
 
 def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:

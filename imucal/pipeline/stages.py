@@ -917,9 +917,9 @@ def apply_calibration(
     temperature term takes the recording's temperature column (rows without a reading
     interpolated in time). With ``parameter_std`` the table gains, per calibrated column, the
     standard deviation that the calibration's parameter covariance gives the sample
-    (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal; column name + ``_param_std``),
-    for sensors whose calibration has a covariance (the bias and matrix only: the terms'
-    standard deviations are in the calibration file, not propagated to the samples).
+    (:meth:`imucal.calibration.ImuCalibration.parameter_variance`: the bias and matrix through
+    their covariance and every model term through its coefficients' standard deviations;
+    column name + ``_param_std``), for sensors whose calibration has a covariance or a term.
 
     Parameters
     ----------
@@ -967,14 +967,13 @@ def apply_calibration(
     temp = _temperature_per_sample(table, source) if calibration.terms.temperature else None
     t_s = table[TIME].to_numpy(dtype=float) if calibration.terms.lever_arm is not None else None
     values, flags = calibration.calibrate(readings, unit_of, temp_c=temp, t_s=t_s, source=source)
+    variance = (
+        calibration.parameter_variance(readings, temp_c=temp, t_s=t_s) if parameter_std else {}
+    )
     for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
         out[list(columns)] = values[sensor]
-        cal = calibration.sensor(sensor)
-        if parameter_std and cal.covariance is not None:
-            cov = uncertainty.calibrated_covariance(
-                cal.matrix, cal.bias, cal.covariance, readings[sensor]
-            )
-            std = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
+        if sensor in variance:
+            std = np.sqrt(variance[sensor])
             for k, column in enumerate(columns):
                 out[column + PARAMETER_STD_SUFFIX] = std[:, k]
     meta = {**metadata, "calibrated": True}

@@ -342,3 +342,26 @@ def test_heldout_comparison_is_one_sided_against_the_prediction():
         assert h["short_of_prediction"] is short
     assert heldout_comparison("lever_arm", evidence, None)["short_of_prediction"] is None
     assert "note" in heldout_comparison("mag_delay", {}, None)
+
+
+def test_pose_to_pose_gravity_held_out_improves_with_the_terms(drift):
+    """The platform's turns are used by no term's estimator: the up direction of each
+    rotation3d rest predicted from the previous one through the integrated gyro comes closer
+    to the measured one with the temperature term (the drift turns the integral)."""
+    _, _, _, res = drift
+    p2p = res["pose_to_pose"]
+    assert p2p["values"] >= 2
+    assert p2p["rms_with"] < 0.2 * p2p["rms_without"], p2p
+
+
+def test_gap_comparison_is_two_sided():
+    from imucal.terms.heldout import gap_comparison
+
+    before = {"gap": {"total": 5000.0}, "remaining": {"total": 150.0}}
+    verdicts = {
+        achieved: gap_comparison(before, {"gap": {"total": achieved, "null_p95": 40.0}})["verdict"]
+        for achieved in (60.0, 180.0, 400.0)
+    }
+    assert verdicts == {60.0: "better than predicted", 180.0: "as predicted",
+                        400.0: "short of the prediction"}  # fmt: skip
+    assert gap_comparison(before, {"note": "no model term"}) is None
