@@ -115,8 +115,11 @@ def calibration_covariance(
     return propagate(_with_decomposition, x, c)
 
 
-def std_of(covariance: np.ndarray) -> dict[str, np.ndarray]:
-    """Standard deviation of each group of :data:`PARAMETERS` (matrix as 3 x 3)."""
+def std_of(covariance: np.ndarray | None) -> dict[str, np.ndarray]:
+    """Standard deviation of each group of :data:`PARAMETERS` (matrix as 3 x 3); none when the
+    covariance is unknown (None)."""
+    if covariance is None:
+        return {}
     std = np.sqrt(np.clip(np.diag(np.asarray(covariance, dtype=float)), 0.0, None))
     out = {name: std[s] for name, s in GROUPS.items()}
     out["matrix"] = out["matrix"].reshape(3, 3)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from imucal import errormodel
-from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
+from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME, column_values
 from imucal.constants import EARTH_RATE_RAD_S
 from imucal.gap import statistics as st
 from imucal.pipeline.full import SessionFit, calibrated
@@ -179,8 +179,7 @@ def estimate_saturation(fit: SessionFit, half) -> Estimate:
         top = 32767
         if frac > 0:
             peak = max(
-                np.nanmax(np.abs(t[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)))
-                for t in fit.imu.values()
+                np.nanmax(np.abs(column_values(t, SENSOR_COLUMNS[s]))) for t in fit.imu.values()
             )
             top = int(np.clip(round(peak / float(opt.sensitivity[s])), 1, 32767))
         params[s] = top
@@ -436,7 +435,7 @@ def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
 def estimate_mag_latency(fit: SessionFit, half) -> Estimate:
     lags = [st.magnetometer_lag(fit, p) for p in st._phase_half(AXES, half)]
     lag = float(np.nanmean(lags))
-    mag = fit.imu["rotation3d"][list(MAG)].to_numpy(dtype=float)
+    mag = column_values(fit.imu["rotation3d"], MAG)
     fresh = mag[np.all(np.isfinite(mag), axis=1)]
     repeats = float(np.mean(np.all(np.diff(fresh, axis=0) == 0, axis=1))) if len(fresh) > 1 else 0.0
     packet_mag_hz = 10.0
@@ -456,7 +455,7 @@ def estimate_platform_magnetic(fit: SessionFit, half) -> Estimate | None:
     rot, psi = st.platform_motion(fit)
     t = fit.imu["rotation3d"][TIME].to_numpy(dtype=float)
     mag = calibrated(fit, "rotation3d", "mag")
-    low = fit.lowpass[list(SENSOR_COLUMNS["gyr"])].to_numpy(dtype=float)
+    low = column_values(fit.lowpass, SENSOR_COLUMNS["gyr"])
     cal = fit.calibration.sensor("gyr")
     w_dot = np.gradient(cal.apply(low, unit=cal.unit), t, axis=0)
     d = np.array([d_h[0], d_h[1], 0.0])
