@@ -29,6 +29,7 @@ from imucal.columns import ACC, GYR, SENSOR_COLUMNS, SENSORS, SI_UNITS, TIME
 from imucal.gap import statistics as st
 from imucal.pipeline.full import SessionFit
 from imucal.pipeline.stages import apply_calibration
+from imucal.segments.table import row_bounds
 from imucal.terms.selection import EFFECT_OF_TERM
 
 #: What the held-out residual of each term is (for terms.json and the report).
@@ -63,7 +64,7 @@ def pose_to_pose_angles(fit: SessionFit, calibration: ImuCalibration) -> np.ndar
     values, _ = apply_calibration(table, {"units": units}, calibration, source="rotation3d")
     gyr, acc = values[list(GYR)].to_numpy(float), values[list(ACC)].to_numpy(float)
     t = table[TIME].to_numpy(float)
-    rests = list(st._bounds(st._rows(fit, "rotation3d", "static")))
+    rests = list(row_bounds(st._rows(fit, "rotation3d", "static")))
     up = st._means(acc, st._rows(fit, "rotation3d", "static"))
     up /= np.linalg.norm(up, axis=1, keepdims=True)
     angles = []

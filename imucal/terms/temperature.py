@@ -43,6 +43,7 @@ from imucal.fits.wander import fit_with_wander
 from imucal.gap import statistics as st
 from imucal.modelterms import TemperaturePolynomial
 from imucal.pipeline.full import SessionFit, calibrated
+from imucal.segments.table import row_bounds
 
 #: Highest order of a scale polynomial: the scale is seen only in rate-table runs (one axis's
 #: runs span a fraction of a kelvin) and in the gravity along an axis, too little for a curve.
@@ -89,7 +90,7 @@ def _segment_means(fit: SessionFit, segments: list) -> Means:
         acc_b.append(st._means(np.asarray(calibrated(fit, rec, "acc")), rows))
         gyr = table[list(GYR)].to_numpy(dtype=float)
         quantum = float(fit.extra["options"].sensitivity["gyr"])
-        white.append([_white_variance(gyr[a:b], quantum) for a, b in st._bounds(rows)])
+        white.append([_white_variance(gyr[a:b], quantum) for a, b in row_bounds(rows)])
         start = float(table[TIME].iloc[0])
         mid.append(clock[rec] + st._mid_times(fit, rec, rows) - start)
         temp.append(t)
