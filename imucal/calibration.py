@@ -18,7 +18,7 @@ import numpy as np
 from imucal import errormodel
 from imucal.columns import SENSORS, SI_UNITS, TEMPERATURE_COLUMNS
 from imucal.modelterms import ModelTerms
-from imucal.uncertainty import PARAMETERS
+from imucal.uncertainty import PARAMETERS, calibrated_covariance
 
 #: Version of the calibration file format written by this package (2: optional ``terms``).
 FORMAT_VERSION = 2
@@ -288,9 +288,7 @@ class ImuCalibration:
                     f"({len(values)}), got shape {temp.shape}"
                 )
             flags.setdefault("temperature", {})[s] = poly.check_span(temp, source)
-            drift, scale = poly.drift(temp)
-            bias_free = (values - cal.bias - drift) / (1.0 + scale)
-            out[s] = errormodel.apply(cal.matrix, np.zeros(3), bias_free)
+            out[s] = errormodel.apply(cal.matrix, np.zeros(3), poly.correct(values, cal.bias, temp))
         if terms.g_sensitivity is not None:
             out["gyr"] = out["gyr"] - out["acc"] @ terms.g_sensitivity.matrix.T
         if terms.lever_arm is not None:
@@ -298,8 +296,63 @@ class ImuCalibration:
                 *_rate_per_sample(t_s, out["gyr"], source)
             )
         if terms.mag_delay is not None:
-            out["mag"] = out["mag"] - terms.mag_delay.delay_s * np.cross(out["gyr"], out["mag"])
+            out["mag"] = out["mag"] - terms.mag_delay.correction(out["gyr"], out["mag"])
         return out, flags
+
+    def parameter_variance(
+        self,
+        readings: Mapping[str, np.ndarray],
+        *,
+        temp_c: np.ndarray | None = None,
+        t_s: np.ndarray | None = None,
+    ) -> dict:
+        """Variance of every calibrated value from the uncertainty of the calibration's
+        parameters, first order: the bias and matrix through their covariance
+        (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal) plus each term's
+        coefficients through their standard deviations (taken as independent of each other
+        and of the bias and matrix; :mod:`imucal.modelterms`). Left out: the reading's own
+        noise, and one sensor's parameters reaching another through a term (the gyroscope's
+        through the lever arm's and the magnetometer delay's rate, the accelerometer's through
+        the g-sensitivity): second order in the small terms.
+
+        Parameters
+        ----------
+        readings : dict of str to ndarray, shape (n, 3)
+            As for :meth:`calibrate` (units already checked by it).
+        temp_c, t_s : ndarray, shape (n,), optional
+            As for :meth:`calibrate` (needed by the same terms).
+
+        Returns
+        -------
+        dict of str to ndarray, shape (n, 3)
+            Sensor -> variance (SI^2), for the sensors with a covariance or a term; others
+            are left out.
+        """
+        terms = self.terms
+        out, paper = {}, {}
+        for s in SENSORS:
+            cal = self.sensor(s)
+            values = np.asarray(readings[s], dtype=float)
+            poly = terms.temperature.get(s)
+            corrected = (
+                values - cal.bias if poly is None else poly.correct(values, cal.bias, temp_c)
+            )
+            paper[s] = corrected @ cal.matrix.T
+            if cal.covariance is not None:
+                cov = calibrated_covariance(cal.matrix, np.zeros(3), cal.covariance, corrected)
+                out[s] = np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None)
+            if poly is not None:
+                out[s] = out.get(s, 0.0) + poly.variance(cal.matrix, corrected, temp_c)
+        omega = paper["gyr"]
+        if terms.g_sensitivity is not None:
+            out["gyr"] = out.get("gyr", 0.0) + terms.g_sensitivity.variance(paper["acc"])
+            omega = omega - paper["acc"] @ terms.g_sensitivity.matrix.T
+        if terms.lever_arm is not None:
+            t, rate = _rate_per_sample(t_s, omega, "the recording")
+            out["acc"] = out.get("acc", 0.0) + terms.lever_arm.variance(t, rate)
+        if terms.mag_delay is not None:
+            out["mag"] = out.get("mag", 0.0) + terms.mag_delay.variance(omega, paper["mag"])
+        return out
 
     def with_terms(self, terms: ModelTerms) -> ImuCalibration:
         """The same bias and matrices with ``terms``."""

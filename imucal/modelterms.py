@@ -75,6 +75,9 @@ class TemperaturePolynomial:
         Standard deviations of the coefficients.
     method : str
         How they were estimated (free text for the report).
+    bias_covariance : ndarray, shape (3, p, p), optional
+        Covariance of each axis's bias coefficients (rows and columns in ``bias``'s row
+        order); None when only the standard deviations are known.
     """
 
     sensor: str
@@ -86,6 +89,7 @@ class TemperaturePolynomial:
     bias_std: np.ndarray
     scale_std: np.ndarray
     method: str = ""
+    bias_covariance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.sensor not in TEMPERATURE_SENSORS:
@@ -111,6 +115,12 @@ class TemperaturePolynomial:
             )
         if self.bias_std.shape != self.bias.shape or self.scale_std.shape != self.scale.shape:
             raise ValueError(f"{self.sensor} temperature std must have the coefficients' shapes")
+        if self.bias_covariance is not None:
+            p = len(self.bias)
+            cov = np.asarray(self.bias_covariance, dtype=float).reshape(3, p, p)
+            if not np.all(np.isfinite(cov)):
+                raise ValueError(f"{self.sensor} temperature bias_covariance must be finite")
+            object.__setattr__(self, "bias_covariance", cov)
 
     @property
     def unit(self) -> str:
@@ -167,6 +177,40 @@ class TemperaturePolynomial:
         scale = sum((c * d_t**k for k, c in enumerate(self.scale, 1)), np.zeros((len(d_t), 3)))
         return bias, scale
 
+    def correct(self, values: np.ndarray, bias: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+        """``(reading - bias - b(dT)) / (1 + s(dT))`` per axis (n, 3): the reading freed of
+        the constant bias and the drift, at the scale of ``reference_c``."""
+        drift, scale = self.drift(temp_c)
+        return (values - bias - drift) / (1.0 + scale)
+
+    def variance(self, matrix: np.ndarray, corrected: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) the coefficients' standard deviations give the calibrated values
+        ``matrix @ corrected`` (first order, coefficients independent).
+
+        ``v = K (r - o - b(dT)) / (1 + s(dT))``: a bias coefficient moves ``v`` by ``-K[:, j]
+        dT^k / (1 + s_j)``, a scale coefficient by ``-K[:, j] corrected_j dT^k / (1 + s_j)``.
+        An axis's bias coefficients with their covariance where it is known.
+
+        Parameters
+        ----------
+        matrix : ndarray, shape (3, 3)
+        corrected : ndarray, shape (n, 3)
+            :meth:`correct` of the readings.
+        temp_c : ndarray, shape (n,)
+        """
+        d_t = np.asarray(temp_c, dtype=float)[:, None] - self.reference_c
+        _, scale = self.drift(temp_c)
+        per_axis = np.zeros((len(d_t), 3))  # variance of the bracket's axis j
+        if self.bias_covariance is not None and len(self.bias):
+            powers = d_t[:, :, None] ** np.arange(1, len(self.bias) + 1)  # (n, 3, p)
+            per_axis += np.einsum("njp,jpq,njq->nj", powers, self.bias_covariance, powers)
+        else:
+            for k, std in enumerate(self.bias_std, 1):
+                per_axis += (std * d_t**k) ** 2
+        for k, std in enumerate(self.scale_std, 1):
+            per_axis += (std * corrected * d_t**k) ** 2
+        return (per_axis / (1.0 + scale) ** 2) @ (np.asarray(matrix) ** 2).T
+
     def to_dict(self) -> dict:
         return {
             "reference_c": self.reference_c,
@@ -181,6 +225,11 @@ class TemperaturePolynomial:
             "scale_std": self.scale_std.tolist(),
             "scale_unit": "1/K^k (row k-1: coefficient of (T - reference_c)^k)",
             "method": self.method,
+            **(
+                {"bias_covariance": self.bias_covariance.tolist()}
+                if self.bias_covariance is not None
+                else {}
+            ),
         }
 
     @classmethod
@@ -198,6 +247,7 @@ class TemperaturePolynomial:
             d.get("bias_std", np.zeros_like(np.asarray(d["bias"], dtype=float))),
             d.get("scale_std", np.zeros_like(np.asarray(d["scale"], dtype=float))),
             d.get("method", ""),
+            d.get("bias_covariance"),
         )
 
 
@@ -223,6 +273,11 @@ class GSensitivity:
             if m.shape != (3, 3) or not np.all(np.isfinite(m)):
                 raise ValueError(f"g_sensitivity.{name} must be a finite 3x3 matrix, got {m!r}")
             object.__setattr__(self, name, m)
+
+    def variance(self, acc_b: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) of ``matrix @ a_B`` from the entries' standard deviations (first
+        order, independent) for the specific force ``acc_b`` (n, 3, m/s^2)."""
+        return np.asarray(acc_b) ** 2 @ (self.std**2).T
 
     def to_dict(self) -> dict:
         return {
@@ -296,6 +351,15 @@ class LeverArm:
         w_dot = angular_acceleration(t_s, omega)
         return np.cross(omega, np.cross(omega, self.r_m)) + np.cross(w_dot, self.r_m)
 
+    def variance(self, t_s: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) of :meth:`acceleration` from ``std_m`` (independent axes): it is
+        ``L r`` with ``L = [w]x [w]x + [dw/dt]x``."""
+        w_dot = angular_acceleration(t_s, omega)
+        eye = np.eye(3)
+        # column j of L is L e_j
+        cols = [np.cross(omega, np.cross(omega, e)) + np.cross(w_dot, e) for e in eye]
+        return sum((c * s) ** 2 for c, s in zip(cols, self.std_m, strict=True))
+
     def to_dict(self) -> dict:
         return {
             "r_m": self.r_m.tolist(),
@@ -333,6 +397,14 @@ class MagDelay:
             if not np.isfinite(v):
                 raise ValueError(f"mag_delay.{name} must be finite, got {v}")
             object.__setattr__(self, name, v)
+
+    def correction(self, omega: np.ndarray, mag: np.ndarray) -> np.ndarray:
+        """``delay (w_B x m_B)`` (n, 3), what the term takes from the calibrated field."""
+        return self.delay_s * np.cross(omega, mag)
+
+    def variance(self, omega: np.ndarray, mag: np.ndarray) -> np.ndarray:
+        """Variance (n, 3) of :meth:`correction` from ``std_s``."""
+        return (self.std_s * np.cross(omega, mag)) ** 2
 
     def to_dict(self) -> dict:
         return {"delay_s": self.delay_s, "std_s": self.std_s, "unit": "s", "method": self.method}

@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from imucal import errormodel
 from imucal.columns import AXES
@@ -115,8 +115,11 @@ def calibration_covariance(
     return propagate(_with_decomposition, x, c)
 
 
-def std_of(covariance: np.ndarray) -> dict[str, np.ndarray]:
-    """Standard deviation of each group of :data:`PARAMETERS` (matrix as 3 x 3)."""
+def std_of(covariance: np.ndarray | None) -> dict[str, np.ndarray]:
+    """Standard deviation of each group of :data:`PARAMETERS` (matrix as 3 x 3); none when the
+    covariance is unknown (None)."""
+    if covariance is None:
+        return {}
     std = np.sqrt(np.clip(np.diag(np.asarray(covariance, dtype=float)), 0.0, None))
     out = {name: std[s] for name, s in GROUPS.items()}
     out["matrix"] = out["matrix"].reshape(3, 3)
@@ -284,9 +287,10 @@ def goodness_of_fit(chi2: float, dof: int) -> GoodnessOfFit:
         raise ValueError(f"goodness of fit needs dof >= 1, got {dof}")
     if not np.isfinite(chi2) or chi2 < 0:
         raise ValueError(f"chi2 must be finite and >= 0, got {chi2!r}")
-    limit = stats.chi2.ppf(INFLATION_QUANTILE, dof)
+    # chi-square quantile and survival function (scipy.special's, lighter to import than stats)
+    limit = special.chdtri(dof, 1.0 - INFLATION_QUANTILE)
     inflation = float(chi2 / dof) if chi2 > limit else 1.0
-    return GoodnessOfFit(float(chi2), int(dof), float(stats.chi2.sf(chi2, dof)), inflation)
+    return GoodnessOfFit(float(chi2), int(dof), float(special.chdtrc(dof, chi2)), inflation)
 
 
 def calibrated_covariance(

@@ -7,7 +7,13 @@ from collections.abc import Mapping
 import yaml
 
 from imucal.export.kalibr import kalibr_imu, kalibr_imu_chain, noise_header
-from imucal.export.model import ROSTOPIC, inertial_calibration, noise_parameters
+from imucal.export.model import (
+    ROSTOPIC,
+    g_sensitivity,
+    inertial_calibration,
+    noise_parameters,
+    terms_not_written,
+)
 from imucal.export.openvins import DIRECTIVE, openvins_imu_chain
 from imucal.export.ros import ros_imu_covariances
 
@@ -66,20 +72,27 @@ def export_files(
     source = "Calibration and noise by imucal (docs/exports.md: conventions and sources)."
     if fmt == "ros":
         head = [source, "sensor_msgs/Imu covariances of one calibrated sample, row major x, y, z;",
-                "(rad/s)^2 and (m/s^2)^2; per-sample white noise only, NOT inflated."]  # fmt: skip
+                "(rad/s)^2 and (m/s^2)^2; per-sample white noise only, NOT inflated.",
+                *terms_not_written(calibration)]  # fmt: skip
         return {FORMATS["ros"][0]: _yaml(ros_imu_covariances(cal, noise), head)}
     params = noise_parameters(noise)
+    g = g_sensitivity(calibration)
     if fmt == "kalibr":
         imu, chain = FORMATS["kalibr"]
         chain_head = [source, "Kalibr scale-misalignment model: a_m = M_a a_i + b_a,",
                       "w_m = M_g C_gyro_i w_i + A C_gyro_i a_i + b_g; v_i = imucal_R_i_B v_B.",
+                      *terms_not_written(calibration, ("g_sensitivity",)),
                       *noise_header(params)]  # fmt: skip
         return {
             imu: _yaml(kalibr_imu(params, rostopic=rostopic), [source, *noise_header(params)]),
-            chain: _yaml(kalibr_imu_chain(cal, params, rostopic=rostopic), chain_head),
+            chain: _yaml(
+                kalibr_imu_chain(cal, params, g_sensitivity=g, rostopic=rostopic), chain_head
+            ),
         }
     head = [source, "OpenVINS model 'kalibr': w_I = R_IMUtoGYRO^T Tw^-1 (w_m - Tg a_I - b_g),",
             "a_I = R_IMUtoACC^T Ta^-1 (a_m - b_a); frame I is imucal's platform frame B.",
+            *terms_not_written(calibration, ("g_sensitivity",)),
             *noise_header(params)]  # fmt: skip
-    return {FORMATS["openvins"][0]: _yaml(openvins_imu_chain(cal, params, rostopic=rostopic),
+    return {FORMATS["openvins"][0]: _yaml(openvins_imu_chain(cal, params, g_sensitivity=g,
+                                                              rostopic=rostopic),
                                            head, DIRECTIVE)}  # fmt: skip

@@ -12,8 +12,10 @@ Conventions, from Kalibr's source (ethz-asl/kalibr, ``aslam_offline_calibration/
   ``accelerometers: M`` and ``gyroscopes: M, A, C_gyro_i``.
 
 Ours is ``v_B = K (v_m - b)`` in the platform frame B. Inverted: ``K_a^-1 = M_a R_iB`` (lower
-times rotation) fixes i (``v_i = R_iB v_B``), and ``K_g^-1 R_iB^T = M_g C_gyro_i``. ``A`` is zero
-(we do not estimate a g-sensitivity). Kalibr estimates the biases itself (a spline); ours are
+times rotation) fixes i (``v_i = R_iB v_B``), and ``K_g^-1 R_iB^T = M_g C_gyro_i``. Our
+g-sensitivity (``w_B = K_g (w_m - b) - G a_B``, :mod:`imucal.modelterms`) adds
+``K_g^-1 G a_B = K_g^-1 G R_iB^T a_i`` to ``w_m``: ``A = K_g^-1 G R_iB^T C_gyro_i^T`` (zero when
+the model has none). Kalibr estimates the biases itself (a spline); ours are
 given as ``imucal_acc_bias`` and ``imucal_gyr_bias`` with ``imucal_R_i_B``, keys Kalibr ignores.
 """
 
@@ -47,30 +49,43 @@ def kalibr_imu(noise: NoiseParameters, *, rostopic: str = ROSTOPIC) -> dict:
     }
 
 
-def kalibr_intrinsics(calibration: Mapping[str, SensorCalibration]) -> dict:
+def kalibr_intrinsics(
+    calibration: Mapping[str, SensorCalibration], g_sensitivity: np.ndarray | None = None
+) -> dict:
     """The scale-misalignment matrices of our calibration, and the frame they live in.
+
+    Parameters
+    ----------
+    calibration : mapping of str to SensorCalibration
+        'acc' and 'gyr'.
+    g_sensitivity : ndarray, shape (3, 3), optional
+        Our ``G`` (rad/s per m/s^2, frame B); None for none.
 
     Returns
     -------
     dict
-        ``M_accel`` (3, 3), ``M_gyro`` (3, 3), ``C_gyro_i`` (3, 3), ``A`` (3, 3) zeros,
+        ``M_accel`` (3, 3), ``M_gyro`` (3, 3), ``C_gyro_i`` (3, 3), ``A`` (3, 3),
         ``R_i_B`` (3, 3): ``v_i = R_i_B v_B``.
     """
     acc, gyr = calibration["acc"], calibration["gyr"]
+    g = np.zeros((3, 3)) if g_sensitivity is None else np.asarray(g_sensitivity, dtype=float)
     m_accel, r_i_b = lower_times_rotation(np.linalg.inv(acc.matrix))
     m_gyro, c_gyro_i = lower_times_rotation(np.linalg.inv(gyr.matrix) @ r_i_b.T)
-    return {"M_accel": m_accel, "M_gyro": m_gyro, "C_gyro_i": c_gyro_i,
-            "A": np.zeros((3, 3)), "R_i_B": r_i_b}  # fmt: skip
+    a = np.linalg.solve(gyr.matrix, g) @ r_i_b.T @ c_gyro_i.T
+    return {"M_accel": m_accel, "M_gyro": m_gyro, "C_gyro_i": c_gyro_i, "A": a,
+            "R_i_B": r_i_b}  # fmt: skip
 
 
 def kalibr_imu_chain(
     calibration: Mapping[str, SensorCalibration],
     noise: NoiseParameters,
     *,
+    g_sensitivity: np.ndarray | None = None,
     rostopic: str = ROSTOPIC,
 ) -> dict:
-    """The ``imu0`` entry as Kalibr writes it for the scale-misalignment model."""
-    k = kalibr_intrinsics(calibration)
+    """The ``imu0`` entry as Kalibr writes it for the scale-misalignment model
+    (``g_sensitivity``: our ``G``, see :func:`kalibr_intrinsics`)."""
+    k = kalibr_intrinsics(calibration, g_sensitivity)
     imu0 = {
         "T_i_b": matrix_list(np.eye(4)),
         **kalibr_imu(noise, rostopic=rostopic),

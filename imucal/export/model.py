@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from imucal.calibration import SensorCalibration
+from imucal.modelterms import ModelTerms
 from imucal.noise import sensor_noise
 
 #: The IMU topic written when none is given (the one in Kalibr's and OpenVINS's examples).
@@ -79,6 +80,25 @@ def inertial_calibration(calibration: Mapping) -> dict[str, SensorCalibration]:
             "gyroscope calibrated"
         )
     return {s: SensorCalibration.from_dict(s, calibration[s]) for s in ("acc", "gyr")}
+
+
+def g_sensitivity(calibration: Mapping) -> np.ndarray:
+    """The gyroscope's g-sensitivity ``G`` (rad/s per m/s^2, frame B; ``w_B = K (w_m - b) -
+    G a_B``) of a calibration.json content, zeros when its model has none (3, 3)."""
+    terms = ModelTerms.from_dict(calibration.get("terms", {}))
+    return np.zeros((3, 3)) if terms.g_sensitivity is None else terms.g_sensitivity.matrix
+
+
+def terms_not_written(calibration: Mapping, written: tuple = ()) -> list[str]:
+    """Header lines naming the model terms of a calibration.json content that an export
+    cannot carry (all but ``written``); empty when there are none."""
+    names = [
+        n for n in ModelTerms.from_dict(calibration.get("terms", {})).names() if n not in written
+    ]
+    if not names:
+        return []
+    return [f"NOT in this file: the model terms {', '.join(names)} of calibration.json (the tool",
+            "has no place for them); calibrate with `imucal apply` to keep them (docs/exports.md)."]  # fmt: skip
 
 
 @dataclass(frozen=True)

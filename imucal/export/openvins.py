@@ -14,7 +14,8 @@ Conventions, from OpenVINS's source (rpng/open_vins):
 
 Ours is ``v_B = K (v_m - b)``. With the IMU frame I = B: ``K = R_XtoIMU D`` with ``D`` lower
 triangular (rotation times lower), so ``T = D^-1`` (lower) and ``R_IMUtoX = R_XtoIMU^T``.
-``Tg`` is zero (no g-sensitivity estimated). OpenVINS estimates the biases; ours are given as
+Our g-sensitivity (``w_B = K (w_m - b) - G a_B``, :mod:`imucal.modelterms`) is
+``K_g T_g a_I``: ``T_g = K_g^-1 G`` (zero when the model has none). OpenVINS estimates the biases; ours are given as
 ``imucal_acc_bias`` and ``imucal_gyr_bias`` for initial values (keys OpenVINS does not read).
 The header is ``%YAML 1.0`` and a document start: OpenCV's YAML reader (which OpenVINS uses)
 accepts ``%YAML:1.`` and ``%YAML 1.``, PyYAML only the second.
@@ -35,8 +36,12 @@ MODEL = "kalibr"
 DIRECTIVE = "%YAML 1.0\n---\n"
 
 
-def openvins_intrinsics(calibration: Mapping[str, SensorCalibration]) -> dict:
-    """``Tw``, ``R_IMUtoGYRO``, ``Ta``, ``R_IMUtoACC``, ``Tg`` of our calibration (I = B)."""
+def openvins_intrinsics(
+    calibration: Mapping[str, SensorCalibration], g_sensitivity: np.ndarray | None = None
+) -> dict:
+    """``Tw``, ``R_IMUtoGYRO``, ``Ta``, ``R_IMUtoACC``, ``Tg`` of our calibration (I = B);
+    ``g_sensitivity`` is our ``G`` (3, 3; rad/s per m/s^2, frame B), None for none."""
+    g = np.zeros((3, 3)) if g_sensitivity is None else np.asarray(g_sensitivity, dtype=float)
     r_gyr_to_imu, d_w = rotation_times_lower(calibration["gyr"].matrix)
     r_acc_to_imu, d_a = rotation_times_lower(calibration["acc"].matrix)
     return {
@@ -44,7 +49,7 @@ def openvins_intrinsics(calibration: Mapping[str, SensorCalibration]) -> dict:
         "R_IMUtoGYRO": r_gyr_to_imu.T,
         "Ta": np.linalg.inv(d_a),
         "R_IMUtoACC": r_acc_to_imu.T,
-        "Tg": np.zeros((3, 3)),
+        "Tg": np.linalg.solve(calibration["gyr"].matrix, g),
     }
 
 
@@ -52,10 +57,12 @@ def openvins_imu_chain(
     calibration: Mapping[str, SensorCalibration],
     noise: NoiseParameters,
     *,
+    g_sensitivity: np.ndarray | None = None,
     rostopic: str = ROSTOPIC,
 ) -> dict:
-    """The ``imu0`` entry of OpenVINS's ``kalibr_imu_chain.yaml``."""
-    intrinsics = openvins_intrinsics(calibration)
+    """The ``imu0`` entry of OpenVINS's ``kalibr_imu_chain.yaml`` (``g_sensitivity``: our
+    ``G``, see :func:`openvins_intrinsics`)."""
+    intrinsics = openvins_intrinsics(calibration, g_sensitivity)
     imu0 = {
         "T_i_b": matrix_list(np.eye(4)),
         **kalibr_imu(noise, rostopic=rostopic),  # OpenVINS reads Kalibr's noise keys

@@ -32,8 +32,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from imucal.columns import AXES, TIME, sensor_columns
+from imucal.columns import AXES, TIME, column_values, sensor_columns
 from imucal.errormodel import rotation_matrix
+from imucal.segments.table import row_bounds
 
 METHODS = ("full", "paper")
 #: Phase-segment kind and labels in the segments table.
@@ -564,8 +565,9 @@ def phase_samples(
             "expected the phases x, y, z of the rotation3d recording"
         )
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for row in rows.itertuples(index=False):
-        label, start, end = str(row.label), int(row.start_index), int(row.end_index)
+    for label, (start, end) in zip(
+        rows["label"].astype(str).tolist(), row_bounds(rows), strict=True
+    ):
         if label not in AXES or label in out:
             raise ValueError(
                 f"phase label {label!r} of {recording!r} is unknown or repeated; expected each of "
@@ -576,12 +578,11 @@ def phase_samples(
                 f"phase {label!r} of {recording!r} spans rows [{start}, {end}), expected within "
                 f"[0, {len(table)}) of the ingested table"
             )
-        part = table.iloc[start:end]
-        values = part[list(cols)].to_numpy(dtype=float)
+        values = column_values(table, cols, slice(start, end))
         keep = ~np.isnan(values).any(axis=1)
         if not keep.any():
             raise ValueError(
                 f"phase {label!r} of {recording!r} (rows [{start}, {end})) has no {sensor} sample"
             )
-        out[label] = (part[TIME].to_numpy(dtype=float)[keep], values[keep])
+        out[label] = (table[TIME].to_numpy(dtype=float)[start:end][keep], values[keep])
     return out

@@ -26,7 +26,7 @@ from scipy.optimize import least_squares
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
-from imucal.columns import MAG, SI_UNITS, TIME
+from imucal.columns import MAG, SI_UNITS, TIME, column_values
 from imucal.fits.alignment import ALIGNMENT_RULE, align_constant_component
 from imucal.fits.propagation import alignment_sensitivity
 from imucal.uncertainty import std_of, two_step_covariance
@@ -200,7 +200,7 @@ def field_samples(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     missing = [c for c in (TIME, *MAG) if c not in table.columns]
     if missing:
         raise ValueError(f"recording lacks the columns {missing}; expected {[TIME, *MAG]}")
-    values = table[list(MAG)].to_numpy(dtype=float)
+    values = column_values(table, MAG)
     nan = np.isnan(values)
     partial = np.flatnonzero(nan.any(axis=1) & ~nan.all(axis=1))
     if partial.size:
@@ -503,7 +503,7 @@ class MagnetometerCalibration:
     calibration : SensorCalibration
         ``matrix = T_R S'`` and ``o`` (eq. 16), with the covariance of its parameters (step 1's,
         the alignment's own and step 1's carried through the alignment, to first order;
-        :mod:`imucal.fits.propagation`).
+        :mod:`imucal.fits.propagation`; None when fitted without).
     step1 : EllipsoidFit
     alignments : dict of str to AlignmentResult
         Step 2 by both methods, keys 'full' and 'paper'.
@@ -532,6 +532,8 @@ def calibrate_alignment(
     phases: dict[str, np.ndarray],
     method: str = "full",
     exact: bool = True,
+    *,
+    with_covariance: bool = True,
 ) -> MagnetometerCalibration:
     """Step 2 (eqs. 25-27): ``T_R,mag`` from the phases, by both methods; calibration by one.
 
@@ -545,6 +547,12 @@ def calibrate_alignment(
         Step-2 method whose ``T_R`` goes into the calibration (both are computed and reported).
     exact : bool
         Exact rotation or the paper's small-angle matrix (eq. 5) for ``T_R``.
+    with_covariance : bool
+        Carry step 1's uncertainty through the alignment into the calibration's covariance and
+        std (ten alignment refits, :func:`imucal.fits.propagation.alignment_sensitivity`), the
+        alignments' own for residuals correlated in time; False leaves the calibration's unknown
+        and gives the alignments the plain one (``correlated=False``), for callers that read
+        the fitted values only.
 
     Returns
     -------
@@ -557,27 +565,31 @@ def calibrate_alignment(
     """
     step1_phases = {label: step1.apply(np.asarray(v, dtype=float)) for label, v in phases.items()}
     alignments = {
-        name: align_constant_component(step1_phases, method=name, exact=exact)
+        name: align_constant_component(
+            step1_phases, method=name, exact=exact, correlated=with_covariance
+        )
         for name in ("full", "paper")
     }
     if method not in alignments:
         raise ValueError(f"unknown step-2 method {method!r}; expected one of {sorted(alignments)}")
     chosen = alignments[method]
-    sensitivity = alignment_sensitivity(
-        lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
-        phases,
-        step1.upper,
-        step1.bias,
-    )
-    covariance = two_step_covariance(
-        step1.upper,
-        step1.bias,
-        step1.selected.covariance,
-        chosen.alpha_rad,
-        chosen.covariance,
-        sensitivity,
-        exact,
-    )
+    covariance = None
+    if with_covariance:
+        sensitivity = alignment_sensitivity(
+            lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
+            phases,
+            step1.upper,
+            step1.bias,
+        )
+        covariance = two_step_covariance(
+            step1.upper,
+            step1.bias,
+            step1.selected.covariance,
+            chosen.alpha_rad,
+            chosen.covariance,
+            sensitivity,
+            exact,
+        )
     calibration = SensorCalibration(
         sensor="mag",
         bias=step1.bias,

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from imucal import errormodel
-from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME
-from imucal.constants import EARTH_RATE_RAD_S, SESSION_GAP_S
+from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME, column_values
+from imucal.constants import EARTH_RATE_RAD_S
 from imucal.gap import statistics as st
 from imucal.pipeline.full import SessionFit, calibrated
 from imucal.sim.effects import EFFECTS, make_effect
@@ -179,24 +179,12 @@ def estimate_saturation(fit: SessionFit, half) -> Estimate:
         top = 32767
         if frac > 0:
             peak = max(
-                np.nanmax(np.abs(t[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)))
-                for t in fit.imu.values()
+                np.nanmax(np.abs(column_values(t, SENSOR_COLUMNS[s]))) for t in fit.imu.values()
             )
             top = int(np.clip(round(peak / float(opt.sensitivity[s])), 1, 32767))
         params[s] = top
         detect = max(detect, frac)
     return Estimate(params, detect)
-
-
-def _session_clock(fit: SessionFit) -> dict:
-    """Start of each recording on the twin's session clock (s)."""
-    starts, t = {}, 0.0
-    for name in ("rotation3d", "cube", "ratetable", "static"):
-        if name in fit.imu:
-            starts[name] = t
-            tt = fit.imu[name][TIME].to_numpy(dtype=float)
-            t += tt[-1] - tt[0] + SESSION_GAP_S
-    return starts
 
 
 def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
@@ -206,7 +194,7 @@ def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
     from scipy.optimize import curve_fit
 
     ts, temps = [], []
-    for name, start in _session_clock(fit).items():
+    for name, start in st.session_clock(fit).items():
         col = st.temperature_column(fit.imu[name])
         if col is None:
             continue
@@ -386,7 +374,7 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
     n = len(rest)
     if n < 4:
         return None
-    clock = _session_clock(fit)
+    clock = st.session_clock(fit)
     t = np.array([clock[rec] for rec in rest.recording]) + rest.mid_s
     d_t = (
         np.nan_to_num(rest.temp - np.nanmean(rest.temp))
@@ -447,7 +435,7 @@ def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
 def estimate_mag_latency(fit: SessionFit, half) -> Estimate:
     lags = [st.magnetometer_lag(fit, p) for p in st._phase_half(AXES, half)]
     lag = float(np.nanmean(lags))
-    mag = fit.imu["rotation3d"][list(MAG)].to_numpy(dtype=float)
+    mag = column_values(fit.imu["rotation3d"], MAG)
     fresh = mag[np.all(np.isfinite(mag), axis=1)]
     repeats = float(np.mean(np.all(np.diff(fresh, axis=0) == 0, axis=1))) if len(fresh) > 1 else 0.0
     packet_mag_hz = 10.0
@@ -467,7 +455,7 @@ def estimate_platform_magnetic(fit: SessionFit, half) -> Estimate | None:
     rot, psi = st.platform_motion(fit)
     t = fit.imu["rotation3d"][TIME].to_numpy(dtype=float)
     mag = calibrated(fit, "rotation3d", "mag")
-    low = fit.lowpass[list(SENSOR_COLUMNS["gyr"])].to_numpy(dtype=float)
+    low = column_values(fit.lowpass, SENSOR_COLUMNS["gyr"])
     cal = fit.calibration.sensor("gyr")
     w_dot = np.gradient(cal.apply(low, unit=cal.unit), t, axis=0)
     d = np.array([d_h[0], d_h[1], 0.0])

@@ -54,11 +54,14 @@ from imucal.columns import (
     SENSORS,
     SEQ,
     TIME,
+    column_values,
     temperature_column,
 )
+from imucal.constants import SESSION_GAP_S
 from imucal.gap.blocks import long_series
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
+from imucal.segments.table import row_bounds
 
 HALVES = (None, "A", "B")
 
@@ -181,14 +184,9 @@ def _phase_half(labels, half: str | None) -> list:
     return [p for p in labels if (p in ("x", "z")) == (half == "A")]
 
 
-def _bounds(rows: pd.DataFrame) -> zip:
-    """(start_index, end_index) of each row."""
-    return zip(rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int), strict=True)
-
-
 def _means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
     out = []
-    for a, b in _bounds(rows):
+    for a, b in row_bounds(rows):
         x = table[a:b]
         x = x[np.all(np.isfinite(x), axis=1)]
         out.append(x.mean(axis=0) if len(x) else np.full(table.shape[1], np.nan))
@@ -302,7 +300,7 @@ def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> di
     for s in SENSORS:
         n = hit = 0
         for table in tables.values():
-            x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[_time_half(len(table), half)]
+            x = column_values(table, SENSOR_COLUMNS[s])[_time_half(len(table), half)]
             x = x[np.all(np.isfinite(x), axis=1)]
             limit = options.limit(s) - 1.5 * float(options.sensitivity[s])
             hit += int(np.any(np.abs(x) >= limit, axis=1).sum())
@@ -330,14 +328,14 @@ def _noise(fit: SessionFit, half) -> dict:
     sl_long = _time_half(len(t_long), half)
     out = {}
     for s in SENSORS:
-        x = table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl]
+        x = column_values(table, SENSOR_COLUMNS[s])[sl]
         tt = t[sl]
         good = np.all(np.isfinite(x), axis=1)
         x, tt = x[good], tt[good]
         rate = fs if s != "mag" else 1 / np.median(np.diff(tt))
         white = np.std(np.diff(x, axis=0), axis=0) / np.sqrt(2)
         m10 = max(int(round(10 * rate)), 1)
-        xl = series[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float)[sl_long]
+        xl = column_values(series, SENSOR_COLUMNS[s])[sl_long]
         tl = t_long[sl_long]
         good = np.all(np.isfinite(xl), axis=1)
         xl, tl = xl[good], tl[good]
@@ -417,8 +415,8 @@ def cube_direction_residuals(fit: SessionFit, half) -> tuple[np.ndarray, np.ndar
     acc = calibrated(fit, "cube", "acc")
     means = _means(acc, rows)
     var = []
-    for r in rows.itertuples(index=False):
-        x = acc[int(r.start_index) : int(r.end_index)]
+    for a, b in row_bounds(rows):
+        x = acc[a:b]
         var.append(np.mean(np.var(np.diff(x, axis=0), axis=0) / 2) / max(len(x), 1))
     norm = np.linalg.norm(means, axis=1)
     ok = np.isfinite(norm) & (norm > 0)
@@ -531,7 +529,7 @@ def table_residuals(fit: SessionFit, half) -> tuple[pd.DataFrame, np.ndarray, np
     rows = _run_half(rows, half)
     k = np.asarray(table["matrix"], dtype=float)
     b = np.asarray(table["bias"], dtype=float)
-    raw = fit.imu["ratetable"][list(GYR)].to_numpy(dtype=float)
+    raw = column_values(fit.imu["ratetable"], GYR)
     means = _means(raw, rows)
     unit = {a: np.eye(3)[i] for i, a in enumerate(AXES)}
     true = np.array([np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)])
@@ -813,6 +811,20 @@ def _reference(fit: SessionFit, half) -> dict:
     }
 
 
+def session_clock(fit: SessionFit) -> dict:
+    """Start of each recording (s) on the session clock of the simulator and the twin: the
+    recordings one after another in the protocol's order (rotation3d, cube, ratetable,
+    static), ``SESSION_GAP_S`` apart. Real recordings carry no common clock; this is the
+    assumption the diagnosis and the temperature term make about their order."""
+    starts, t = {}, 0.0
+    for name in ("rotation3d", "cube", "ratetable", "static"):
+        if name in fit.imu:
+            starts[name] = t
+            tt = fit.imu[name][TIME].to_numpy(dtype=float)
+            t += tt[-1] - tt[0] + SESSION_GAP_S
+    return starts
+
+
 def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
     """The session's resting segments per recording: rotation3d rests, cube positions, the rate
     table's runs at 0 deg/s and the static recording cut in 8 blocks (every other one for a
@@ -900,7 +912,7 @@ def _resting_source(fit: SessionFit, recording: str) -> tuple[pd.DataFrame, floa
         if ("static blocks", s) not in cache:
             c = fit.calibration.sensor(s)
             # the calibration is affine: the calibrated block mean is the block mean calibrated
-            out = c.apply(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), unit=c.unit)
+            out = c.apply(column_values(table, SENSOR_COLUMNS[s]), unit=c.unit)
             out.flags.writeable = False
             cache[("static blocks", s)] = out
     cal = tuple(cache[("static blocks", s)] for s in ("gyr", "acc", "mag"))
@@ -924,7 +936,7 @@ def _resting_means(fit: SessionFit, half) -> RestingMeans:
         col = temperature_column(table)
         temp = table[col].to_numpy(dtype=float) if col else None
         mids = 0.5 * (rows["start_s"].to_numpy(float) + rows["end_s"].to_numpy(float)) - t0
-        for (start, end), mid in zip(_bounds(rows), mids, strict=True):
+        for (start, end), mid in zip(row_bounds(rows), mids, strict=True):
             sl = slice(start, end)
             ws = w[sl][np.all(np.isfinite(w[sl]), axis=1)]
             as_ = a[sl][np.all(np.isfinite(a[sl]), axis=1)]
@@ -966,7 +978,7 @@ def mean_temperature(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.
     col = temperature_column(fit.imu[recording])
     if col is None:
         return None
-    return _means(fit.imu[recording][[col]].to_numpy(dtype=float), rows)[:, 0]
+    return _means(column_values(fit.imu[recording], [col]), rows)[:, 0]
 
 
 def _temperature(fit: SessionFit, half) -> dict:

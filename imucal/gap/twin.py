@@ -291,11 +291,14 @@ def render_static_blocks(twin: Twin, seed: int, effects: tuple = ()) -> StaticBl
 
 
 def replica_options(twin: Twin, effects: tuple = ()) -> PipelineOptions:
-    """Pipeline options of a replica: the session's, with the twin's sensor ranges.
+    """Pipeline options of a replica: the session's, with the twin's sensor ranges and without
+    the parameters' covariance.
 
     The twin's sensors have no range below the int16 full scale (the paper's model has none);
     an effect that sets the dataset's ranges (saturation) gives the replica its clip levels,
-    and the pipeline knows them as a dataset would declare them.
+    and the pipeline knows them as a dataset would declare them. A replica is measured by its
+    statistics, its effect estimators and its calibration's values, none of which reads the
+    covariance, so its chain skips the uncertainty propagation (the fitted values are the same).
 
     Parameters
     ----------
@@ -309,7 +312,7 @@ def replica_options(twin: Twin, effects: tuple = ()) -> PipelineOptions:
     ranges = {s: INT16_MAX for s in SENSORS}
     for effect in effects:
         ranges.update(effect.dataset_overrides().get("range_counts", {}))
-    return replace(twin.options, range_counts=ranges)
+    return replace(twin.options, range_counts=ranges, with_covariance=False)
 
 
 def _durations(segments: pd.DataFrame, recording: str, kind: str) -> np.ndarray:

@@ -21,7 +21,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imucal.calibration import ImuCalibration
-from imucal.columns import SEGMENT_COLUMNS
+from imucal.columns import SEGMENT_COLUMNS, TIME
 from imucal.io.raw import _existing
 
 #: Key of the parquet key-value metadata that holds the JSON description of a recording.
@@ -45,6 +45,13 @@ def sha256_file(path: str | Path) -> str:
 # Parquet with metadata
 
 
+def _dictionary_columns(schema: pa.Schema) -> list[str]:
+    """Columns parquet encodes with a dictionary: all but the time, whose values are unique
+    per row (a dictionary there is tried, overflows and falls back, which only costs time);
+    quantised sensor values, the packet counter and a temperature have few distinct values."""
+    return [name for name in schema.names if name != TIME]
+
+
 def write_recording(table: pd.DataFrame, path: str | Path, metadata: Mapping[str, Any]) -> None:
     """Write an ingested recording to parquet, atomically, with its JSON metadata.
 
@@ -61,7 +68,8 @@ def write_recording(table: pd.DataFrame, path: str | Path, metadata: Mapping[str
     arrow = arrow.replace_schema_metadata(
         {**(arrow.schema.metadata or {}), METADATA_KEY: _metadata_blob(metadata)}
     )
-    _write_atomic(path, lambda tmp: pq.write_table(arrow, tmp))
+    dictionary = _dictionary_columns(arrow.schema)
+    _write_atomic(path, lambda tmp: pq.write_table(arrow, tmp, use_dictionary=dictionary))
 
 
 class RecordingWriter:
@@ -109,7 +117,12 @@ class RecordingWriter:
         )
         os.close(fd)
         try:
-            self._writer = pq.ParquetWriter(self._tmp, self.schema, store_schema=False)
+            self._writer = pq.ParquetWriter(
+                self._tmp,
+                self.schema,
+                store_schema=False,
+                use_dictionary=_dictionary_columns(self.schema),
+            )
         except BaseException:
             self._thread.shutdown()
             Path(self._tmp).unlink(missing_ok=True)

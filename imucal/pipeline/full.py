@@ -17,7 +17,7 @@ import pandas as pd
 
 from imucal import validation
 from imucal.calibration import ImuCalibration
-from imucal.columns import GYR, SEQ, TIME
+from imucal.columns import GYR, SEQ, TIME, column_values, sensor_columns
 from imucal.io.dataset import Dataset
 from imucal.pipeline import stages
 from imucal.segments.filtering import lowpass_recording
@@ -44,6 +44,12 @@ class PipelineOptions:
         :mod:`imucal.segments.holds`): not at rest, so their holds take no part in the resting
         statistics of the diagnosis. Set from the session's segments; a replica keeps the
         session's (its own holds are rendered without tremor).
+    with_covariance : bool
+        Carry the parameters' uncertainty into the calibration (the covariance and std of each
+        sensor; step 1's through the alignment costs ten alignment refits per sensor) and give
+        the alignments their covariance for residuals correlated in time (else the plain one).
+        The diagnosis's twin replicas go without: nothing they are measured by reads it. It
+        does not change the fitted values.
     """
 
     gravity_m_s2: float
@@ -55,6 +61,7 @@ class PipelineOptions:
     lowpass_order: int = 4
     lowpass_cutoff_hz: float = 5.0
     held_by_hand: tuple = ()
+    with_covariance: bool = True
 
     @classmethod
     def of_dataset(cls, dataset: Dataset, **settings: Any) -> PipelineOptions:
@@ -143,12 +150,13 @@ def calibrate_session(
     low = lowpass_recording(
         imu["rotation3d"], order=options.lowpass_order, cutoff_hz=options.lowpass_cutoff_hz
     )
-    exact = options.exact_rotation
+    exact, cov = options.exact_rotation, options.with_covariance
     mag = stages.align_mag(
         imu["rotation3d"],
         segments,
         stages.fit_mag_step1(imu["rotation3d"], imu["cube"], field_norm=options.field_norm),
         exact=exact,
+        with_covariance=cov,
     )
     cube, _ = stages.fit_acc_cube(
         imu["cube"],
@@ -157,10 +165,10 @@ def calibrate_session(
         saturation_limit_m_s2=options.limit("acc"),
         figures=False,
     )
-    acc = stages.align_acc(low, segments, cube, exact=exact)
+    acc = stages.align_acc(low, segments, cube, exact=exact, with_covariance=cov)
     bias, _ = stages.estimate_gyr_bias(imu, segments, figures=False)
     o, _ = stages.gyr_bias_value(bias, "ls")
-    align = stages.align_gyr(low, segments, o, exact=exact)
+    align = stages.align_gyr(low, segments, o, exact=exact, with_covariance=cov)
     notes = []
     try:
         scale = stages.estimate_gyr_scale(imu["rotation3d"], segments, bias, align, acc, mag)
@@ -182,7 +190,7 @@ def calibrate_session(
                 figures=False,
             )
             table_align = stages.align_gyr(
-                low, segments, table["bias"], table["upper"], exact=exact
+                low, segments, table["bias"], table["upper"], exact=exact, with_covariance=cov
             )
         except ValueError as err:
             # as the workflow: the tool-free result calibrates when eq. 36 ran
@@ -190,7 +198,9 @@ def calibrate_session(
                 raise
             notes.append(f"rate-table fit (eq. 33) failed: {err}; the tool-free result is used")
             table = table_align = None
-    gyr, _ = stages.combine_gyr(bias, align, scale, table, table_align, exact=exact)
+    gyr, _ = stages.combine_gyr(
+        bias, align, scale, table, table_align, exact=exact, with_covariance=cov
+    )
     calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None
     if reference is not None:
@@ -220,7 +230,8 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     table's alignment) and ``combine_gyr`` on the session's stage-1 artifacts, with the exact
     rotation or the paper's small-angle form (eq. 5). The tool-free gyro scale (eq. 36) is
     kept from the session's fit: it enters only without a rate table, and its dependence on
-    the alignment form is of higher order than the alignment's own.
+    the alignment form is of higher order than the alignment's own. The covariance is carried
+    as in the fit (``with_covariance`` of its options).
 
     Parameters
     ----------
@@ -233,16 +244,21 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     ImuCalibration
     """
     a, low, seg = fit.artifacts, fit.lowpass, fit.segments
-    mag = stages.align_mag(fit.imu["rotation3d"], seg, a["mag"]["step1"], exact=exact)
-    acc = stages.align_acc(low, seg, a["cube"], exact=exact)
+    cov = fit.extra["options"].with_covariance
+    mag = stages.align_mag(
+        fit.imu["rotation3d"], seg, a["mag"]["step1"], exact=exact, with_covariance=cov
+    )
+    acc = stages.align_acc(low, seg, a["cube"], exact=exact, with_covariance=cov)
     o, _ = stages.gyr_bias_value(a["bias"], "ls")
-    align = stages.align_gyr(low, seg, o, exact=exact)
+    align = stages.align_gyr(low, seg, o, exact=exact, with_covariance=cov)
     table_align = None
     if a["table"] is not None:
         table_align = stages.align_gyr(
-            low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact
+            low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact, with_covariance=cov
         )
-    gyr, _ = stages.combine_gyr(a["bias"], align, a["scale"], a["table"], table_align, exact=exact)
+    gyr, _ = stages.combine_gyr(
+        a["bias"], align, a["scale"], a["table"], table_align, exact=exact, with_covariance=cov
+    )
     return stages.combine_calibration(acc, gyr, mag)
 
 
@@ -257,10 +273,8 @@ def reference_alignment(
     """
     t_mod = validation.packet_times(rotation3d[TIME].to_numpy(), rotation3d[SEQ].to_numpy())
     t_ref = validation.packet_times(reference[TIME].to_numpy(), reference[SEQ].to_numpy())
-    gyr_mod = calibration.sensor("gyr").apply(
-        rotation3d[list(GYR)].to_numpy(dtype=float), unit="rad/s"
-    )
-    gyr_ref = reference[list(GYR)].to_numpy(dtype=float)
+    gyr_mod = calibration.sensor("gyr").apply(column_values(rotation3d, GYR), unit="rad/s")
+    gyr_ref = column_values(reference, GYR)
     return validation.estimate_time_alignment(t_mod, gyr_mod, t_ref, gyr_ref, 6)
 
 
@@ -270,11 +284,9 @@ def calibrated(fit: SessionFit, recording: str, sensor: str) -> np.ndarray:
     Computed once per fit (the diagnosis's statistics ask for the same recording many times)
     and returned read-only, so that no caller can change what the next one gets.
     """
-    from imucal.columns import sensor_columns
-
     cache = fit.extra.setdefault("calibrated", {})
     if (recording, sensor) not in cache:
-        values = fit.imu[recording][list(sensor_columns(sensor))].to_numpy(dtype=float)
+        values = column_values(fit.imu[recording], sensor_columns(sensor))
         cal = fit.calibration.sensor(sensor)
         out = cal.apply(values, unit=cal.unit)
         out.flags.writeable = False

@@ -23,7 +23,16 @@ from matplotlib.figure import Figure
 
 from imucal import errormodel, uncertainty
 from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
-from imucal.columns import ACC, AXES, GYR, MAG, PARAMETER_STD_SUFFIX, TIME, temperature_column
+from imucal.columns import (
+    ACC,
+    AXES,
+    GYR,
+    MAG,
+    PARAMETER_STD_SUFFIX,
+    TIME,
+    column_values,
+    temperature_column,
+)
 from imucal.fits import accelerometer, gyroscope
 from imucal.fits.alignment import (
     ALIGNMENT_RULE,
@@ -138,11 +147,15 @@ def align_acc(
     *,
     method: str = "full",
     exact: bool = True,
+    with_covariance: bool = True,
 ) -> dict:
     """Accelerometer step 2: ``T_R,acc`` from the low-pass filtered rotation3d phases.
 
     Only phases whose axis is horizontal sweep gravity; :func:`align_constant_component` skips
     the others (the z phase) and says why. Both methods are computed; ``method`` is used.
+    Without ``with_covariance`` the calibration has no covariance and no std (step 1's
+    uncertainty is not carried through the alignment) and the alignments' own covariance is
+    the plain one (``correlated=False``), for callers that read fitted values only.
 
     Returns
     -------
@@ -155,24 +168,28 @@ def align_acc(
     raw = _phases(rotation3d_lowpass, segments, "acc")
     phases = {label: errormodel.apply(upper, bias, values) for label, values in raw.items()}
     alignments = {
-        name: align_constant_component(phases, method=name, exact=exact)
+        name: align_constant_component(phases, method=name, exact=exact, correlated=with_covariance)
         for name in ALIGNMENT_METHODS
     }
     fit, step1 = cube_quality(cube_fit)
-    covariance = uncertainty.two_step_covariance(
-        upper,
-        bias,
-        step1,
-        alignments[method].alpha_rad,
-        alignments[method].covariance,
-        alignment_sensitivity(
-            lambda ph: align_constant_component(ph, method=method, exact=exact, correlated=False),
-            raw,
+    covariance = None
+    if with_covariance:
+        covariance = uncertainty.two_step_covariance(
             upper,
             bias,
-        ),
-        exact,
-    )
+            step1,
+            alignments[method].alpha_rad,
+            alignments[method].covariance,
+            alignment_sensitivity(
+                lambda ph: align_constant_component(
+                    ph, method=method, exact=exact, correlated=False
+                ),
+                raw,
+                upper,
+                bias,
+            ),
+            exact,
+        )
     calibration = SensorCalibration(
         "acc",
         bias,
@@ -329,6 +346,7 @@ def align_gyr(
     *,
     method: str = "full",
     exact: bool = True,
+    with_covariance: bool = True,
 ) -> dict:
     """``T_R,gyr`` from the low-pass filtered rotation3d phases (eqs. 28-31), both methods.
 
@@ -338,13 +356,22 @@ def align_gyr(
         Gyroscope bias, rad/s.
     upper : ndarray, shape (3, 3), optional
         ``S'_gyr`` from the rate table; the identity (unit scale) without one.
+    with_covariance : bool
+        Measure ``sensitivity`` (``d alpha / d (S', o)``, which :func:`combine_gyr` carries
+        into the covariance) and the alignments' covariance for residuals correlated in time;
+        without it the artifact has no sensitivity and the plain covariance
+        (``correlated=False``), for callers that read fitted values only.
     """
     s = np.eye(3) if upper is None else np.asarray(upper, dtype=float)
     raw = _phases(rotation3d_lowpass, segments, "gyr")
     phases = {label: errormodel.apply(s, bias, values) for label, values in raw.items()}
     alignments = {
-        name: align_rotation_axis(phases, method=name, exact=exact) for name in ALIGNMENT_METHODS
+        name: align_rotation_axis(phases, method=name, exact=exact, correlated=with_covariance)
+        for name in ALIGNMENT_METHODS
     }
+    artifact = {"used": method, **{k: a.to_dict() for k, a in alignments.items()}}
+    if not with_covariance:
+        return artifact
     sensitivity = alignment_sensitivity(
         lambda ph: align_rotation_axis(ph, method=method, exact=exact, correlated=False),
         raw,
@@ -352,8 +379,7 @@ def align_gyr(
         bias,
     )
     return {
-        "used": method,
-        **{k: a.to_dict() for k, a in alignments.items()},
+        **artifact,
         "sensitivity": sensitivity.tolist(),
         "sensitivity_to": "upper entries of S' row by row (identity without one), bias",
     }
@@ -488,7 +514,7 @@ def estimate_gyr_scale(
         raise ValueError("eq. 36 needs a calibrated magnetometer or accelerometer; got neither")
     noise = np.asarray(bias["noise_std_rad_s"], dtype=float)
     phases = rows_of(segments, "rotation3d", "phase")
-    gyr = rotation3d[list(GYR)].to_numpy(dtype=float)
+    gyr = column_values(rotation3d, GYR)
     clipped = [
         r.label
         for r in phases.itertuples()
@@ -503,13 +529,11 @@ def estimate_gyr_scale(
     for phase in phases.itertuples(index=False):
         before, after = _adjacent_static(segments, phase)
         window = rotation3d.iloc[int(before.start_index) : int(after.end_index)]
-        parts = [
-            rotation3d.iloc[int(s.start_index) : int(s.end_index)] for s in (before, phase, after)
-        ]
+        parts = [slice(int(s.start_index), int(s.end_index)) for s in (before, phase, after)]
         angles, angle_var = {}, {}
         for name, cal, cols in measuring:
             vectors = [
-                errormodel.apply(cal.matrix, cal.bias, p[list(cols)].to_numpy(dtype=float))
+                errormodel.apply(cal.matrix, cal.bias, column_values(rotation3d, cols, p))
                 for p in parts
             ]
             try:
@@ -523,7 +547,7 @@ def estimate_gyr_scale(
         angle_std = _mean_angle_std(
             np.array(measured), np.array([angle_var[n] for n in angles if n in angle_var])
         )
-        raw = window[list(GYR)].to_numpy(dtype=float)
+        raw = column_values(window, GYR)
         fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
         rate = errormodel.apply(rotation, o, raw[fresh])
         k = AXES.index(phase.label)
@@ -629,6 +653,50 @@ def _bias_sensitivity(alignment: Mapping) -> np.ndarray:
     return g
 
 
+def _tool_free_covariance(
+    scale: Mapping, o: np.ndarray, o_std: np.ndarray, alignment: Mapping, exact: bool
+) -> np.ndarray:
+    """Covariance of the tool-free gyroscope calibration ``T_R diag(s)``, ``o``, (21, 21).
+
+    A two-step calibration whose step 1 is ``(diag(s), o)``, ``s`` and ``o`` independent;
+    ``T_N`` is not observable and taken as exact (xi = 0)."""
+    chosen = alignment[alignment["used"]]
+    step1 = np.zeros((9, 9))
+    step1[[0, 3, 5], [0, 3, 5]] = np.square(np.asarray(scale["std_scale"], dtype=float))
+    step1[6:, 6:] = np.diag(np.square(o_std))
+    covariance = uncertainty.two_step_covariance(
+        np.diag(scale["scale"]),
+        o,
+        step1,
+        np.asarray(chosen["alpha_rad"], dtype=float),
+        np.asarray(chosen["covariance"], dtype=float),
+        _bias_sensitivity(alignment),
+        exact,
+    )
+    xi = uncertainty.GROUPS["xi_rad"]
+    covariance[xi, :] = 0.0
+    covariance[:, xi] = 0.0
+    return covariance
+
+
+def _table_covariance(table: Mapping, table_alignment: Mapping, exact: bool) -> np.ndarray:
+    """Covariance of the rate-table gyroscope calibration ``T_R S'``, ``b``, (21, 21)."""
+    chosen = table_alignment[table_alignment["used"]]
+    return uncertainty.two_step_covariance(
+        np.asarray(table["upper"], dtype=float),
+        np.asarray(table["bias"], dtype=float),
+        upper_bias_covariance(
+            table["matrix"],
+            np.asarray(table["covariance"], dtype=float)
+            + np.outer(table.get("cut_shift", np.zeros(12)), table.get("cut_shift", np.zeros(12))),
+        ),
+        np.asarray(chosen["alpha_rad"], dtype=float),
+        np.asarray(chosen["covariance"], dtype=float),
+        np.asarray(table_alignment["sensitivity"], dtype=float),
+        exact,
+    )
+
+
 def combine_gyr(
     bias: Mapping,
     alignment: Mapping,
@@ -639,6 +707,7 @@ def combine_gyr(
     bias_estimator: str = "ls",
     exact: bool = True,
     truth: Mapping | None = None,
+    with_covariance: bool = True,
 ) -> tuple[dict, pd.DataFrame]:
     """The gyroscope calibration with and without tools, and the paper's Tables I and II.
 
@@ -646,7 +715,8 @@ def combine_gyr(
     rate table it is ``T_R,gyr S'_gyr``. The final calibration uses the rate table when there is
     one (it observes the non-orthogonality), otherwise the tool-free result. ``scale`` is None
     when eq. 36 could not run (e.g. phases clipped at the range): then only the rate table
-    calibrates, and ``tool_free`` is None.
+    calibrates, and ``tool_free`` is None. Without ``with_covariance`` (alignments from
+    :func:`align_gyr` without it) the calibrations have no covariance and no std.
 
     Returns
     -------
@@ -666,23 +736,9 @@ def combine_gyr(
         )
     tool_free = None
     if scale is not None:
-        # the tool-free matrix T_R diag(s) as a two-step calibration whose step 1 is
-        # (diag(s), o), s and o independent; T_N is not observable and taken as exact (xi = 0)
-        step1 = np.zeros((9, 9))
-        step1[[0, 3, 5], [0, 3, 5]] = np.square(np.asarray(scale["std_scale"], dtype=float))
-        step1[6:, 6:] = np.diag(np.square(o_std))
-        covariance = uncertainty.two_step_covariance(
-            np.diag(scale["scale"]),
-            o,
-            step1,
-            alpha,
-            np.asarray(alignment[alignment["used"]]["covariance"], dtype=float),
-            _bias_sensitivity(alignment),
-            exact,
+        covariance = (
+            _tool_free_covariance(scale, o, o_std, alignment, exact) if with_covariance else None
         )
-        xi = uncertainty.GROUPS["xi_rad"]
-        covariance[xi, :] = 0.0
-        covariance[:, xi] = 0.0
         tool_free = SensorCalibration(
             "gyr",
             o,
@@ -705,22 +761,7 @@ def combine_gyr(
     if has_table:
         rotation = np.asarray(table_alignment[table_alignment["used"]]["matrix"], dtype=float)
         upper = np.asarray(table["upper"], dtype=float)
-        chosen = table_alignment[table_alignment["used"]]
-        covariance = uncertainty.two_step_covariance(
-            upper,
-            np.asarray(table["bias"], dtype=float),
-            upper_bias_covariance(
-                table["matrix"],
-                np.asarray(table["covariance"], dtype=float)
-                + np.outer(
-                    table.get("cut_shift", np.zeros(12)), table.get("cut_shift", np.zeros(12))
-                ),
-            ),
-            np.asarray(chosen["alpha_rad"], dtype=float),
-            np.asarray(chosen["covariance"], dtype=float),
-            np.asarray(table_alignment["sensitivity"], dtype=float),
-            exact,
-        )
+        covariance = _table_covariance(table, table_alignment, exact) if with_covariance else None
         with_table = SensorCalibration(
             "gyr",
             table["bias"],
@@ -876,9 +917,9 @@ def apply_calibration(
     temperature term takes the recording's temperature column (rows without a reading
     interpolated in time). With ``parameter_std`` the table gains, per calibrated column, the
     standard deviation that the calibration's parameter covariance gives the sample
-    (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal; column name + ``_param_std``),
-    for sensors whose calibration has a covariance (the bias and matrix only: the terms'
-    standard deviations are in the calibration file, not propagated to the samples).
+    (:meth:`imucal.calibration.ImuCalibration.parameter_variance`: the bias and matrix through
+    their covariance and every model term through its coefficients' standard deviations;
+    column name + ``_param_std``), for sensors whose calibration has a covariance or a term.
 
     Parameters
     ----------
@@ -926,14 +967,13 @@ def apply_calibration(
     temp = _temperature_per_sample(table, source) if calibration.terms.temperature else None
     t_s = table[TIME].to_numpy(dtype=float) if calibration.terms.lever_arm is not None else None
     values, flags = calibration.calibrate(readings, unit_of, temp_c=temp, t_s=t_s, source=source)
+    variance = (
+        calibration.parameter_variance(readings, temp_c=temp, t_s=t_s) if parameter_std else {}
+    )
     for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
         out[list(columns)] = values[sensor]
-        cal = calibration.sensor(sensor)
-        if parameter_std and cal.covariance is not None:
-            cov = uncertainty.calibrated_covariance(
-                cal.matrix, cal.bias, cal.covariance, readings[sensor]
-            )
-            std = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None))
+        if sensor in variance:
+            std = np.sqrt(variance[sensor])
             for k, column in enumerate(columns):
                 out[column + PARAMETER_STD_SUFFIX] = std[:, k]
     meta = {**metadata, "calibrated": True}
@@ -1040,8 +1080,10 @@ def align_mag(
     *,
     method: str = "full",
     exact: bool = True,
+    with_covariance: bool = True,
 ) -> dict:
-    """Magnetometer step 2 (eqs. 25-27): ``T_R,mag`` from the rotation3d phases, both methods."""
+    """Magnetometer step 2 (eqs. 25-27): ``T_R,mag`` from the rotation3d phases, both methods;
+    ``with_covariance`` as :func:`imucal.fits.magnetometer.calibrate_alignment`."""
     from imucal.fits import magnetometer
 
     fit = magnetometer.EllipsoidFit.from_dict(dict(step1))
@@ -1049,7 +1091,9 @@ def align_mag(
         label: values[np.all(np.isfinite(values), axis=1)]
         for label, values in _phases(rotation3d, segments, "mag").items()
     }
-    result = magnetometer.calibrate_alignment(fit, phases, method=method, exact=exact)
+    result = magnetometer.calibrate_alignment(
+        fit, phases, method=method, exact=exact, with_covariance=with_covariance
+    )
     artifact = result.to_dict()
     artifact["warnings"] = list(step1.get("warnings", []))
     return artifact

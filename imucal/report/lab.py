@@ -32,6 +32,7 @@ import imucal
 from imucal import io
 from imucal.columns import AXES, SENSORS
 from imucal.constants import IMU_RECORDINGS, REFERENCE
+from imucal.terms.heldout import gap_comparison
 
 #: Significant digits of the numbers in the report.
 DIGITS = 5
@@ -840,9 +841,28 @@ def _terms_section(
             "predicted": format_number(predicted, 2) if predicted is not None else "-",
             "verdict": verdict,
         })  # fmt: skip
+    p2p = summary.get("heldout_pose_to_pose")
+    if p2p and "note" not in p2p:
+        heldout.append({
+            "term": "all terms in the model",
+            "residual": p2p["residual"],
+            "rms": f"{format_number(p2p['rms_without'], 3)} → {format_number(p2p['rms_with'], 3)}",
+            "achieved": _plus_minus(p2p["achieved_shrink"], p2p["achieved_std"]),
+            "predicted": "-",
+            "verdict": "no prediction",
+        })  # fmt: skip
     gap_before = (before.get("gap") or {}).get("total")
     gap_after = (after.get("gap") or {}).get("total")
+    compared = gap_comparison(before, after, summary["in_model"])
     return {
+        "gap_compared": (
+            {
+                k: (v if k in ("verdict", "still_explained") else format_number(v))
+                for k, v in compared.items()
+            }  # fmt: skip
+            if compared
+            else None
+        ),
         "rows": rows,
         "coefficients": values,
         "heldout": heldout,

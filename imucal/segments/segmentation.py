@@ -21,7 +21,7 @@ import logging
 import numpy as np
 import pandas as pd
 
-from imucal.columns import ACC, GYR, KINDS, TIME
+from imucal.columns import ACC, GYR, KINDS, TIME, column_values
 from imucal.constants import IMU_RECORDINGS, OTHER_RECORDINGS
 from imucal.segments.detector import DetectorSettings
 from imucal.segments.protocol import segment_cube, segment_poses, segment_rotation3d, segment_static
@@ -131,8 +131,8 @@ def segment_recording(
             "accelerometer and the gyroscope (give a section list or manual segments instead)"
         )
     t = table[TIME].to_numpy(dtype=float)
-    acc = table[list(ACC)].to_numpy(dtype=float)
-    gyr = table[list(GYR)].to_numpy(dtype=float)
+    acc = column_values(table, ACC)
+    gyr = column_values(table, GYR)
     # streams merged on time leave rows without an acc/gyr sample (NaN): segment the rows with
     # both, then give the indices in rows of the whole table
     rows = np.flatnonzero(np.isnan(acc).all(axis=1) | np.isnan(gyr).all(axis=1))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from imucal.columns import SEGMENT_COLUMNS, TIME
+from imucal.columns import SEGMENT_COLUMNS, TIME, column_values
 
 
 def segment_row(recording, label, kind, t, a, b, axis="", rate_dps=np.nan, sense=0, turns=np.nan,
@@ -53,12 +53,17 @@ def rows_of(segments: pd.DataFrame, recording: str, *kinds: str) -> pd.DataFrame
     return rows.sort_values("start_index")
 
 
+def row_bounds(rows: pd.DataFrame) -> zip:
+    """``(start_index, end_index)`` of each segment row (end exclusive), as integers.
+
+    Read from the two columns: iterating the rows (``itertuples``) reads every column,
+    its string ones element by element."""
+    return zip(rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int), strict=True)
+
+
 def cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[np.ndarray]:
     """The samples of ``columns`` each segment row holds: one array (n_k, len(columns)) a row."""
-    return [
-        table.iloc[int(r.start_index) : int(r.end_index)][list(columns)].to_numpy(dtype=float)
-        for r in rows.itertuples(index=False)
-    ]
+    return [column_values(table, columns, slice(a, b)) for a, b in row_bounds(rows)]
 
 
 def cut_finite(
@@ -67,9 +72,9 @@ def cut_finite(
     """``(t_s (n_k,), values (n_k, len(columns)))`` per segment row, the rows of the table with
     a NaN in ``columns`` left out (streams merged on time: rows of another sensor)."""
     out = []
-    for r in rows.itertuples(index=False):
-        part = table.iloc[int(r.start_index) : int(r.end_index)]
-        values = part[list(columns)].to_numpy(dtype=float)
+    for a, b in row_bounds(rows):
+        part = slice(a, b)
+        values = column_values(table, columns, part)
         keep = np.isfinite(values).all(axis=1)
-        out.append((part[TIME].to_numpy(dtype=float)[keep], values[keep]))
+        out.append((table[TIME].to_numpy(dtype=float)[part][keep], values[keep]))
     return out

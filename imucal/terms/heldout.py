@@ -22,7 +22,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from imucal.calibration import ImuCalibration
+from imucal.columns import ACC, GYR, SENSOR_COLUMNS, SENSORS, SI_UNITS, TIME
+from imucal.gap import statistics as st
+from imucal.pipeline.full import SessionFit
+from imucal.pipeline.stages import apply_calibration
+from imucal.segments.table import row_bounds
 from imucal.terms.selection import EFFECT_OF_TERM
 
 #: What the held-out residual of each term is (for terms.json and the report).
@@ -33,6 +40,58 @@ RESIDUAL_OF_TERM = {
     "lever_arm": "rate-table run means of the acc at half the rate levels, predicted from the "
     "other half (m/s^2)",
 }
+
+
+#: The held-out residual of the gyroscope's terms that no estimator fits on.
+POSE_TO_POSE = (
+    "gravity direction pose to pose: each rotation3d rest's up direction predicted from the "
+    "previous rest's through the gyro integrated between them (rad)"
+)
+
+
+def pose_to_pose_angles(fit: SessionFit, calibration: ImuCalibration) -> np.ndarray:
+    """Angles (rad) between each rotation3d rest's measured up direction and the one predicted
+    from the previous rest through the gyroscope integrated from the end of that rest to the
+    start of this one, shape (rests - 1,); empty without a rotation3d recording.
+
+    Held out for the gyroscope's terms: they are fitted on resting means, never on the
+    platform's turns. ``calibration`` calibrates the recording with its whole model.
+    """
+    if "rotation3d" not in fit.imu:
+        return np.zeros(0)
+    table = fit.imu["rotation3d"]
+    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
+    values, _ = apply_calibration(table, {"units": units}, calibration, source="rotation3d")
+    gyr, acc = values[list(GYR)].to_numpy(float), values[list(ACC)].to_numpy(float)
+    t = table[TIME].to_numpy(float)
+    rests = list(row_bounds(st._rows(fit, "rotation3d", "static")))
+    up = st._means(acc, st._rows(fit, "rotation3d", "static"))
+    up /= np.linalg.norm(up, axis=1, keepdims=True)
+    angles = []
+    for (_, end), (start, _), u0, u1 in zip(rests[:-1], rests[1:], up[:-1], up[1:], strict=True):
+        sl = slice(end - 1, start + 1)
+        q = st.integrate_orientation(t[sl], gyr[sl], np.array([0.0, 0.0, 0.0, 1.0]))[-1]
+        predicted = Rotation.from_quat(q).inv().apply(u0)
+        angles.append(np.arccos(np.clip(predicted @ u1, -1.0, 1.0)))
+    return np.asarray(angles)
+
+
+def pose_to_pose_comparison(
+    fit: SessionFit, base: ImuCalibration, with_term: ImuCalibration
+) -> dict:
+    """The pose-to-pose gravity residual (:func:`pose_to_pose_angles`) of the calibration
+    without terms and of the one with them, as :func:`heldout_comparison` reports a term's (no
+    prediction: the diagnosis has none for this residual); ``note`` when the session has fewer
+    than 3 rotation3d rests."""
+    without = pose_to_pose_angles(fit, base)
+    if len(without) < 2 or not np.all(np.isfinite(without)):
+        return {"residual": POSE_TO_POSE, "note": "fewer than 3 rotation3d rests"}
+    with_ = pose_to_pose_angles(fit, with_term)
+    rms = [float(np.sqrt(np.mean(a**2))) for a in (without, with_)]
+    achieved, std = _achieved(*rms, len(without))
+    return {"residual": POSE_TO_POSE, "rms_without": rms[0], "rms_with": rms[1],
+            "values": len(without), "achieved_shrink": achieved, "achieved_std": std,
+            "predicted_shrink": None, "short_of_prediction": None}  # fmt: skip
 
 
 def _achieved(rms_without: float, rms_with: float, n: int) -> tuple[float, float]:
@@ -92,3 +151,53 @@ def heldout_comparison(term: str, evidence: Mapping, diagnosis: Mapping | None) 
         "predicted_shrink": predicted,
         "short_of_prediction": None if predicted is None else bool(predicted > achieved + 3 * std),
     }
+
+
+def gap_comparison(before: Mapping, after: Mapping, in_model: list) -> dict | None:
+    """The gap the diagnosis predicted for the session with its explained effects modelled,
+    beside what remains of the gap of the session recalibrated with the terms: the same
+    statistic, so the comparison is two-sided.
+
+    The prediction is ``remaining.total`` of the diagnosis before (its twin with the
+    explained effects added). The achieved value is ``remaining.total`` of the diagnosis after:
+    the terms in the calibration, and in its twin the effects it still explains, those
+    without a term (a bias instability, a timing jitter). They agree when they differ by less
+    than the larger ``null_p95`` of the two diagnoses (the 95th percentile of the total when
+    there is no gap: the statistic's own noise). An effect that the diagnosis after still
+    explains although a term in the model stands for it means the term did not take it: the
+    verdict is then short of the prediction whatever the totals.
+
+    Parameters
+    ----------
+    before, after : dict
+        diagnosis.json of the session and of the session with the terms (gap/after.json).
+    in_model : list of str
+        The terms in the model.
+
+    Returns
+    -------
+    dict or None
+        ``before``, ``predicted``, ``achieved``, ``tolerance``, ``still_explained`` (effects
+        the diagnosis after explains) and ``verdict`` ('as predicted', 'better than
+        predicted' or 'short of the prediction', with the term that did not take its effect);
+        None when either diagnosis lacks the numbers.
+    """
+    try:
+        total = float(before["gap"]["total"])
+        predicted = float(before["remaining"]["total"])
+        achieved = float(after["remaining"]["total"])
+        tolerance = max(float(before["gap"]["null_p95"]), float(after["gap"]["null_p95"]))
+    except (KeyError, TypeError):
+        return None
+    still = list(after.get("explained", []))
+    untaken = [t for t in in_model if EFFECT_OF_TERM.get(t) in still]
+    if untaken:
+        verdict = f"short of the prediction: the diagnosis after still explains the effect of {', '.join(untaken)}"
+    elif achieved > predicted + tolerance:
+        verdict = "short of the prediction"
+    elif achieved < predicted - tolerance:
+        verdict = "better than predicted"
+    else:
+        verdict = "as predicted"
+    return {"before": total, "predicted": predicted, "achieved": achieved,
+            "tolerance": tolerance, "still_explained": still, "verdict": verdict}  # fmt: skip

@@ -23,7 +23,7 @@ from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration
 from imucal.terms.gsensitivity import fit_g_sensitivity
-from imucal.terms.heldout import heldout_comparison
+from imucal.terms.heldout import heldout_comparison, pose_to_pose_comparison
 from imucal.terms.leverarm import fit_lever_arm
 from imucal.terms.magdelay import fit_mag_delay
 from imucal.terms.selection import TermSettings, decide
@@ -93,7 +93,9 @@ def close_loop(
         prediction, :func:`imucal.terms.heldout.heldout_comparison`);
         ``calibration``: the recalibrated :class:`ImuCalibration` with its terms, or None when
         no term is included (the paper's calibration stands); ``corrected``: the corrected
-        recordings (None likewise).
+        recordings (None likewise); with terms, ``pose_to_pose``: the held-out gravity
+        direction pose to pose of the paper's model against the whole model
+        (:func:`imucal.terms.heldout.pose_to_pose_comparison`).
     """
     record = {}
     for term in TERMS:
@@ -115,6 +117,8 @@ def close_loop(
         terms = ModelTerms(**found)
         corrected = corrected_session(imu, base.calibration, terms)
         refit = calibrate_session(corrected, reference, options, segments)
+        model = refit.calibration.with_terms(terms)
+        pose_to_pose = pose_to_pose_comparison(base, base.calibration, model)
     except ValueError as err:
         # the data do not carry the paper's chain or a term's estimate through (degenerate
         # motion, a stage that cannot run in process): the paper's calibration stands
@@ -125,8 +129,9 @@ def close_loop(
         return {"terms": record, "calibration": None, "corrected": None}
     return {
         "terms": record,
-        "calibration": refit.calibration.with_terms(terms),
+        "calibration": model,
         "corrected": corrected,
+        "pose_to_pose": pose_to_pose,
     }
 
 
@@ -181,6 +186,7 @@ def terms_summary(result: Mapping) -> dict:
         "format_version": 1,
         "in_model": cal.terms.names() if cal is not None else [],
         "terms": to_jsonable(result["terms"]),
+        "heldout_pose_to_pose": to_jsonable(result.get("pose_to_pose")),
         "calibration": cal.to_dict() if cal is not None else None,
     }
 

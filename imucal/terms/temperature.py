@@ -18,8 +18,11 @@ the rate-table runs, each reduced to its raw mean reading and mean temperature:
 The order (0 .. ``max_order``) is chosen on held-out segments (:func:`select_order`:
 leave-one-out residuals, the smallest order within one standard error of the best); order 0
 (no temperature dependence) wins when no polynomial predicts the held-out segments better. A
-sensor is refused when its recording's temperature span is below ``min_span_c``. Standard
-deviations are those of least squares with the residual variance of the whole fit.
+sensor is refused when its recording's temperature span is below ``min_span_c``. The
+gyroscope bias polynomial's coefficients and standard deviations are those of generalised least
+squares with the bias walking on the session clock (:func:`imucal.fits.wander.fit_with_wander`:
+a walk over a warm-up looks like a drift against temperature); the other standard deviations
+are those of least squares with the residual variance of the whole fit.
 
 The calibrated span of a sensor's polynomials is that of the temperature samples its
 estimators average (:func:`sample_span`: the resting segments, and for the gyroscope the
@@ -35,10 +38,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imucal.columns import AXES, GYR, SENSOR_COLUMNS, temperature_column
+from imucal.columns import AXES, GYR, SENSOR_COLUMNS, TIME, temperature_column
+from imucal.fits.wander import fit_with_wander
 from imucal.gap import statistics as st
 from imucal.modelterms import TemperaturePolynomial
 from imucal.pipeline.full import SessionFit, calibrated
+from imucal.segments.table import row_bounds
 
 #: Highest order of a scale polynomial: the scale is seen only in rate-table runs (one axis's
 #: runs span a fraction of a kelvin) and in the gravity along an axis, too little for a curve.
@@ -56,16 +61,24 @@ class Means:
     acc_b : ndarray, shape (n, 3)
         Calibrated specific force (frame B, m/s^2).
     temp_c : ndarray, shape (n,)
+    gyr_white : ndarray, shape (n, 3)
+        White-noise variance of the raw gyro means ((rad/s)^2, from first differences).
+    t_s : ndarray, shape (n,)
+        Middle of each segment on the session clock (s,
+        :func:`imucal.gap.statistics.session_clock`).
     """
 
     raw: dict
     acc_b: np.ndarray
     temp_c: np.ndarray
+    gyr_white: np.ndarray
+    t_s: np.ndarray
 
 
 def _segment_means(fit: SessionFit, segments: list) -> Means:
     raw = {s: [] for s in ("acc", "gyr")}
-    acc_b, temp = [], []
+    acc_b, temp, white, mid = [], [], [], []
+    clock = st.session_clock(fit)
     for rec, rows in segments:
         table = fit.imu[rec]
         col = temperature_column(table)
@@ -75,18 +88,34 @@ def _segment_means(fit: SessionFit, segments: list) -> Means:
         for s in raw:
             raw[s].append(st._means(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), rows))
         acc_b.append(st._means(np.asarray(calibrated(fit, rec, "acc")), rows))
+        gyr = table[list(GYR)].to_numpy(dtype=float)
+        quantum = float(fit.extra["options"].sensitivity["gyr"])
+        white.append([_white_variance(gyr[a:b], quantum) for a, b in row_bounds(rows)])
+        start = float(table[TIME].iloc[0])
+        mid.append(clock[rec] + st._mid_times(fit, rec, rows) - start)
         temp.append(t)
     if not temp:
         empty = np.zeros((0, 3))
-        return Means({s: empty for s in raw}, empty, np.zeros(0))
+        return Means({s: empty for s in raw}, empty, np.zeros(0), empty, np.zeros(0))
     out = Means(
         {s: np.vstack(v) for s, v in raw.items()},
         np.vstack(acc_b),
         np.concatenate(temp),
+        np.vstack(white).reshape(-1, 3),
+        np.concatenate(mid),
     )
     ok = np.isfinite(out.temp_c) & np.all(np.isfinite(out.raw["gyr"]), axis=1)
-    ok &= np.all(np.isfinite(out.raw["acc"]), axis=1)
-    return Means({s: v[ok] for s, v in out.raw.items()}, out.acc_b[ok], out.temp_c[ok])
+    ok &= np.all(np.isfinite(out.raw["acc"]), axis=1) & np.all(np.isfinite(out.gyr_white), axis=1)
+    return Means({s: v[ok] for s, v in out.raw.items()}, out.acc_b[ok], out.temp_c[ok],
+                 out.gyr_white[ok], out.t_s[ok])  # fmt: skip
+
+
+def _white_variance(x: np.ndarray, quantum: float) -> np.ndarray:
+    """White-noise variance of the mean of the complete rows of ``x`` (n, 3), per column, at
+    least the quantisation's (``quantum^2 / 12`` per sample: a resting quantised reading may
+    not change at all); NaN with fewer than 3 rows."""
+    x = x[np.all(np.isfinite(x), axis=1)]
+    return st._white_variance(x, quantum**2 / 12) if len(x) >= 3 else np.full(3, np.nan)
 
 
 def resting_means(fit: SessionFit, *, table: bool = True) -> Means:
@@ -194,7 +223,8 @@ def _refusal(temp: np.ndarray, min_span_c: float, what: str) -> str:
 
 
 def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tuple:
-    """Bias polynomial of the gyroscope: coefficients (p, 3), std, held-out evidence."""
+    """Bias polynomial of the gyroscope: coefficients (p, 3), std (p, 3), each axis's
+    covariance (3, p, p), held-out evidence."""
     d_t = rest.temp_c - reference_c
     n = len(d_t)
     nuisance = [np.ones((n, 1))]
@@ -206,10 +236,20 @@ def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> t
 
     y = rest.raw["gyr"]
     order, heldout = select_model({k: design(k) for k in range(max_order + 1)}, y)
-    coef, std = _lstsq(design(order), y)
+    fits = [fit_with_wander(design(order), y[:, j], rest.gyr_white[:, j], rest.t_s)
+            for j in range(3)]  # fmt: skip
+    coef = np.column_stack([f.coef for f in fits])
+    std = np.column_stack([np.sqrt(np.diag(f.cov)) for f in fits])
     p = design(0).shape[1]
-    evidence = {"order": order, "heldout_rms": heldout, "unit": "rad/s", "segments": n}
-    return coef[p:], std[p:], evidence
+    covariance = np.array([f.cov[p:, p:] for f in fits])
+    evidence = {
+        "order": order,
+        "heldout_rms": heldout,
+        "unit": "rad/s",
+        "segments": n,
+        "walk_per_s": [f.walk_per_s for f in fits],
+    }
+    return coef[p:], std[p:], covariance, evidence
 
 
 def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_order: int):
@@ -360,7 +400,7 @@ def fit_temperature(
         )
         return {}, {**evidence, "refused": refusal}
 
-    bias, bias_std, ev_g = _gyro(fit, rest, reference_c, max_order)
+    bias, bias_std, bias_cov, ev_g = _gyro(fit, rest, reference_c, max_order)
     scale = _gyro_scale(fit, bias, reference_c, max_order)
     ev_gyr = {"bias": ev_g}
     if scale is not None:
@@ -373,6 +413,7 @@ def fit_temperature(
             "bias: raw resting means against dT^k (constant and specific force as nuisance); "
             "scale: rate-table run means against u dT^k (u = K^-1 w of eq. 33); "
             "orders by leave-one-out residuals (one-standard-error rule)",
+            bias_cov if len(bias) else None,
         )  # fmt: skip
     else:
         ev_gyr["refused"] = "no polynomial order predicts held-out segments better than none"

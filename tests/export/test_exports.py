@@ -66,6 +66,19 @@ def calibration():
     return cal
 
 
+#: A g-sensitivity (rad/s per m/s^2, frame B) and a temperature term the tools cannot carry.
+G = np.array([[2e-4, -3e-5, 1e-5], [4e-5, -1.5e-4, 2e-5], [-1e-5, 3e-5, 1e-4]])
+TEMPERATURE = {"gyr": {"reference_c": 25.0, "span_c": [20.0, 30.0], "margin_c": 1.0,
+                       "bias": [[1e-4, 1e-4, 1e-4]], "scale": []}}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def with_terms(calibration):
+    """The calibration with a g-sensitivity and a temperature term (format 2)."""
+    return {**calibration, "format_version": 2,
+            "terms": {"g_sensitivity": {"matrix": G.tolist()}, "temperature": TEMPERATURE}}  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def noise():
     """noise.json of 20 min of white noise (per-axis densities) with a bias random walk."""
@@ -98,9 +111,24 @@ def raw():
     return {"acc": rng.normal(0, 9.81, (500, 3)), "gyr": rng.normal(0, 2.0, (500, 3))}
 
 
-def _ours(calibration, sensor, samples):
+def _ours(calibration, sensor, samples, acc=None):
+    """Our calibrated samples; the gyroscope's less ``G a_B`` when the model has a
+    g-sensitivity (``acc``: the raw specific force of the same samples)."""
     c = calibration[sensor]
-    return (np.array(c["matrix"]) @ (samples - np.array(c["bias"])).T).T
+    out = (np.array(c["matrix"]) @ (samples - np.array(c["bias"])).T).T
+    g = calibration.get("terms", {}).get("g_sensitivity")
+    if sensor == "gyr" and g is not None:
+        out -= _ours(calibration, "acc", acc) @ np.array(g["matrix"]).T
+    return out
+
+
+@pytest.fixture(scope="module")
+def files_with_terms(with_terms, noise):
+    out = {}
+    for fmt in FORMATS:
+        for name, text in export_files(fmt, with_terms, noise).items():
+            out[name] = text
+    return out
 
 
 @pytest.mark.parametrize("split", [lower_times_rotation, rotation_times_lower])
@@ -121,23 +149,39 @@ def test_a_reflection_is_refused():
         lower_times_rotation(np.diag([1.0, 1.0, -1.0]))
 
 
-def test_kalibr_equation_gives_our_calibration(files, calibration, raw):
-    """Kalibr (IccScaledMisalignedImu): a_m = M_a a_i + b_a, w_m = M_g C_gyro_i w_i + b_g
-    (A = 0), so a_i = M_a^-1 (a_m - b_a), w_i = C_gyro_i^T M_g^-1 (w_m - b_g); frame B from
-    v_B = R_i_B^T v_i."""
-    imu0 = files["kalibr_imu_chain.yaml"]["imu0"]
+def _kalibr_check(imu0, calibration, raw):
+    """Kalibr (IccScaledMisalignedImu): a_m = M_a a_i + b_a, w_m = M_g C_gyro_i w_i + A C_gyro_i
+    a_i + b_g, so a_i = M_a^-1 (a_m - b_a), w_i = C_gyro_i^T M_g^-1 (w_m - b_g - A C_gyro_i
+    a_i); frame B from v_B = R_i_B^T v_i."""
     r_i_b = np.array(imu0["imucal_R_i_B"])
     m_a = np.array(imu0["accelerometers"]["M"])
     a_i = np.linalg.solve(m_a, (raw["acc"] - imu0["imucal_acc_bias"]).T).T
     m_g, c = np.array(imu0["gyroscopes"]["M"]), np.array(imu0["gyroscopes"]["C_gyro_i"])
-    w_i = (c.T @ np.linalg.solve(m_g, (raw["gyr"] - imu0["imucal_gyr_bias"]).T)).T
+    a = np.array(imu0["gyroscopes"]["A"])
+    w_m = raw["gyr"] - imu0["imucal_gyr_bias"] - a_i @ (a @ c).T
+    w_i = (c.T @ np.linalg.solve(m_g, w_m.T)).T
     np.testing.assert_allclose(a_i @ r_i_b, _ours(calibration, "acc", raw["acc"]), atol=1e-9)
-    np.testing.assert_allclose(w_i @ r_i_b, _ours(calibration, "gyr", raw["gyr"]), atol=1e-9)
+    np.testing.assert_allclose(w_i @ r_i_b, _ours(calibration, "gyr", raw["gyr"], raw["acc"]),
+                               atol=1e-9)  # fmt: skip
     # the matrices Kalibr estimates are lower triangular (MatrixBasicDv pattern)
     for m in (m_a, m_g):
         np.testing.assert_array_equal(m, np.tril(m))
     assert imu0["model"] == "scale-misalignment"
-    np.testing.assert_array_equal(imu0["gyroscopes"]["A"], np.zeros((3, 3)))
+    return a
+
+
+def test_kalibr_equation_gives_our_calibration(files, calibration, raw):
+    a = _kalibr_check(files["kalibr_imu_chain.yaml"]["imu0"], calibration, raw)
+    np.testing.assert_array_equal(a, np.zeros((3, 3)))  # no g-sensitivity in the model
+
+
+def test_kalibr_carries_the_g_sensitivity_and_names_the_terms_it_drops(
+    files_with_terms, with_terms, raw
+):
+    text = files_with_terms["kalibr_imu_chain.yaml"]
+    a = _kalibr_check(yaml.safe_load(text)["imu0"], with_terms, raw)
+    assert np.abs(a).max() > 1e-5
+    assert "NOT in this file: the model terms temperature of calibration.json" in text
 
 
 def _openvins_d(t):
@@ -147,9 +191,23 @@ def _openvins_d(t):
 
 
 def test_openvins_equation_gives_our_calibration(files, calibration, raw):
+    _openvins_check(files["openvins_kalibr_imu_chain.yaml"]["imu0"], calibration, raw)
+
+
+def test_openvins_carries_the_g_sensitivity_and_names_the_terms_it_drops(
+    files_with_terms, with_terms, raw
+):
+    text = files_with_terms["openvins_kalibr_imu_chain.yaml"]
+    tg = _openvins_check(yaml.safe_load(text)["imu0"], with_terms, raw)
+    assert np.abs(tg).max() > 1e-5
+    assert "NOT in this file: the model terms temperature of calibration.json" in text
+    ros = files_with_terms["ros_imu_covariance.yaml"]
+    assert "model terms temperature, g_sensitivity of calibration.json" in ros
+
+
+def _openvins_check(imu0, calibration, raw):
     """OpenVINS (propagation-analytical.dox): w_I = R_IMUtoGYRO^T Dw (w_m - Tg a_I - b_g),
     a_I = R_IMUtoACC^T Da (a_m - b_a), with the lower triangle of Dw = Tw^-1 and Da = Ta^-1."""
-    imu0 = files["openvins_kalibr_imu_chain.yaml"]["imu0"]
     assert imu0["model"] == "kalibr"
     r_acc = np.array(imu0["R_IMUtoACC"]).T
     a_imu = (r_acc @ _openvins_d(imu0["Ta"]) @ (raw["acc"] - imu0["imucal_acc_bias"]).T).T
@@ -158,7 +216,9 @@ def test_openvins_equation_gives_our_calibration(files, calibration, raw):
     w_m = raw["gyr"] - imu0["imucal_gyr_bias"] - (tg @ a_imu.T).T
     w_imu = (r_gyr @ _openvins_d(imu0["Tw"]) @ w_m.T).T
     np.testing.assert_allclose(a_imu, _ours(calibration, "acc", raw["acc"]), atol=1e-9)
-    np.testing.assert_allclose(w_imu, _ours(calibration, "gyr", raw["gyr"]), atol=1e-9)
+    np.testing.assert_allclose(w_imu, _ours(calibration, "gyr", raw["gyr"], raw["acc"]),
+                               atol=1e-9)  # fmt: skip
+    return tg
 
 
 def test_ros_calibration_block_and_covariance(files, calibration, noise, raw):

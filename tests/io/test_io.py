@@ -175,7 +175,7 @@ def test_recording_round_trip_with_metadata(tmp_path: Path) -> None:
 
 
 def test_failed_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    def write_half_then_fail(table: object, where: str) -> None:
+    def write_half_then_fail(table: object, where: str, **options: object) -> None:
         Path(where).write_bytes(b"PAR1 partial")
         raise OSError("disk full")
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from imucal.calibration import ImuCalibration
+from imucal.columns import SENSORS
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import stages
@@ -36,6 +38,33 @@ def calibrate(folder: Path) -> tuple[dict, dict, dict]:
     truth = json.loads((folder / "truth.json").read_text())
     inputs = {"tables": tables, "segments": fit.segments, "lowpass": fit.lowpass}
     return fit.calibration.to_dict(), truth, inputs
+
+
+def test_without_covariance_the_chain_fits_the_same_values():
+    # the twin's replicas run the chain without the uncertainty propagation: only the
+    # covariance goes, the same arithmetic gives the fitted values (equal to rounding)
+    dataset = read_dataset(REPO / "data" / "demo")
+    imu = {
+        name: ingest_recording(path, recording=name, dataset=dataset, imucal_version="test")[0]
+        for name, path in dataset.recordings.items()
+        if name != "reference"
+    }
+    options = PipelineOptions.of_dataset(dataset)
+    full = calibrate_session(imu, None, options)
+    bare = calibrate_session(imu, None, replace(options, with_covariance=False), full.segments)
+    for sensor in SENSORS:
+        a, b = full.calibration.sensor(sensor), bare.calibration.sensor(sensor)
+        np.testing.assert_allclose(b.matrix, a.matrix, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(b.bias, a.bias, rtol=1e-12, atol=0)
+        assert a.covariance is not None and a.std
+        assert b.covariance is None and b.std == {}
+    for align in ("align", "acc", "mag"):
+        step2 = full.artifacts[align].get("step2", full.artifacts[align])
+        bare_step2 = bare.artifacts[align].get("step2", bare.artifacts[align])
+        np.testing.assert_allclose(
+            bare_step2["full"]["alpha_rad"], step2["full"]["alpha_rad"], rtol=1e-12, atol=0
+        )
+    assert "sensitivity" in full.artifacts["align"] and "sensitivity" not in bare.artifacts["align"]
 
 
 def max_errors(calibration: dict, truth: dict, sensor: str) -> tuple[float, float]:

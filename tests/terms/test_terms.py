@@ -342,3 +342,33 @@ def test_heldout_comparison_is_one_sided_against_the_prediction():
         assert h["short_of_prediction"] is short
     assert heldout_comparison("lever_arm", evidence, None)["short_of_prediction"] is None
     assert "note" in heldout_comparison("mag_delay", {}, None)
+
+
+def test_pose_to_pose_gravity_held_out_improves_with_the_terms(drift):
+    """The platform's turns are used by no term's estimator: the up direction of each
+    rotation3d rest predicted from the previous one through the integrated gyro comes closer
+    to the measured one with the temperature term (the drift turns the integral)."""
+    _, _, _, res = drift
+    p2p = res["pose_to_pose"]
+    assert p2p["values"] >= 2
+    assert p2p["rms_with"] < 0.2 * p2p["rms_without"], p2p
+
+
+def test_gap_comparison_is_two_sided():
+    from imucal.terms.heldout import gap_comparison
+
+    before = {"gap": {"total": 5000.0, "null_p95": 30.0}, "remaining": {"total": 150.0},
+              "explained": ["temperature_drift", "bias_instability"]}  # fmt: skip
+
+    def after(remaining, explained=("bias_instability",)):
+        return {"gap": {"total": remaining + 100, "null_p95": 40.0},
+                "remaining": {"total": remaining}, "explained": list(explained)}  # fmt: skip
+
+    verdicts = {r: gap_comparison(before, after(r), ["temperature"])["verdict"]
+                for r in (60.0, 180.0, 400.0)}  # fmt: skip
+    assert verdicts == {60.0: "better than predicted", 180.0: "as predicted",
+                        400.0: "short of the prediction"}  # fmt: skip
+    # the term's effect explained again after: the term did not take it
+    verdict = gap_comparison(before, after(100.0, ["temperature_drift"]), ["temperature"])
+    assert verdict["verdict"].startswith("short of the prediction: the diagnosis after still")
+    assert gap_comparison(before, {"note": "no model term"}, []) is None

@@ -7,14 +7,14 @@
 # each library effect alone over a grid of magnitudes and scores its detection limit.
 
 
+# The diagnosis runs the paper's chain in process (imucal.pipeline.full) on the ingested
+# recordings and the segments: it waits for none of the fit rules and runs beside them, started
+# first (priority) as the longest job on the way to calibration.json and the report.
 rule gap_diagnose:
     input:
         unpack(ingested),
         dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
-        acc="results/{dataset}/acc.json",
-        gyr="results/{dataset}/gyr.json",
-        mag="results/{dataset}/mag.json",
     output:
         diagnosis="results/{dataset}/gap/diagnosis.json",
         gap_map="results/{dataset}/gap/gap_map.png",
@@ -25,6 +25,7 @@ rule gap_diagnose:
         "results/{dataset}/benchmarks/gap_diagnose.tsv"
     wildcard_constraints:
         dataset=datasets_pattern(full=True),
+    priority: 10
     conda:
         "../envs/imucal.yaml"
     params:
