@@ -357,17 +357,27 @@ def test_pose_to_pose_gravity_held_out_improves_with_the_terms(drift):
 def test_gap_comparison_is_two_sided():
     from imucal.terms.heldout import gap_comparison
 
-    before = {"gap": {"total": 5000.0, "null_p95": 30.0}, "remaining": {"total": 150.0},
+    before = {"gap": {"total": 5000.0, "null_p95": 30.0},
+              "remaining": {"total": 150.0, "significant": True},
               "explained": ["temperature_drift", "bias_instability"]}  # fmt: skip
 
-    def after(remaining, explained=("bias_instability",)):
+    def after(remaining, explained=("bias_instability",), significant=True):
         return {"gap": {"total": remaining + 100, "null_p95": 40.0},
-                "remaining": {"total": remaining}, "explained": list(explained)}  # fmt: skip
+                "remaining": {"total": remaining, "significant": significant},
+                "explained": list(explained)}  # fmt: skip
 
     verdicts = {r: gap_comparison(before, after(r), ["temperature"])["verdict"]
                 for r in (60.0, 180.0, 400.0)}  # fmt: skip
     assert verdicts == {60.0: "better than predicted", 180.0: "as predicted",
                         400.0: "short of the prediction"}  # fmt: skip
+    # the diagnoses' own significance decides when one side has no gap left
+    closed = after(16.0, significant=False)
+    assert gap_comparison(before, closed, ["temperature"])["verdict"] == "better than predicted"
+    none_left = {**before, "remaining": {"total": 0.0, "significant": False}}
+    assert gap_comparison(none_left, closed, ["temperature"])["verdict"].startswith("as predicted")
+    assert gap_comparison(none_left, after(60.0), ["temperature"])["verdict"] == (
+        "short of the prediction"
+    )
     # the term's effect explained again after: the term did not take it
     verdict = gap_comparison(before, after(100.0, ["temperature_drift"]), ["temperature"])
     assert verdict["verdict"].startswith("short of the prediction: the diagnosis after still")
