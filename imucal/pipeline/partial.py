@@ -46,6 +46,11 @@ from imucal.segments.table import cut_finite, rows_of
 
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
 MAG_RECORDINGS = ("tumble", "rotation3d", "cube", "poses", "ferraris", "static")
+#: Recordings held at one orientation: they add one direction to the ellipsoid, and their
+#: thousands of samples there would outweigh the turning recordings with an error that does not
+#: average out over them (the reading's quantisation at a fixed field, a local field); offered
+#: to the fit only when they are the only source (which the coverage check then refuses).
+ONE_ORIENTATION = ("static",)
 #: The cube fit has 9 parameters and one equation per position.
 MIN_CUBE_POSITIONS = 9
 
@@ -191,7 +196,7 @@ def _mag_step1(s: _Session) -> dict:
 
     sources = [r for r in MAG_RECORDINGS if s.with_sensor(r, "mag")]
     _need(bool(sources), "no recording has magnetometer samples")
-    primary, extra = sources[0], sources[1:]
+    primary, extra = sources[0], [r for r in sources[1:] if r not in ONE_ORIENTATION]
     _, samples = magnetometer.field_samples(s.tables[primary])
     fit = magnetometer.fit_ellipsoid(
         samples,
