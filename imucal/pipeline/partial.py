@@ -333,6 +333,10 @@ def _gyr_align(s: _Session) -> dict:
     return stages.align_gyr(s.rotation3d_lowpass, s.segments, _bias(s))
 
 
+#: A rest this many samples or fewer away from a rotation section is next to it.
+ADJACENT_SAMPLES = 2
+
+
 def rest_to_rest(segments: pd.DataFrame, recording: str, rows: pd.DataFrame) -> pd.DataFrame:
     """Rotation sections widened to the middles of the rests (static or position) beside them.
 
@@ -342,7 +346,9 @@ def rest_to_rest(segments: pd.DataFrame, recording: str, rows: pd.DataFrame) -> 
     large for 720-deg turns, as large as its standard deviation). From the middle of the rest
     before to the middle of the rest after, the integral holds the whole turn, at the price of
     the rests' noise and the bias's error over them (both in the fit's covariance). A section
-    without a rest next to it keeps its bounds.
+    without a rest right next to it (ending or starting within :data:`ADJACENT_SAMPLES` of it)
+    keeps its bounds: a rest farther away has other motion between (declared sections of a
+    recording handled between them), which the integral must not take in.
 
     Parameters
     ----------
@@ -367,9 +373,13 @@ def rest_to_rest(segments: pd.DataFrame, recording: str, rows: pd.DataFrame) -> 
     for i, r in zip(rows.index, rows.itertuples(index=False)):
         before = np.flatnonzero(ends <= int(r.start_index))
         after = np.flatnonzero(starts >= int(r.end_index))
-        if before.size and rest[before[-1]]:
+        if (
+            before.size
+            and rest[before[-1]]
+            and r.start_index - ends[before[-1]] <= ADJACENT_SAMPLES
+        ):
             out.loc[i, "start_index"] = middles[before[-1]]
-        if after.size and rest[after[0]]:
+        if after.size and rest[after[0]] and starts[after[0]] - r.end_index <= ADJACENT_SAMPLES:
             out.loc[i, "end_index"] = middles[after[0]] + 1
     return out
 

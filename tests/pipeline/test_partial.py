@@ -154,3 +154,8 @@ def test_rotation_sections_run_from_rest_to_rest():
     assert wide["start_index"].tolist() == [50, 350]  # before y: a transition, kept
     assert wide["end_index"].tolist() == [300, 551]  # after x: a transition, kept
     assert phases["start_index"].tolist() == [100, 350]  # the input is not changed
+    # a rest with other motion between it and the section (a gap) is not next to it
+    apart = segments.assign(start_index=[0, 110, 300, 350, 520, 0])
+    wide = partial.rest_to_rest(apart, "r", apart[apart["kind"] == "phase"])
+    assert wide["start_index"].tolist() == [110, 350]
+    assert wide["end_index"].tolist() == [300, 500]
