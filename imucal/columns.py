@@ -40,6 +40,8 @@ TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")
 
 #: Unit of each sensor after ingest (inside the package everything is SI).
 SI_UNITS = {"acc": "m/s^2", "gyr": "rad/s", "mag": "normalised"}
+#: The unit of every sensor column in SI (the ``units`` of ingested, uncalibrated metadata).
+SI_COLUMN_UNITS = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
 
 #: The packet counter is 16 bit and wraps at this value.
 SEQ_MODULUS = 65536

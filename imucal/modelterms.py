@@ -345,20 +345,22 @@ class LeverArm:
                 raise ValueError(f"lever_arm.{name} must be 3 finite values (m), got {v!r}")
             object.__setattr__(self, name, v)
 
+    @staticmethod
+    def _sensed(omega: np.ndarray, w_dot: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """``w x (w x r) + dw/dt x r`` (n, 3): linear in ``r``."""
+        return np.cross(omega, np.cross(omega, r)) + np.cross(w_dot, r)
+
     def acceleration(self, t_s: np.ndarray, omega: np.ndarray) -> np.ndarray:
         """``w x (w x r) + dw/dt x r`` (m/s^2, shape (n, 3)) for rates ``omega`` (rad/s, frame
         B, shape (n, 3), finite) at times ``t_s`` (s, shape (n,))."""
-        w_dot = angular_acceleration(t_s, omega)
-        return np.cross(omega, np.cross(omega, self.r_m)) + np.cross(w_dot, self.r_m)
+        return self._sensed(omega, angular_acceleration(t_s, omega), self.r_m)
 
     def variance(self, t_s: np.ndarray, omega: np.ndarray) -> np.ndarray:
         """Variance (n, 3) of :meth:`acceleration` from ``std_m`` (independent axes): it is
-        ``L r`` with ``L = [w]x [w]x + [dw/dt]x``."""
+        linear in ``r``, its column j that of ``e_j``."""
         w_dot = angular_acceleration(t_s, omega)
-        eye = np.eye(3)
-        # column j of L is L e_j
-        cols = [np.cross(omega, np.cross(omega, e)) + np.cross(w_dot, e) for e in eye]
-        return sum((c * s) ** 2 for c, s in zip(cols, self.std_m, strict=True))
+        return sum((self._sensed(omega, w_dot, e) * sd) ** 2
+                   for e, sd in zip(np.eye(3), self.std_m, strict=True))  # fmt: skip
 
     def to_dict(self) -> dict:
         return {

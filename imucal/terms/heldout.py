@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from imucal.calibration import ImuCalibration
-from imucal.columns import ACC, GYR, SENSOR_COLUMNS, SENSORS, SI_UNITS, TIME
+from imucal.columns import ACC, GYR, SI_COLUMN_UNITS, TIME
 from imucal.gap import statistics as st
 from imucal.pipeline.full import SessionFit
 from imucal.pipeline.stages import apply_calibration
@@ -60,12 +60,14 @@ def pose_to_pose_angles(fit: SessionFit, calibration: ImuCalibration) -> np.ndar
     if "rotation3d" not in fit.imu:
         return np.zeros(0)
     table = fit.imu["rotation3d"]
-    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
-    values, _ = apply_calibration(table, {"units": units}, calibration, source="rotation3d")
+    values, _ = apply_calibration(
+        table, {"units": SI_COLUMN_UNITS}, calibration, source="rotation3d"
+    )
     gyr, acc = values[list(GYR)].to_numpy(float), values[list(ACC)].to_numpy(float)
     t = table[TIME].to_numpy(float)
-    rests = list(row_bounds(st._rows(fit, "rotation3d", "static")))
-    up = st._means(acc, st._rows(fit, "rotation3d", "static"))
+    rows = st._rows(fit, "rotation3d", "static")
+    rests = list(row_bounds(rows))
+    up = st._means(acc, rows)
     up /= np.linalg.norm(up, axis=1, keepdims=True)
     angles = []
     for (_, end), (start, _), u0, u1 in zip(rests[:-1], rests[1:], up[:-1], up[1:], strict=True):

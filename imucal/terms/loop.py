@@ -17,7 +17,7 @@ import pandas as pd
 
 from imucal import errormodel
 from imucal.calibration import ImuCalibration
-from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_UNITS
+from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_COLUMN_UNITS
 from imucal.io import to_jsonable
 from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
@@ -49,10 +49,9 @@ def corrected_session(
         Readings ``o + K^-1 v`` per sensor, ``v`` calibrated with ``base`` and ``terms``.
     """
     model = base.with_terms(terms)
-    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
     out = {}
     for name, table in imu.items():
-        values, _ = apply_calibration(table, {"units": units}, model, source=name)
+        values, _ = apply_calibration(table, {"units": SI_COLUMN_UNITS}, model, source=name)
         fixed = table.copy()
         for s in SENSORS:
             cal = base.sensor(s)

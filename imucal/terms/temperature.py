@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imucal.columns import AXES, GYR, SENSOR_COLUMNS, TIME, temperature_column
+from imucal.columns import AXES, GYR, SENSOR_COLUMNS, TIME, column_values, temperature_column
 from imucal.fits.wander import fit_with_wander
 from imucal.gap import statistics as st
 from imucal.modelterms import TemperaturePolynomial
@@ -79,17 +79,18 @@ def _segment_means(fit: SessionFit, segments: list) -> Means:
     raw = {s: [] for s in ("acc", "gyr")}
     acc_b, temp, white, mid = [], [], [], []
     clock = st.session_clock(fit)
+    quantum = float(fit.extra["options"].sensitivity["gyr"])
     for rec, rows in segments:
         table = fit.imu[rec]
         col = temperature_column(table)
         if col is None or rows.empty:
             continue
         t = st._means(table[[col]].to_numpy(dtype=float), rows)[:, 0]
+        readings = {s: column_values(table, SENSOR_COLUMNS[s]) for s in raw}
         for s in raw:
-            raw[s].append(st._means(table[list(SENSOR_COLUMNS[s])].to_numpy(dtype=float), rows))
+            raw[s].append(st._means(readings[s], rows))
         acc_b.append(st._means(np.asarray(calibrated(fit, rec, "acc")), rows))
-        gyr = table[list(GYR)].to_numpy(dtype=float)
-        quantum = float(fit.extra["options"].sensitivity["gyr"])
+        gyr = readings["gyr"]
         white.append([_white_variance(gyr[a:b], quantum) for a, b in row_bounds(rows)])
         start = float(table[TIME].iloc[0])
         mid.append(clock[rec] + st._mid_times(fit, rec, rows) - start)

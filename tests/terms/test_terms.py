@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from imucal.calibration import ImuCalibration
-from imucal.columns import ACC, GYR, MAG, SENSOR_COLUMNS, SENSORS, SI_UNITS
+from imucal.columns import ACC, GYR, MAG, SENSORS, SI_COLUMN_UNITS
 from imucal.gap import statistics as st
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
 from imucal.modelterms import LeverArm, ModelTerms, TemperaturePolynomial
@@ -62,13 +62,12 @@ def drift(twin):
 def _resting_residuals(twin, imu, ref, calibration):
     """|a| - g (m/s^2) and |w| (rad/s) of the resting means (rate table left out), with the
     session's readings calibrated by ``calibration`` (its terms included)."""
-    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
     fit = calibrate_session(imu, ref, twin.options)
     acc, gyr = [], []
     for rec, rows in st.resting_rows(fit, None):
         if rec == "ratetable":
             continue
-        table, _ = apply_calibration(imu[rec], {"units": units}, calibration, source=rec)
+        table, _ = apply_calibration(imu[rec], {"units": SI_COLUMN_UNITS}, calibration, source=rec)
         acc.append(st._means(table[list(ACC)].to_numpy(float), rows))
         gyr.append(st._means(table[list(GYR)].to_numpy(float), rows))
     acc, gyr = np.vstack(acc), np.vstack(gyr)
@@ -205,7 +204,7 @@ def _recording(n=50, temp=None):
     table.insert(0, "t_s", np.arange(n) * 0.01)
     if temp is not None:
         table["temp_c"] = temp
-    meta = {"units": {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}}
+    meta = {"units": SI_COLUMN_UNITS}
     return table, meta
 
 
@@ -303,9 +302,10 @@ def test_the_sessions_own_samples_are_inside_the_calibrated_span(drift):
     """The span is that of the samples the polynomials were fitted on (not of the segment
     means): the session's coldest and warmest samples are in its first and last rest."""
     imu, _, _, res = drift
-    units = {c: SI_UNITS[s] for s in SENSORS for c in SENSOR_COLUMNS[s]}
     for name, table in imu.items():
-        _, meta = apply_calibration(table, {"units": units}, res["calibration"], source=name)
+        _, meta = apply_calibration(
+            table, {"units": SI_COLUMN_UNITS}, res["calibration"], source=name
+        )
         for sensor, flag in meta["temperature_outside_span"].items():
             assert flag["outside_fraction"] == 0, (name, sensor, flag)
 
