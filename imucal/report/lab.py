@@ -782,6 +782,24 @@ def _plus_minus(value: Any, std: Any) -> str:
     return f"{format_value(value)} ± {format_value(std, 2)}"
 
 
+def _heldout_row(term: str, h: Mapping) -> dict:
+    """One row of the held-out table from a comparison of :mod:`imucal.terms.heldout`."""
+    if "note" in h:
+        return {"term": term, "residual": h["note"], "rms": "", "achieved": "", "predicted": "",
+                "verdict": ""}  # fmt: skip
+    predicted = h["predicted_shrink"]
+    verdict = ("no prediction" if predicted is None else
+               "short of the prediction" if h["short_of_prediction"] else "as predicted or better")  # fmt: skip
+    return {
+        "term": term,
+        "residual": h["residual"],
+        "rms": f"{format_number(h['rms_without'], 3)} → {format_number(h['rms_with'], 3)}",
+        "achieved": _plus_minus(h["achieved_shrink"], h["achieved_std"]),
+        "predicted": format_number(predicted, 2) if predicted is not None else "-",
+        "verdict": verdict,
+    }
+
+
 def _terms_section(
     paths: Sequence[str | Path] | None, gap: Sequence[str | Path] | None
 ) -> dict | None:
@@ -821,36 +839,11 @@ def _terms_section(
         m = model["mag_delay"]
         values.append({"term": "magnetometer delay", "value": _plus_minus(m["delay_s"], m["std_s"]),
                        "unit": m["unit"]})  # fmt: skip
-    heldout = []
-    for name, r in summary["terms"].items():
-        h = r.get("heldout")
-        if not h:
-            continue
-        if "note" in h:
-            heldout.append({"term": name, "residual": h["note"], "rms": "", "achieved": "",
-                            "predicted": "", "verdict": ""})  # fmt: skip
-            continue
-        predicted = h["predicted_shrink"]
-        verdict = ("no prediction" if predicted is None else
-                   "short of the prediction" if h["short_of_prediction"] else "as predicted or better")  # fmt: skip
-        heldout.append({
-            "term": name,
-            "residual": h["residual"],
-            "rms": f"{format_number(h['rms_without'], 3)} → {format_number(h['rms_with'], 3)}",
-            "achieved": _plus_minus(h["achieved_shrink"], h["achieved_std"]),
-            "predicted": format_number(predicted, 2) if predicted is not None else "-",
-            "verdict": verdict,
-        })  # fmt: skip
+    heldout = [_heldout_row(name, r["heldout"]) for name, r in summary["terms"].items()
+               if r.get("heldout")]  # fmt: skip
     p2p = summary.get("heldout_pose_to_pose")
     if p2p and "note" not in p2p:
-        heldout.append({
-            "term": "all terms in the model",
-            "residual": p2p["residual"],
-            "rms": f"{format_number(p2p['rms_without'], 3)} → {format_number(p2p['rms_with'], 3)}",
-            "achieved": _plus_minus(p2p["achieved_shrink"], p2p["achieved_std"]),
-            "predicted": "-",
-            "verdict": "no prediction",
-        })  # fmt: skip
+        heldout.append(_heldout_row("all terms in the model", p2p))
     gap_before = (before.get("gap") or {}).get("total")
     gap_after = (after.get("gap") or {}).get("total")
     compared = gap_comparison(before, after, summary["in_model"])
