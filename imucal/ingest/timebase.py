@@ -4,8 +4,8 @@ One place for what ingest, low-pass filtering, segmentation and validation all n
 
 * :func:`resolve_packet_steps` and :func:`unwrap_counter`: the 16-bit packet counter ``seq``
   wraps at 65536; the receiver time resolves how many wraps a long silence hid.
-* :func:`sampling_period` and :func:`gap_threshold_s`: the nominal period of timestamps that may
-  be *irregular*. Host receive times of a serial or radio link come in bursts (sunsided's
+* :func:`sampling_period`, :func:`nominal_period` and :func:`gap_threshold_s`: the nominal
+  period of timestamps that may be *irregular*. Host receive times of a serial or radio link come in bursts (sunsided's
   MPU6050 log: a median step of 2 ms at ~99 Hz, pauses up to 0.5 s followed by catch-up
   bursts). Then the median step says nothing about the rate, and the effective period (mean
   ordinary step) is the nominal period; a time gap is judged against the longest ordinary
@@ -240,6 +240,20 @@ def sampling_period(t_s: np.ndarray) -> tuple[float, bool]:
             f"{TIME}: median time step is 0 over {t.size} samples; expected a sampling period > 0"
         )
     return period, bool(irregular)
+
+
+def nominal_period(t_s: np.ndarray) -> float:
+    """Nominal sampling period of timestamps ``t_s``, shape (n,), in s.
+
+    The median step; for irregular (bursty) timestamps the effective period
+    (:func:`sampling_period`). Equal consecutive stamps are allowed.
+
+    Raises
+    ------
+    ValueError
+        If there are fewer than two samples, a timestamp decreases or the median step is 0.
+    """
+    return sampling_period(t_s)[0]
 
 
 def gap_threshold_s(t_s: np.ndarray, gap_periods: float) -> float:

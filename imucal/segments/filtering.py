@@ -33,7 +33,12 @@ import pandas as pd
 from scipy import signal
 
 from imucal.columns import SENSOR_COLUMNS, SEQ, TIME
-from imucal.ingest.timebase import gap_threshold_s, resolve_packet_steps, sampling_period
+from imucal.ingest.timebase import (
+    gap_threshold_s,
+    nominal_period,
+    resolve_packet_steps,
+    sampling_period,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -84,20 +89,6 @@ def padding_length(sos: np.ndarray) -> int:
     n_sections = sos.shape[0]
     zeros = min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
     return 3 * (2 * n_sections + 1 - zeros)
-
-
-def nominal_period(t_s: np.ndarray) -> float:
-    """Nominal sampling period of timestamps ``t_s``, shape (n,), in s.
-
-    The median step; for irregular (bursty) timestamps the effective period
-    (:func:`imucal.ingest.timebase.sampling_period`). Equal consecutive stamps are allowed.
-
-    Raises
-    ------
-    ValueError
-        If there are fewer than two samples, a timestamp decreases or the median step is 0.
-    """
-    return sampling_period(t_s)[0]
 
 
 def find_contiguous_blocks(
