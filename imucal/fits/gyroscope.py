@@ -327,8 +327,9 @@ def estimate_scale(
     t_s : ndarray, shape (n,)
         Timestamps, s, strictly increasing (gaps from lost packets allowed).
     rate_rad_s : ndarray, shape (n, 3)
-        Gyroscope rate after bias removal and alignment, ``T_R (w - o)``, with unit scale, rad/s;
-        the window runs from the pause before the phase to the pause after it.
+        Gyroscope rate after bias removal and alignment, ``T_R diag(s / s_axis) (w - o)``: the
+        other axes' scales ``s`` relative to this one's (unit scale while they are not known),
+        rad/s; the window runs from the pause before the phase to the pause after it.
     axis : {'x', 'y', 'z'}
         Rotation axis of the phase in frame B.
     angle_change_rad : float
@@ -354,9 +355,11 @@ def estimate_scale(
     ``N * t_s`` as printed: with lost packets a constant step would undercount the angle. Across
     a gap the rate is interpolated linearly. The integral of white noise has variance
     ``sigma^2 sum_k w_k^2`` with the trapezoid weights ``w_k`` (about ``sigma^2 T dt``).
-    The aligned rate ``T_R (w - o)`` differs from ``T_R S (w - o) / s_axis`` by terms of the
-    order of the misalignment angle squared times the scale spread; ``T_N`` is not observable
-    without a rate table.
+    The phase axis' rate takes in the other axes' readings through the off-diagonal entries of
+    ``T_R``; at unit scale their sensitivity is taken as this axis', an error of the order of
+    the misalignment angle squared times the scales' spread (1e-4 for 2 deg and 10 %), which
+    the relative scales remove (:func:`imucal.pipeline.stages.estimate_gyr_scale` measures
+    twice). ``T_N`` is not observable without a rate table.
     """
     k = _axis_index(axis)
     t = np.asarray(t_s, dtype=float)

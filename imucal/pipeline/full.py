@@ -171,7 +171,9 @@ def calibrate_session(
     align = stages.align_gyr(low, segments, o, exact=exact, with_covariance=cov)
     notes = []
     try:
-        scale = stages.estimate_gyr_scale(imu["rotation3d"], segments, bias, align, acc, mag)
+        scale = stages.estimate_gyr_scale(
+            imu["rotation3d"], low, segments, bias, align, acc, mag, with_covariance=cov
+        )
     except ValueError as err:
         # eq. 36 integrates on the receive timestamps and refuses repeated ones, or phases
         # clipped at the range; with a rate table the final calibration does not need it, so
@@ -198,9 +200,7 @@ def calibrate_session(
                 raise
             notes.append(f"rate-table fit (eq. 33) failed: {err}; the tool-free result is used")
             table = table_align = None
-    gyr, _ = stages.combine_gyr(
-        bias, align, scale, table, table_align, exact=exact, with_covariance=cov
-    )
+    gyr, _ = stages.combine_gyr(bias, scale, table, table_align, exact=exact, with_covariance=cov)
     calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None
     if reference is not None:
@@ -229,9 +229,11 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     Repeats step 2 of each sensor (``align_mag``, ``align_acc``, ``align_gyr`` and the rate
     table's alignment) and ``combine_gyr`` on the session's stage-1 artifacts, with the exact
     rotation or the paper's small-angle form (eq. 5). The tool-free gyro scale (eq. 36) is
-    kept from the session's fit: it enters only without a rate table, and its dependence on
-    the alignment form is of higher order than the alignment's own. The covariance is carried
-    as in the fit (``with_covariance`` of its options).
+    kept from the session's fit and its alignment refitted as the fit did it (at the first
+    pass's scale, :func:`~imucal.pipeline.stages.estimate_gyr_scale`): the scale enters
+    only without a rate table, and its dependence on the alignment form is of higher order
+    than the alignment's own. The covariance is carried as in the fit (``with_covariance`` of
+    its options).
 
     Parameters
     ----------
@@ -250,14 +252,25 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     )
     acc = stages.align_acc(low, seg, a["cube"], exact=exact, with_covariance=cov)
     o, _ = stages.gyr_bias_value(a["bias"], "ls")
-    align = stages.align_gyr(low, seg, o, exact=exact, with_covariance=cov)
+    scale = a["scale"]
+    if scale is not None:
+        refit = stages.align_gyr(
+            low,
+            seg,
+            o,
+            np.diag(scale["first_pass_scale"]),  # as the fit refitted it
+            method=scale["alignment"]["used"],
+            exact=exact,
+            with_covariance=cov,
+        )
+        scale = {**scale, "alignment": refit}
     table_align = None
     if a["table"] is not None:
         table_align = stages.align_gyr(
             low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact, with_covariance=cov
         )
     gyr, _ = stages.combine_gyr(
-        a["bias"], align, a["scale"], a["table"], table_align, exact=exact, with_covariance=cov
+        a["bias"], scale, a["table"], table_align, exact=exact, with_covariance=cov
     )
     return stages.combine_calibration(acc, gyr, mag)
 

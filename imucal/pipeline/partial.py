@@ -563,6 +563,7 @@ def _gyr_scale(s: _Session) -> dict:
     )
     return stages.estimate_gyr_scale(
         s.tables["rotation3d"],
+        s.rotation3d_lowpass,
         s.segments,
         s.done["gyr_bias"],
         s.done["gyr_align"],
@@ -720,7 +721,7 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
             cov,
         ).to_dict()
     if stage == "gyr_scale":
-        align = done["gyr_align"]
+        align = artifact["alignment"]  # refitted at eq. 36's scale
         alpha = np.asarray(align[align["used"]]["alpha_rad"], dtype=float)
         bias = done["gyr_bias"]
         return SensorCalibration(

@@ -6,7 +6,7 @@ low-pass filtered) tables, calls the fits of :mod:`imucal.fits.accelerometer`,
 figures, never saved here). Stages exchange their results through these artifacts, so one stage
 can be rerun on new data.
 
-The module is long (about 960 lines) because it has one function per rule of the paper's
+The module is long (about 1150 lines) because it has one function per rule of the paper's
 stage-per-rule path; the in-process chain (:mod:`imucal.pipeline.full`) and the partial path
 (:mod:`imucal.pipeline.partial`) call the same functions, so a stage is written once.
 """
@@ -470,8 +470,75 @@ def _mean_angle_std(angles: np.ndarray, variances: np.ndarray) -> float:
     return float(np.sqrt(var))
 
 
+def _phase_angles(
+    rotation3d: pd.DataFrame, segments: pd.DataFrame, measuring: list
+) -> dict[str, dict]:
+    """Phase label -> its window (rows from the pause before to the pause after), the angles
+    of the sensors that measured it, and the angle used (their mean) with its std (rad)."""
+    out = {}
+    for phase in rows_of(segments, "rotation3d", "phase").itertuples(index=False):
+        before, after = _adjacent_static(segments, phase)
+        parts = [slice(int(s.start_index), int(s.end_index)) for s in (before, phase, after)]
+        angles, angle_var = {}, {}
+        for name, cal, cols in measuring:
+            vectors = [
+                errormodel.apply(cal.matrix, cal.bias, column_values(rotation3d, cols, p))
+                for p in parts
+            ]
+            try:
+                angles[name] = gyroscope.measure_angle_change(*vectors, phase.label)
+                angle_var[name] = _pause_angle_variance(vectors[0], vectors[2], phase.label)
+            except ValueError as err:
+                angles[name] = str(err)
+        measured = [a for a in angles.values() if isinstance(a, float)]
+        if not measured:
+            raise ValueError(f"phase {phase.label!r}: no sensor could measure its angle: {angles}")
+        out[phase.label] = {
+            "window": rotation3d.iloc[int(before.start_index) : int(after.end_index)],
+            "angles_rad": angles,
+            "angle_rad": float(np.mean(measured)),
+            "angle_std_rad": _mean_angle_std(
+                np.array(measured), np.array([angle_var[n] for n in angles if n in angle_var])
+            ),
+        }
+    missing = [a for a in AXES if a not in out]
+    if missing:
+        raise ValueError(f"eq. 36 needs the phases x, y, z of rotation3d; missing {missing}")
+    return out
+
+
+def _phase_scales(
+    angles: Mapping[str, dict],
+    o: np.ndarray,
+    rotation: np.ndarray,
+    scale: np.ndarray,
+    noise: np.ndarray,
+) -> dict[str, dict]:
+    """Eq. 36 per phase with the rate ``T_R diag(scale / scale_k) (w - o)``, k the phase axis.
+
+    The other axes' sensitivities enter the phase axis' rate through ``T_R``'s off-diagonal
+    entries; weighting them by their scale relative to this axis' makes the ratio of angle to
+    integral this axis' scale (eq. 36 takes them all as equal, ``scale`` = 1)."""
+    per_phase = {}
+    for label, phase in angles.items():
+        k = AXES.index(label)
+        raw = column_values(phase["window"], GYR)
+        fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
+        result = gyroscope.estimate_scale(
+            integration_times(phase["window"][fresh]),
+            errormodel.apply(rotation @ np.diag(scale / scale[k]), o, raw[fresh]),
+            label,
+            phase["angle_rad"],
+            noise_std_rad_s=float(noise[k]),
+            angle_std_rad=phase["angle_std_rad"],
+        )
+        per_phase[label] = {"angles_rad": phase["angles_rad"], **plain(result)}
+    return per_phase
+
+
 def estimate_gyr_scale(
     rotation3d: pd.DataFrame,
+    rotation3d_lowpass: pd.DataFrame,
     segments: pd.DataFrame,
     bias: Mapping,
     alignment: Mapping,
@@ -479,8 +546,9 @@ def estimate_gyr_scale(
     mag: Mapping | None,
     *,
     bias_estimator: str = "ls",
+    with_covariance: bool = True,
 ) -> dict:
-    """Gyroscope scale without tools (eq. 36), after the alignment (the paper's order).
+    """Gyroscope scale without tools (eq. 36) after the alignment, and ``T_R,gyr`` at that scale.
 
     The rotation angle of each phase is measured from the calibrated magnetometer (all phases)
     and accelerometer (phases with a horizontal axis) between the static pauses before and
@@ -488,23 +556,39 @@ def estimate_gyr_scale(
     The gyroscope rate, bias-free and aligned with ``T_R,gyr``, is integrated on the timestamps
     over the same window.
 
+    The paper's order, alignment before scale, aligns the rates at unit scale. With unequal
+    scales the rate of a phase about axis k is not along any one direction that a rotation can
+    turn onto k for all three phases at once: the alignment is off by about ``alpha`` times
+    the scales' relative spread, and the integral of the phase axis' rate takes the other
+    axes' sensitivity as this one's (an error of ``alpha^2`` times the spread, 1e-4 for 2 deg
+    and 10 %, as large as the noise). So the scale is measured twice: first as the paper does,
+    then with ``T_R,gyr`` refitted to ``diag(scale) (w - o)`` (the alignment stage's method
+    and form) and the other axes' rates weighted by their scale. The second pass is
+    exact to first order in the first pass's error.
+
     Parameters
     ----------
     rotation3d : DataFrame
         Ingested rotation3d recording.
+    rotation3d_lowpass : DataFrame
+        The low-pass filtered rotation3d recording (the alignment's input).
     bias, alignment : dict
-        Artifacts of the bias and alignment stages.
+        Artifacts of the bias and alignment (unit scale) stages.
     acc, mag : dict or None
         Artifacts of the accelerometer and magnetometer stages (``calibration`` key); None (or a
         recording without the sensor's columns) leaves that sensor out of the angle measurement.
+    with_covariance : bool
+        As for :func:`align_gyr` (the refitted alignment's sensitivity and covariance).
 
     Returns
     -------
     dict
-        Per phase the angles, integrated angle and scale; ``scale`` (3,), ``std_scale`` (3,).
+        Per phase the angles, integrated angle and scale; ``scale`` (3,), ``std_scale`` (3,);
+        ``first_pass_scale`` (3,), the paper's (at the unit-scale alignment); ``alignment``,
+        the :func:`align_gyr` artifact refitted at ``first_pass_scale``, which the tool-free
+        calibration uses.
     """
     o, _ = gyr_bias_value(bias, bias_estimator)
-    rotation = np.asarray(alignment[alignment["used"]]["matrix"], dtype=float)
     measuring = [
         (name, SensorCalibration.from_dict(name, artifact["calibration"]), cols)
         for name, artifact, cols in (("mag", mag, MAG), ("acc", acc, ACC))
@@ -525,48 +609,27 @@ def estimate_gyr_scale(
             f"eq. 36 needs the whole rotation of each phase in the gyroscope; phase(s) {clipped} "
             "are clipped at its range (the integrated angle is only a lower bound)"
         )
-    per_phase = {}
-    for phase in phases.itertuples(index=False):
-        before, after = _adjacent_static(segments, phase)
-        window = rotation3d.iloc[int(before.start_index) : int(after.end_index)]
-        parts = [slice(int(s.start_index), int(s.end_index)) for s in (before, phase, after)]
-        angles, angle_var = {}, {}
-        for name, cal, cols in measuring:
-            vectors = [
-                errormodel.apply(cal.matrix, cal.bias, column_values(rotation3d, cols, p))
-                for p in parts
-            ]
-            try:
-                angles[name] = gyroscope.measure_angle_change(*vectors, phase.label)
-                angle_var[name] = _pause_angle_variance(vectors[0], vectors[2], phase.label)
-            except ValueError as err:
-                angles[name] = str(err)
-        measured = [a for a in angles.values() if isinstance(a, float)]
-        if not measured:
-            raise ValueError(f"phase {phase.label!r}: no sensor could measure its angle: {angles}")
-        angle_std = _mean_angle_std(
-            np.array(measured), np.array([angle_var[n] for n in angles if n in angle_var])
-        )
-        raw = column_values(window, GYR)
-        fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
-        rate = errormodel.apply(rotation, o, raw[fresh])
-        k = AXES.index(phase.label)
-        result = gyroscope.estimate_scale(
-            integration_times(window[fresh]),
-            rate,
-            phase.label,
-            float(np.mean(measured)),
-            noise_std_rad_s=float(noise[k]),
-            angle_std_rad=angle_std,
-        )
-        per_phase[phase.label] = {"angles_rad": angles, **plain(result)}
-    missing = [a for a in AXES if a not in per_phase]
-    if missing:
-        raise ValueError(f"eq. 36 needs the phases x, y, z of rotation3d; missing {missing}")
+    angles = _phase_angles(rotation3d, segments, measuring)
+    chosen = alignment[alignment["used"]]
+    unit = _phase_scales(angles, o, np.asarray(chosen["matrix"], dtype=float), np.ones(3), noise)
+    first_pass = np.array([unit[a]["scale"] for a in AXES])
+    refit = align_gyr(
+        rotation3d_lowpass,
+        segments,
+        o,
+        np.diag(first_pass),
+        method=alignment["used"],
+        exact=bool(chosen["exact"]),
+        with_covariance=with_covariance,
+    )
+    rotation = np.asarray(refit[refit["used"]]["matrix"], dtype=float)
+    per_phase = _phase_scales(angles, o, rotation, first_pass, noise)
     return {
         "per_phase": per_phase,
         "scale": [per_phase[a]["scale"] for a in AXES],
         "std_scale": [per_phase[a]["std"] for a in AXES],
+        "first_pass_scale": first_pass.tolist(),
+        "alignment": refit,
     }
 
 
@@ -643,23 +706,15 @@ def _truth_rows(truth: Mapping | None) -> tuple[dict, dict]:
     return {"truth": tuple(truth["gyr"]["bias"])}, {"truth": tuple(scale)}
 
 
-def _bias_sensitivity(alignment: Mapping) -> np.ndarray:
-    """``d alpha / d (S', o)`` of the tool-free alignment with the bias columns only, (3, 9).
-
-    The tool-free alignment runs on unit scale: the columns of ``S'`` do not apply (eq. 36's
-    scale comes after the alignment)."""
-    g = np.zeros((3, 9))
-    g[:, 6:] = np.asarray(alignment["sensitivity"], dtype=float)[:, 6:]
-    return g
-
-
 def _tool_free_covariance(
-    scale: Mapping, o: np.ndarray, o_std: np.ndarray, alignment: Mapping, exact: bool
+    scale: Mapping, o: np.ndarray, o_std: np.ndarray, exact: bool
 ) -> np.ndarray:
     """Covariance of the tool-free gyroscope calibration ``T_R diag(s)``, ``o``, (21, 21).
 
-    A two-step calibration whose step 1 is ``(diag(s), o)``, ``s`` and ``o`` independent;
-    ``T_N`` is not observable and taken as exact (xi = 0)."""
+    A two-step calibration whose step 1 is ``(diag(s), o)``, ``s`` and ``o`` independent, and
+    whose step 2 is the alignment at eq. 36's scale (``scale['alignment']``, its sensitivity to
+    ``diag(s)`` and ``o``); ``T_N`` is not observable and taken as exact (xi = 0)."""
+    alignment = scale["alignment"]
     chosen = alignment[alignment["used"]]
     step1 = np.zeros((9, 9))
     step1[[0, 3, 5], [0, 3, 5]] = np.square(np.asarray(scale["std_scale"], dtype=float))
@@ -670,7 +725,7 @@ def _tool_free_covariance(
         step1,
         np.asarray(chosen["alpha_rad"], dtype=float),
         np.asarray(chosen["covariance"], dtype=float),
-        _bias_sensitivity(alignment),
+        np.asarray(alignment["sensitivity"], dtype=float),
         exact,
     )
     xi = uncertainty.GROUPS["xi_rad"]
@@ -699,7 +754,6 @@ def _table_covariance(table: Mapping, table_alignment: Mapping, exact: bool) -> 
 
 def combine_gyr(
     bias: Mapping,
-    alignment: Mapping,
     scale: Mapping | None,
     table: Mapping | None,
     table_alignment: Mapping | None,
@@ -711,7 +765,8 @@ def combine_gyr(
 ) -> tuple[dict, pd.DataFrame]:
     """The gyroscope calibration with and without tools, and the paper's Tables I and II.
 
-    Without tools the matrix is ``T_R,gyr diag(scale)`` (``T_N,gyr`` is not observable); with a
+    Without tools the matrix is ``T_R,gyr diag(scale)`` with the alignment at eq. 36's scale
+    (``scale['alignment']``, :func:`estimate_gyr_scale`; ``T_N,gyr`` is not observable); with a
     rate table it is ``T_R,gyr S'_gyr``. The final calibration uses the rate table when there is
     one (it observes the non-orthogonality), otherwise the tool-free result. ``scale`` is None
     when eq. 36 could not run (e.g. phases clipped at the range): then only the rate table
@@ -727,7 +782,6 @@ def combine_gyr(
         Columns ``table, row, x, y, z``: Table I (bias, rad/s) and Table II (scale).
     """
     o, o_std = gyr_bias_value(bias, bias_estimator)
-    alpha = np.asarray(alignment[alignment["used"]]["alpha_rad"], dtype=float)
     quality = {"alignment": {"rule": ALIGNMENT_RULE}}
     has_table = table is not None and table_alignment is not None
     if scale is None and not has_table:
@@ -736,17 +790,17 @@ def combine_gyr(
         )
     tool_free = None
     if scale is not None:
-        covariance = (
-            _tool_free_covariance(scale, o, o_std, alignment, exact) if with_covariance else None
-        )
+        alignment = scale["alignment"]
+        alpha = np.asarray(alignment[alignment["used"]]["alpha_rad"], dtype=float)
+        covariance = _tool_free_covariance(scale, o, o_std, exact) if with_covariance else None
         tool_free = SensorCalibration(
             "gyr",
             o,
             errormodel.compose(scale["scale"], np.zeros(3), alpha, exact=exact),
             "rad/s",
             uncertainty.std_of(covariance),
-            f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31); "
-            "scale: eq. 36 from acc/mag angles",
+            f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31) "
+            "at eq. 36's scale; scale: eq. 36 from acc/mag angles",
             covariance,
             {
                 **quality,

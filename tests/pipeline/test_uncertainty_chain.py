@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import stats
 
+from imucal import errormodel
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import make_truth, simulate_session
 from imucal.sim.effects import stream_rng
+from imucal.uncertainty import GROUPS
 
 SEEDS = (11, 12, 13)
 RANGE_COUNTS = {"acc": 32767, "gyr": 32767, "mag": 32767}
@@ -64,3 +68,31 @@ def test_a_static_of_one_block_has_a_bias_std_and_no_goodness_of_fit():
     cal = _calibration_of("gyr_bias", {"gyr_bias": wandering})
     assert set(cal["quality"]) == {"bias_x", "bias_y", "bias_z"}
     assert np.all(np.asarray(cal["std"]["bias"]) > 3 * np.asarray(wandering["std_ls_rad_s"]))
+
+
+def test_tool_free_gyroscope_with_unequal_scales_follows_its_covariance():
+    """Eq. 36 with scales 0.95 / 1.2 / 1.05 and 2 deg of misalignment per axis (no
+    non-orthogonality, the path's assumption). At unit scale the phases' rates cannot all be
+    turned onto their axes: the alignment was off by ~alpha times the scales' spread and the
+    scale by ~alpha^2 times it (3e-4, 3-7 std); the alignment at eq. 36's scale leaves
+    noise only. Each of scale and alpha within 4 of its reported std (six values: a chance
+    of 4e-4 to fail with an honest covariance); alpha's std at the rate noise's level (below
+    2e-4 rad: 1.5e-3 rad/s over ~1 rad/s and ~140 independent samples per phase after the 5 Hz
+    filter), not 1e-3 (the rate-proportional residuals of a unit-scale alignment)."""
+    seed = 2
+    truth = make_truth("random", stream_rng(seed, "truth"))
+    matrix = errormodel.compose([0.95, 1.2, 1.05], np.zeros(3), np.radians([2.0, -2.0, 2.0]))
+    gyr = dataclasses.replace(truth.calibration.gyr, matrix=matrix)
+    truth = dataclasses.replace(truth, calibration=dataclasses.replace(truth.calibration, gyr=gyr))
+    session = simulate_session(truth, seed)
+    imu = {rec: session.si_frame(rec) for rec in session.logs if rec != "ratetable"}
+    options = PipelineOptions(
+        truth.world.gravity_m_s2, session.sensitivity, RANGE_COUNTS, ratetable=None
+    )
+    est = calibrate_session(imu, None, options).calibration.gyr
+    std = np.sqrt(np.diag(est.covariance))
+    got, want = est.decomposition, errormodel.decompose(matrix)
+    scale_std, alpha_std = std[GROUPS["scale"]], std[GROUPS["alpha_rad"]]
+    assert np.all(np.abs(got.scale - want.scale) < 4 * scale_std), (got.scale, scale_std)
+    assert np.all(np.abs(got.alpha_rad - want.alpha_rad) < 4 * alpha_std), (got.alpha_rad,)
+    assert np.all(alpha_std < 2e-4), alpha_std

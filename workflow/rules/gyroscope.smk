@@ -1,5 +1,6 @@
-# Gyroscope: bias (eqs. 34-35), T_R,gyr (eqs. 28-31), scale without tools (eq. 36), and with a
-# rate table (eq. 33) when the dataset has one; `gyr` combines them with Tables I and II.
+# Gyroscope: bias (eqs. 34-35), T_R,gyr (eqs. 28-31), scale without tools (eq. 36, which refits
+# T_R,gyr at that scale), and with a rate table (eq. 33) when the dataset has one; `gyr` combines
+# them with Tables I and II.
 
 
 rule gyr_bias:
@@ -50,6 +51,7 @@ rule gyr_align:
 rule gyr_scale:
     input:
         rotation3d="results/{dataset}/ingest/rotation3d.parquet",
+        lowpass="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
         bias="results/{dataset}/gyr_bias.json",
         alignment="results/{dataset}/gyr_align.json",
@@ -120,7 +122,6 @@ rule gyr:
         unpack(gyr_table_inputs),
         unpack(truth_input),
         bias="results/{dataset}/gyr_bias.json",
-        alignment="results/{dataset}/gyr_align.json",
         scale="results/{dataset}/gyr_scale.json",
     output:
         gyr="results/{dataset}/gyr.json",

@@ -23,7 +23,6 @@ with stage_guard("gyr", snakemake.output):
     read_scale = read_optional_artifact if with_table else read_artifact
     gyr, tables = combine_gyr(
         read_artifact(snakemake.input.bias),
-        read_artifact(snakemake.input.alignment),
         read_scale(snakemake.input.scale),
         optional["table"],
         optional["table_alignment"],

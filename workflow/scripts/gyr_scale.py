@@ -1,4 +1,5 @@
-"""Rule gyr_scale: gyroscope scale without tools (eq. 36), after the alignment."""
+"""Rule gyr_scale: gyroscope scale without tools (eq. 36) after the alignment, and T_R,gyr
+refitted at that scale."""
 
 import logging
 from typing import TYPE_CHECKING
@@ -14,8 +15,10 @@ logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
 with stage_guard("gyr_scale", snakemake.output):
     rotation3d, _ = read_recording(snakemake.input.rotation3d)
+    lowpass, _ = read_recording(snakemake.input.lowpass)
     scale = estimate_gyr_scale(
         rotation3d,
+        lowpass,
         read_segments(snakemake.input.segments),
         read_artifact(snakemake.input.bias),
         read_artifact(snakemake.input.alignment),
