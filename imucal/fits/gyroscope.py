@@ -251,8 +251,8 @@ def measure_angle_change(
     The end points are the angles of the pause *means*: at rest there is no dynamic
     acceleration, the 10 Hz magnetometer is not tied to a phase boundary, and averaging
     reduces the noise (about ``sigma / (|projection| sqrt(n))`` rad); the samples during the
-    motion only decide the number of whole turns. The rate must then be integrated from a
-    time in the pause before to a time in the pause after (:func:`estimate_scale`).
+    motion only decide the number of whole turns. The rate must then be integrated to the
+    change of the pauses' mean angle (:func:`pause_mean_weights`, :func:`estimate_scale`).
     For phases x and y both gravity and the field can serve (averaging the two halves the
     variance); for phase z only the field can.
     """
@@ -277,6 +277,57 @@ def measure_angle_change(
     track = np.vstack([ends[0], d[np.isfinite(d).all(axis=1)], ends[1]])
     angle = np.unwrap(_plane_angle(track, k))
     return float(-(angle[-1] - angle[0]))
+
+
+def pause_mean_weights(t_s: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Weights ``w`` (n,) of a rate such that ``w @ rate`` is the change of the mean angle.
+
+    The angle at row i is the rate's trapezoidal integral up to ``t_s[i]``; ``w @ rate`` is its
+    mean over the rows ``after`` minus its mean over the rows ``before``. A sensor that measures
+    the angle from the mean of a pause (:func:`measure_angle_change`) sees the pause's mean
+    orientation, not the orientation at one of its ends: where the pause holds the slow end of
+    a turn (a segment begins where the rate falls below a threshold), an integral from the
+    pause's first to the other pause's last row takes in rotation that the means do not. The
+    weights rise from 0 to 1 through the pause before, in steps of the rows' share, and fall
+    back to 0 through the pause after; with one row each they are the plain trapezoid rule.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+        Strictly increasing sample times of the rate, s.
+    before, after : ndarray of int
+        Rows of ``t_s`` (indices, repeats allowed) at which the pauses' samples were taken,
+        the rows of ``before`` not after those of ``after``.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Weights in s.
+
+    Raises
+    ------
+    ValueError
+        If a set of rows is empty or out of range.
+    """
+    t = np.asarray(t_s, dtype=float)
+    n = len(t)
+    fractions = []
+    for name, rows in (("before", before), ("after", after)):
+        r = np.sort(np.asarray(rows, dtype=int))
+        if r.size == 0 or r[0] < 0 or r[-1] >= n:
+            raise ValueError(
+                f"the rows of the pause {name} must be 1 or more indices in [0, {n}), got "
+                f"{r.size} in [{r.min() if r.size else '-'}, {r.max() if r.size else '-'}]"
+            )
+        # share of the pause's rows at or after the end of interval j (rows j + 1 onwards):
+        # the share of its mean angle that contains that interval's rotation
+        fractions.append(1.0 - np.searchsorted(r, np.arange(1, n), side="left") / r.size)
+    share = fractions[1] - fractions[0]  # interval j, (n - 1,)
+    half = np.diff(t) / 2 * share
+    weights = np.zeros(n)
+    weights[:-1] += half
+    weights[1:] += half
+    return weights
 
 
 @dataclass(frozen=True)
@@ -319,6 +370,7 @@ def estimate_scale(
     *,
     noise_std_rad_s: float | None = None,
     angle_std_rad: float = 0.0,
+    weights: np.ndarray | None = None,
 ) -> PhaseScale:
     """Scale of the gyroscope about ``axis`` from one rotation phase (eq. 36).
 
@@ -338,6 +390,11 @@ def estimate_scale(
         Gyro white-noise std of one sample on this axis (e.g. ``GyroBias.noise_std_rad_s``).
     angle_std_rad : float
         Standard deviation of ``angle_change_rad``.
+    weights : ndarray, shape (n,), optional
+        Integration weights, s, such that ``weights @ rate`` is the rotation that
+        ``angle_change_rad`` measures: :func:`pause_mean_weights` for an angle between the
+        means of two pauses (averaged as the angles of several sensors are). None: the
+        trapezoid rule from the window's first row to its last (an angle between them).
 
     Returns
     -------
@@ -354,7 +411,8 @@ def estimate_scale(
     The rate is integrated with the trapezoidal rule on the actual timestamps, not
     ``N * t_s`` as printed: with lost packets a constant step would undercount the angle. Across
     a gap the rate is interpolated linearly. The integral of white noise has variance
-    ``sigma^2 sum_k w_k^2`` with the trapezoid weights ``w_k`` (about ``sigma^2 T dt``).
+    ``sigma^2 sum_k w_k^2`` with the weights ``w_k`` (about ``sigma^2 T dt`` for the trapezoid
+    over a window of ``T``).
     The phase axis' rate takes in the other axes' readings through the off-diagonal entries of
     ``T_R``; at unit scale their sensitivity is taken as this axis', an error of the order of
     the misalignment angle squared times the scales' spread (1e-4 for 2 deg and 10 %), which
@@ -375,9 +433,10 @@ def estimate_scale(
             f"phase {axis!r}: timestamps not strictly increasing at row {i + 1} "
             f"({t[i]!r} s -> {t[i + 1]!r} s)"
         )
-    weights = np.zeros(len(t))
-    weights[:-1] += dt / 2
-    weights[1:] += dt / 2
+    if weights is None:
+        weights = pause_mean_weights(t, [0], [len(t) - 1])
+    elif np.shape(weights) != t.shape:
+        raise ValueError(f"weights must have the shape of t_s {t.shape}, got {np.shape(weights)}")
     integrated = float(weights @ w[:, k])
     if abs(integrated) < 0.1:
         raise ValueError(

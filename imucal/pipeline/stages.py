@@ -456,30 +456,39 @@ def _pause_angle_variance(before: np.ndarray, after: np.ndarray, axis: str) -> f
     return total
 
 
-def _mean_angle_std(angles: np.ndarray, variances: np.ndarray) -> float:
-    """Standard deviation of the mean of the angles measured by acc and mag (rad).
+def _mean_angle(angles: np.ndarray, variances: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """Mean of the angles measured by acc and mag, and its standard deviation (rad).
 
     From their pause noise (:func:`_pause_angle_variance`); with two sensors their chi-square
     about the mean is tested and inflates the variance by the rule of
     :func:`imucal.uncertainty.goodness_of_fit` when they disagree beyond their noise.
+
+    Returns
+    -------
+    mean, std : float
+    weights : ndarray, shape (n_sensors,)
+        Of each angle in the mean (sum 1).
     """
     var = float(np.sum(variances)) / len(angles) ** 2
     if len(angles) > 1:
         chi2 = float(np.sum((angles - angles.mean()) ** 2 / variances))
         var *= uncertainty.goodness_of_fit(chi2, len(angles) - 1).inflation
-    return float(np.sqrt(var))
+    return float(angles.mean()), float(np.sqrt(var)), np.full(len(angles), 1.0 / len(angles))
 
 
 def _phase_angles(
     rotation3d: pd.DataFrame, segments: pd.DataFrame, measuring: list
 ) -> dict[str, dict]:
     """Phase label -> its window (rows from the pause before to the pause after), the angles
-    of the sensors that measured it, and the angle used (their mean) with its std (rad)."""
+    of the sensors that measured it, the angle used (their mean) with its std (rad),
+    and per sensor that measured it the window's rows of its valid samples in the two pauses
+    and its weight in the mean."""
     out = {}
     for phase in rows_of(segments, "rotation3d", "phase").itertuples(index=False):
         before, after = _adjacent_static(segments, phase)
+        start = int(before.start_index)
         parts = [slice(int(s.start_index), int(s.end_index)) for s in (before, phase, after)]
-        angles, angle_var = {}, {}
+        angles, angle_var, pauses = {}, {}, []
         for name, cal, cols in measuring:
             vectors = [
                 errormodel.apply(cal.matrix, cal.bias, column_values(rotation3d, cols, p))
@@ -490,16 +499,24 @@ def _phase_angles(
                 angle_var[name] = _pause_angle_variance(vectors[0], vectors[2], phase.label)
             except ValueError as err:
                 angles[name] = str(err)
-        measured = [a for a in angles.values() if isinstance(a, float)]
-        if not measured:
+                continue
+            pauses.append(
+                tuple(
+                    part.start - start + np.flatnonzero(np.isfinite(v).all(axis=1))
+                    for part, v in ((parts[0], vectors[0]), (parts[2], vectors[2]))
+                )
+            )
+        if not angle_var:
             raise ValueError(f"phase {phase.label!r}: no sensor could measure its angle: {angles}")
+        angle, std, weights = _mean_angle(
+            np.array([angles[n] for n in angle_var]), np.array(list(angle_var.values()))
+        )
         out[phase.label] = {
-            "window": rotation3d.iloc[int(before.start_index) : int(after.end_index)],
+            "window": rotation3d.iloc[start : int(after.end_index)],
+            "pauses": [(*rows, w) for rows, w in zip(pauses, weights, strict=True)],
             "angles_rad": angles,
-            "angle_rad": float(np.mean(measured)),
-            "angle_std_rad": _mean_angle_std(
-                np.array(measured), np.array([angle_var[n] for n in angles if n in angle_var])
-            ),
+            "angle_rad": angle,
+            "angle_std_rad": std,
         }
     missing = [a for a in AXES if a not in out]
     if missing:
@@ -518,19 +535,29 @@ def _phase_scales(
 
     The other axes' sensitivities enter the phase axis' rate through ``T_R``'s off-diagonal
     entries; weighting them by their scale relative to this axis' makes the ratio of angle to
-    integral this axis' scale (eq. 36 takes them all as equal, ``scale`` = 1)."""
+    integral this axis' scale (eq. 36 takes them all as equal, ``scale`` = 1). The rate is
+    integrated to the change of the pauses' mean angle, as the sensors measured it
+    (:func:`imucal.fits.gyroscope.pause_mean_weights`)."""
     per_phase = {}
     for label, phase in angles.items():
         k = AXES.index(label)
         raw = column_values(phase["window"], GYR)
         fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
+        # a sample on a row without the gyroscope: its angle is that of the last rate row
+        rate_row = np.maximum(np.cumsum(fresh) - 1, 0)
+        t = integration_times(phase["window"][fresh])
+        weights = sum(
+            w * gyroscope.pause_mean_weights(t, rate_row[b], rate_row[a])
+            for b, a, w in phase["pauses"]
+        )
         result = gyroscope.estimate_scale(
-            integration_times(phase["window"][fresh]),
+            t,
             errormodel.apply(rotation @ np.diag(scale / scale[k]), o, raw[fresh]),
             label,
             phase["angle_rad"],
             noise_std_rad_s=float(noise[k]),
             angle_std_rad=phase["angle_std_rad"],
+            weights=weights,
         )
         per_phase[label] = {"angles_rad": phase["angles_rad"], **plain(result)}
     return per_phase
@@ -554,7 +581,10 @@ def estimate_gyr_scale(
     and accelerometer (phases with a horizontal axis) between the static pauses before and
     after the phase, unwrapped through the phase; where both measure it, their mean is used.
     The gyroscope rate, bias-free and aligned with ``T_R,gyr``, is integrated on the timestamps
-    over the same window.
+    over the same window, to the change of the pauses' mean angle: a pause may hold the slow end
+    of a turn (the z phase's pause before it ends the transition about z), whose rotation an
+    integral from the window's first to its last row would count in full and the pause means
+    only in part.
 
     The paper's order, alignment before scale, aligns the rates at unit scale. With unequal
     scales the rate of a phase about axis k is not along any one direction that a rotation can

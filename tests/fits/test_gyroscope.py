@@ -20,6 +20,7 @@ from imucal.fits.gyroscope import (
     fit_rate_table_magnitude,
     make_calibration,
     measure_angle_change,
+    pause_mean_weights,
     rate_table_crlb,
 )
 from imucal.io.dataset import read_dataset
@@ -250,6 +251,56 @@ def test_scale_from_phase_with_lost_packets(axis_index, turns):
     else:
         with pytest.raises(ValueError, match=r"phase 'z'.*projection .* need >= 0.3"):
             measure_angle_change(acc[before], acc[during], acc[after], axis)
+
+
+def test_pause_mean_weights_integrate_to_the_change_of_the_mean_angle():
+    rng = np.random.default_rng(5)
+    t = np.cumsum(rng.uniform(0.008, 0.012, 400))
+    rate = np.sin(t) + 0.3 * rng.standard_normal(400)
+    angle = np.concatenate([[0.0], np.cumsum(np.diff(t) * (rate[1:] + rate[:-1]) / 2)])
+    before, after = np.array([3, 3, 10, 40, 41]), np.arange(300, 390, 7)
+    weights = pause_mean_weights(t, before, after)
+    assert weights @ rate == pytest.approx(angle[after].mean() - angle[before].mean(), abs=1e-12)
+    # one row each: the trapezoid rule between them
+    assert pause_mean_weights(t, [0], [399]) @ rate == pytest.approx(angle[-1], abs=1e-12)
+    with pytest.raises(ValueError, match=r"pause after must be 1 or more indices in \[0, 400\)"):
+        pause_mean_weights(t, before, [399, 400])
+
+
+def test_scale_from_a_pause_that_holds_the_end_of_another_turn():
+    """The pause before the phase begins while an earlier turn about the same axis (here
+    -0.1 rad, 0-1.2 s) still ends: the angle from the pauses' means takes in only part of its
+    end, an integral from the pause's first row all of it (the rotation3d z phase after the
+    transition about z). Integrated to the change of the mean angle, the scale is within 4 std
+    of the truth; over the whole window it is off by 5e-2 rad / 12.6 rad, about 40 std."""
+    rng = np.random.default_rng(8)
+    t = np.arange(0.0, 12.0, 0.01)
+    u = np.clip(t / 1.2, 0, 1)
+    v = np.clip((t - 2.0) / 8.0, 0, 1)
+    angle = -0.1 * (u - np.sin(2 * np.pi * u) / (2 * np.pi)) + 4 * np.pi * (
+        v - np.sin(2 * np.pi * v) / (2 * np.pi)
+    )
+    rate = np.gradient(angle, t)
+    scale = 1.15
+    raw = np.zeros((len(t), 3))
+    raw[:, 0] = rate / scale + NOISE * rng.standard_normal(len(t))
+    field = Rotation.from_rotvec(angle[:, None] * [1.0, 0.0, 0.0]).inv().apply([0.38, 0.0, -0.925])
+    field += 0.003 * rng.standard_normal(field.shape)
+    window = t >= 0.5  # the pause before begins at 0.5 s, in the earlier turn's end
+    mag_row = np.flatnonzero(window & (np.arange(len(t)) % 10 == 0)) - np.argmax(window)
+    tw, mag, w = t[window], field[window], raw[window]
+    before = mag_row[tw[mag_row] < 2.0]
+    after = mag_row[tw[mag_row] >= 10.0]
+    during = mag_row[(tw[mag_row] >= 2.0) & (tw[mag_row] < 10.0)]
+    change = measure_angle_change(mag[before], mag[during], mag[after], "x")
+    angle_std = 0.003 / 0.925 * np.sqrt(1 / len(before) + 1 / len(after))
+    weights = pause_mean_weights(tw, before, after)
+    result = estimate_scale(
+        tw, w, "x", change, noise_std_rad_s=NOISE, angle_std_rad=angle_std, weights=weights
+    )
+    assert abs(result.scale - scale) < 4 * result.std, (result.scale, result.std)
+    whole = estimate_scale(tw, w, "x", change, noise_std_rad_s=NOISE, angle_std_rad=angle_std)
+    assert abs(whole.scale - scale) > 20 * whole.std
 
 
 def test_scale_refuses_bad_timestamps_and_no_rotation():
