@@ -253,8 +253,9 @@ def measure_angle_change(
     reduces the noise (about ``sigma / (|projection| sqrt(n))`` rad); the samples during the
     motion only decide the number of whole turns. The rate must then be integrated to the
     change of the pauses' mean angle (:func:`pause_mean_weights`, :func:`estimate_scale`).
-    For phases x and y both gravity and the field can serve (averaging the two halves the
-    variance); for phase z only the field can.
+    For phases x and y both gravity and the field can serve (their mean, weighted by the
+    pauses' noise, has nearly the variance of the accelerometer's angle); for phase z only
+    the field can.
     """
     k = _axis_index(axis)
     ends = []

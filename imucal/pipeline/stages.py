@@ -457,11 +457,15 @@ def _pause_angle_variance(before: np.ndarray, after: np.ndarray, axis: str) -> f
 
 
 def _mean_angle(angles: np.ndarray, variances: np.ndarray) -> tuple[float, float, np.ndarray]:
-    """Mean of the angles measured by acc and mag, and its standard deviation (rad).
+    """Mean of the angles measured by acc and mag, weighted by their pause noise (rad).
 
-    From their pause noise (:func:`_pause_angle_variance`); with two sensors their chi-square
-    about the mean is tested and inflates the variance by the rule of
-    :func:`imucal.uncertainty.goodness_of_fit` when they disagree beyond their noise.
+    The variances (:func:`_pause_angle_variance`) differ by far: in phases x and y the
+    accelerometer's angle (10 times the samples, half the relative noise) has about 1/40 of
+    the magnetometer's variance, so a plain mean would carry a quarter of the magnetometer's,
+    and its chi-square ``sum (a_i - mean)^2 / v_i`` would not be chi-square distributed (its
+    mean is ``(v_1 + v_2)^2 / (4 v_1 v_2)``, about 10, for 1 dof). With two sensors their
+    chi-square about the weighted mean (1 dof) is tested and inflates the variance by the rule
+    of :func:`imucal.uncertainty.goodness_of_fit` when they disagree beyond their noise.
 
     Returns
     -------
@@ -469,18 +473,21 @@ def _mean_angle(angles: np.ndarray, variances: np.ndarray) -> tuple[float, float
     weights : ndarray, shape (n_sensors,)
         Of each angle in the mean (sum 1).
     """
-    var = float(np.sum(variances)) / len(angles) ** 2
+    inverse = 1.0 / variances
+    weights = inverse / inverse.sum()
+    mean = float(weights @ angles)
+    var = 1.0 / float(inverse.sum())
     if len(angles) > 1:
-        chi2 = float(np.sum((angles - angles.mean()) ** 2 / variances))
+        chi2 = float(np.sum((angles - mean) ** 2 * inverse))
         var *= uncertainty.goodness_of_fit(chi2, len(angles) - 1).inflation
-    return float(angles.mean()), float(np.sqrt(var)), np.full(len(angles), 1.0 / len(angles))
+    return mean, float(np.sqrt(var)), weights
 
 
 def _phase_angles(
     rotation3d: pd.DataFrame, segments: pd.DataFrame, measuring: list
 ) -> dict[str, dict]:
     """Phase label -> its window (rows from the pause before to the pause after), the angles
-    of the sensors that measured it, the angle used (their mean) with its std (rad),
+    of the sensors that measured it, the angle used (their weighted mean) with its std (rad),
     and per sensor that measured it the window's rows of its valid samples in the two pauses
     and its weight in the mean."""
     out = {}
@@ -579,7 +586,8 @@ def estimate_gyr_scale(
 
     The rotation angle of each phase is measured from the calibrated magnetometer (all phases)
     and accelerometer (phases with a horizontal axis) between the static pauses before and
-    after the phase, unwrapped through the phase; where both measure it, their mean is used.
+    after the phase, unwrapped through the phase; where both measure it, their mean weighted
+    by their pause noise is used.
     The gyroscope rate, bias-free and aligned with ``T_R,gyr``, is integrated on the timestamps
     over the same window, to the change of the pauses' mean angle: a pause may hold the slow end
     of a turn (the z phase's pause before it ends the transition about z), whose rotation an
