@@ -721,17 +721,7 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
             cov,
         ).to_dict()
     if stage == "gyr_scale":
-        align = artifact["alignment"]  # refitted at eq. 36's scale
-        alpha = np.asarray(align[align["used"]]["alpha_rad"], dtype=float)
-        bias = done["gyr_bias"]
-        return SensorCalibration(
-            "gyr",
-            bias["bias_ls_rad_s"],
-            errormodel.compose(artifact["scale"], np.zeros(3), alpha),
-            "rad/s",
-            {"bias": np.asarray(bias["std_ls_rad_s"]), "scale": np.asarray(artifact["std_scale"])},
-            "tool-free: T_R,gyr (eqs. 28-31) and eq. 36 scale",
-        ).to_dict()
+        return stages.tool_free_gyr(done["gyr_bias"], artifact).to_dict()
     if stage == "gyr_bias":
         bias, std = stages.gyr_bias_value(artifact, "ls")  # the wander's variance where it shows
         return SensorCalibration(

@@ -790,6 +790,54 @@ def _table_covariance(table: Mapping, table_alignment: Mapping, exact: bool) -> 
     )
 
 
+def tool_free_gyr(
+    bias: Mapping,
+    scale: Mapping,
+    *,
+    bias_estimator: str = "ls",
+    exact: bool = True,
+    with_covariance: bool = True,
+) -> SensorCalibration:
+    """The gyroscope calibration without tools: ``T_R,gyr diag(scale)`` and the bias.
+
+    ``T_R,gyr`` is the alignment at eq. 36's scale (``scale['alignment']``,
+    :func:`estimate_gyr_scale`); ``T_N,gyr`` is not observable and taken as the identity.
+    Without ``with_covariance`` the calibration has no covariance and no std.
+
+    Parameters
+    ----------
+    bias, scale : dict
+        Artifacts of the bias stage and of :func:`estimate_gyr_scale`.
+    bias_estimator : {'ls', 'mean'}
+    exact : bool
+        Exact rotation or the paper's small-angle form (eq. 5), as the alignment was fitted.
+    with_covariance : bool
+
+    Returns
+    -------
+    SensorCalibration
+    """
+    o, o_std = gyr_bias_value(bias, bias_estimator)
+    alignment = scale["alignment"]
+    alpha = np.asarray(alignment[alignment["used"]]["alpha_rad"], dtype=float)
+    covariance = _tool_free_covariance(scale, o, o_std, exact) if with_covariance else None
+    return SensorCalibration(
+        "gyr",
+        o,
+        errormodel.compose(scale["scale"], np.zeros(3), alpha, exact=exact),
+        "rad/s",
+        uncertainty.std_of(covariance),
+        f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31) "
+        "at eq. 36's scale; scale: eq. 36 from acc/mag angles",
+        covariance,
+        {
+            "alignment": {"rule": ALIGNMENT_RULE},
+            **gyr_bias_quality(bias),
+            "tool_free": {"rule": TOOL_FREE_RULE},
+        },
+    )
+
+
 def combine_gyr(
     bias: Mapping,
     scale: Mapping | None,
@@ -819,7 +867,6 @@ def combine_gyr(
     tables : DataFrame
         Columns ``table, row, x, y, z``: Table I (bias, rad/s) and Table II (scale).
     """
-    o, o_std = gyr_bias_value(bias, bias_estimator)
     quality = {"alignment": {"rule": ALIGNMENT_RULE}}
     has_table = table is not None and table_alignment is not None
     if scale is None and not has_table:
@@ -828,23 +875,12 @@ def combine_gyr(
         )
     tool_free = None
     if scale is not None:
-        alignment = scale["alignment"]
-        alpha = np.asarray(alignment[alignment["used"]]["alpha_rad"], dtype=float)
-        covariance = _tool_free_covariance(scale, o, o_std, exact) if with_covariance else None
-        tool_free = SensorCalibration(
-            "gyr",
-            o,
-            errormodel.compose(scale["scale"], np.zeros(3), alpha, exact=exact),
-            "rad/s",
-            uncertainty.std_of(covariance),
-            f"bias: {bias_estimator} (eqs. 34-35); alignment: {alignment['used']} (eqs. 28-31) "
-            "at eq. 36's scale; scale: eq. 36 from acc/mag angles",
-            covariance,
-            {
-                **quality,
-                **gyr_bias_quality(bias),
-                "tool_free": {"rule": TOOL_FREE_RULE},
-            },
+        tool_free = tool_free_gyr(
+            bias,
+            scale,
+            bias_estimator=bias_estimator,
+            exact=exact,
+            with_covariance=with_covariance,
         )
     with_table = None
     table_i = {"LS (this run)": tuple(bias["bias_ls_rad_s"]), **PAPER_TABLE_I}

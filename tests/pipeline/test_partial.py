@@ -60,6 +60,10 @@ def test_platform_without_tools_runs_the_tool_free_path(session):
     true_scale = errormodel.decompose(np.array(truth["gyr"]["matrix"])).scale
     estimated = errormodel.decompose(scale).scale
     assert np.all(np.abs(estimated / true_scale - 1) < 1e-3)
+    # the same calibration as the paper's path without a rate table, with its covariance
+    gyr = final["sensors"]["gyr"]["calibration"]
+    assert np.shape(gyr["covariance"]["matrix"]) == (21, 21)
+    assert np.all(np.asarray(gyr["std"]["alpha_rad"]) > 0)
 
 
 def test_hand_placed_poses_give_cube_fit_and_pose_to_pose_gyro(session):
