@@ -6,34 +6,14 @@ The import package is ``imucal``; the distribution is ``imu-platform-cal`` (the 
 
 from importlib.metadata import PackageNotFoundError, version
 
-from imucal.calibration import FORMAT_VERSION, ImuCalibration, SensorCalibration
-from imucal.errormodel import (
-    Decomposition,
-    apply,
-    compose,
-    decompose,
-    invert,
-    nonorthogonality_matrix,
-    rotation_matrix,
-    upper_triangular_factor,
-)
+import lazy_loader
+
+# the names of __init__.pyi, each imported on first use (SPEC 1): a process that needs one
+# submodule does not pay for the others' imports
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)
+__all__ += ["__version__"]
 
 try:
     __version__ = version("imu-platform-cal")
 except PackageNotFoundError:  # running from a source tree that was not installed
     __version__ = "0+unknown"
-
-__all__ = [
-    "FORMAT_VERSION",
-    "Decomposition",
-    "ImuCalibration",
-    "SensorCalibration",
-    "apply",
-    "compose",
-    "decompose",
-    "invert",
-    "nonorthogonality_matrix",
-    "rotation_matrix",
-    "upper_triangular_factor",
-    "__version__",
-]

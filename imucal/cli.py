@@ -114,7 +114,7 @@ def _run_apply(args: argparse.Namespace) -> int:
 
 
 def _add_export(sub: argparse._SubParsersAction) -> None:
-    from imucal.export import FORMATS
+    from imucal.export.formats import FORMATS
     from imucal.export.model import ROSTOPIC
 
     p = sub.add_parser(

@@ -6,6 +6,7 @@ from collections.abc import Mapping
 
 import yaml
 
+from imucal.export.formats import FORMATS
 from imucal.export.kalibr import kalibr_imu, kalibr_imu_chain, noise_header
 from imucal.export.model import (
     ROSTOPIC,
@@ -16,13 +17,6 @@ from imucal.export.model import (
 )
 from imucal.export.openvins import DIRECTIVE, openvins_imu_chain
 from imucal.export.ros import ros_imu_covariances
-
-#: Export formats and the files each writes.
-FORMATS = {
-    "kalibr": ("kalibr_imu.yaml", "kalibr_imu_chain.yaml"),
-    "openvins": ("openvins_kalibr_imu_chain.yaml",),
-    "ros": ("ros_imu_covariance.yaml",),
-}
 
 
 class _Dumper(yaml.SafeDumper):

@@ -1,17 +1,8 @@
 """Many sensors, many sessions: the sample sheet (``sheet``), the parameters of a fleet across
 units and over time (``summary``) and the calibration store (``store``)."""
 
-from imucal.fleet.sheet import SHEET_COLUMNS, read_sample_sheet
-from imucal.fleet.store import calibration_for, store_index
-from imucal.fleet.summary import drift_table, flag_outliers, parameter_table, summarize_fleet
+import lazy_loader
 
-__all__ = [
-    "SHEET_COLUMNS",
-    "calibration_for",
-    "drift_table",
-    "flag_outliers",
-    "parameter_table",
-    "read_sample_sheet",
-    "store_index",
-    "summarize_fleet",
-]
+# the names of __init__.pyi, each imported on first use (SPEC 1): a process that needs one
+# submodule does not pay for the others' imports
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -11,6 +11,8 @@ forward selection), :mod:`.diagnosis` (diagnosis.json: one assembly for both twi
 set), :mod:`.detection` (detection limits), :mod:`.checks` (scoring the checks). See docs/gap.md.
 """
 
-from imucal.gap.diagnosis import FORMAT_VERSION, DiagnosisSettings, diagnose
+import lazy_loader
 
-__all__ = ["FORMAT_VERSION", "DiagnosisSettings", "diagnose"]
+# the names of __init__.pyi, each imported on first use (SPEC 1): a process that needs one
+# submodule does not pay for the others' imports
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

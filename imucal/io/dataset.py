@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, field
 from importlib import resources
@@ -13,9 +14,11 @@ import yaml
 from imucal.constants import REFERENCE
 
 
-def _schema() -> dict:
+@functools.cache
+def _validator() -> jsonschema.Draft202012Validator:
+    """The schema's validator, built once per process (a workflow reads every dataset.yaml)."""
     text = resources.files("imucal.io").joinpath("schemas/dataset.schema.yaml").read_text()
-    return yaml.safe_load(text)
+    return jsonschema.Draft202012Validator(yaml.safe_load(text))
 
 
 def _with_defaults(schema: dict, instance: dict) -> dict:
@@ -141,15 +144,13 @@ def read_dataset(folder: str | Path) -> Dataset:
         raise ValueError(f"{path}: not valid YAML: {err}") from None
     if not isinstance(raw, dict):
         raise ValueError(f"{path}: expected a mapping at the top level, got {type(raw).__name__}")
-    schema = _schema()
-    errors = sorted(
-        jsonschema.Draft202012Validator(schema).iter_errors(raw), key=lambda e: list(e.path)
-    )
+    validator = _validator()
+    errors = sorted(validator.iter_errors(raw), key=lambda e: list(e.path))
     if errors:
         err = errors[0]
         where = "/".join(str(p) for p in err.path) or "(top level)"
         raise ValueError(f"{path}: key '{where}': {err.message}")
-    cfg = _with_defaults(schema, raw)
+    cfg = _with_defaults(validator.schema, raw)
     if "ratetable" in cfg["recordings"] and "ratetable" not in cfg:
         raise ValueError(f"{path}: key 'ratetable': required when recordings/ratetable is given")
     recordings: dict[str, Path] = {}
@@ -181,7 +182,7 @@ def read_dataset(folder: str | Path) -> Dataset:
         raise ValueError(
             f"{path}: key 'segments': recording(s) {unknown} not in recordings {sorted(recordings)}"
         )
-    count_range = _count_range(schema, cfg["range_counts"], f"{path}: key 'range_counts")
+    count_range = _count_range(validator.schema, cfg["range_counts"], f"{path}: key 'range_counts")
     return Dataset(
         name=cfg["name"],
         folder=folder,

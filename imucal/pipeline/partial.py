@@ -87,31 +87,6 @@ class Outcome:
         }
 
 
-def declared_sensors(dataset, recording: str) -> tuple[str, ...]:
-    """Sensors a recording of a dataset holds, from ``dataset.yaml`` alone (before ingest).
-
-    A native raw CSV holds all three; a declared reader the sensors its column maps name.
-    """
-    declaration = dataset.readers.get(recording)
-    if declaration is None:
-        return SENSORS
-
-    from imucal.io.readers import declared_entries
-
-    names = {c for entry in declared_entries(declaration) for c in entry.get("columns", {})}
-    return tuple(s for s in SENSORS if any(c.startswith(f"{s}_") for c in names))
-
-
-def is_full_protocol(dataset) -> bool:
-    """The paper's protocol: native-format rotation3d and cube with all three sensors.
-
-    Such a session runs the stage-per-rule workflow; any other runs :func:`run_stages`.
-    """
-    return all(
-        dataset.has(r) and declared_sensors(dataset, r) == SENSORS for r in ("rotation3d", "cube")
-    )
-
-
 def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
     """Sensors with at least one finite sample in an ingested table."""
     present = []

@@ -2,12 +2,15 @@
 
 The partial path (:mod:`imucal.pipeline.partial`) runs them in this order, the stage-per-rule
 workflow names its artifacts from here (``workflow/rules/common.smk``), and ``stages.json``
-lists them in this order.
+lists them in this order. Which of the two paths a dataset takes is decided here too, from its
+``dataset.yaml`` alone (:func:`is_full_protocol`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from imucal.columns import SENSORS
 
 
 @dataclass(frozen=True)
@@ -122,3 +125,29 @@ FINAL = {
 def full_protocol_artifacts() -> dict[str, str]:
     """Stage name -> artifact file of the stage-per-rule workflow (with the validation)."""
     return {s.name: s.artifact for s in (*STAGES.values(), VALIDATE) if s.artifact}
+
+
+def declared_sensors(dataset, recording: str) -> tuple[str, ...]:
+    """Sensors a recording of a dataset holds, from ``dataset.yaml`` alone (before ingest).
+
+    A native raw CSV holds all three; a declared reader the sensors its column maps name.
+    """
+    declaration = dataset.readers.get(recording)
+    if declaration is None:
+        return SENSORS
+
+    from imucal.io.readers import declared_entries
+
+    names = {c for entry in declared_entries(declaration) for c in entry.get("columns", {})}
+    return tuple(s for s in SENSORS if any(c.startswith(f"{s}_") for c in names))
+
+
+def is_full_protocol(dataset) -> bool:
+    """The paper's protocol: native-format rotation3d and cube with all three sensors.
+
+    Such a session runs the stage-per-rule workflow; any other runs the partial path
+    (:func:`imucal.pipeline.partial.run_stages`).
+    """
+    return all(
+        dataset.has(r) and declared_sensors(dataset, r) == SENSORS for r in ("rotation3d", "cube")
+    )

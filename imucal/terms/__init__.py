@@ -7,31 +7,8 @@ magnetometer's delay (:mod:`.magdelay`), the switch per term
 terms themselves (data, units, evaluation) are :mod:`imucal.modelterms`.
 """
 
-from imucal.terms.gsensitivity import fit_g_sensitivity
-from imucal.terms.leverarm import fit_lever_arm
-from imucal.terms.loop import (
-    close_loop,
-    corrected_session,
-    diagnosis_after,
-    final_calibration,
-    terms_summary,
-)
-from imucal.terms.magdelay import fit_mag_delay
-from imucal.terms.selection import EFFECT_OF_TERM, TermSettings, decide
-from imucal.terms.temperature import fit_temperature, select_model
+import lazy_loader
 
-__all__ = [
-    "EFFECT_OF_TERM",
-    "TermSettings",
-    "close_loop",
-    "corrected_session",
-    "decide",
-    "diagnosis_after",
-    "final_calibration",
-    "fit_g_sensitivity",
-    "fit_lever_arm",
-    "fit_mag_delay",
-    "fit_temperature",
-    "select_model",
-    "terms_summary",
-]
+# the names of __init__.pyi, each imported on first use (SPEC 1): a process that needs one
+# submodule does not pay for the others' imports
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

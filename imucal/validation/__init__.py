@@ -2,40 +2,8 @@
 metrics before and after calibration (``metrics``).
 """
 
-from imucal.validation.metrics import (
-    NO_REFERENCE_NOTE,
-    angles_deg,
-    compare_vectors,
-    summarise_dip,
-    validate,
-)
-from imucal.validation.mounting import (
-    MOUNTING_CONVENTION,
-    Mounting,
-    estimate_mounting,
-)
-from imucal.validation.timing import (
-    TIME_CONVENTION,
-    TimeAlignment,
-    align_reference,
-    correlate_offsets,
-    estimate_time_alignment,
-    packet_times,
-)
+import lazy_loader
 
-__all__ = [
-    "MOUNTING_CONVENTION",
-    "Mounting",
-    "NO_REFERENCE_NOTE",
-    "TIME_CONVENTION",
-    "TimeAlignment",
-    "align_reference",
-    "angles_deg",
-    "compare_vectors",
-    "correlate_offsets",
-    "estimate_mounting",
-    "estimate_time_alignment",
-    "packet_times",
-    "summarise_dip",
-    "validate",
-]
+# the names of __init__.pyi, each imported on first use (SPEC 1): a process that needs one
+# submodule does not pay for the others' imports
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -11,7 +11,7 @@ import pytest
 from imucal import errormodel
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
-from imucal.pipeline import partial
+from imucal.pipeline import partial, registry
 from imucal.segments.segmentation import segment_dataset
 from imucal.sim import simulate
 
@@ -105,8 +105,8 @@ def test_a_fit_that_fails_on_the_data_is_skipped_with_its_message(session):
 
 def test_declared_sensors_decide_the_workflow_path(tmp_path):
     demo = read_dataset(REPO / "data" / "demo")
-    assert partial.is_full_protocol(demo)
-    assert partial.declared_sensors(demo, "cube") == ("acc", "gyr", "mag")
+    assert registry.is_full_protocol(demo)
+    assert registry.declared_sensors(demo, "cube") == ("acc", "gyr", "mag")
     folder = tmp_path / "acc_only"
     folder.mkdir()
     (folder / "log.csv").write_text("ax,ay,az\n0,0,1\n0,0,1\n")
@@ -116,8 +116,8 @@ def test_declared_sensors_decide_the_workflow_path(tmp_path):
         "    units: {acc: g}\n"
     )
     dataset = read_dataset(folder)
-    assert partial.declared_sensors(dataset, "poses") == ("acc",)
-    assert not partial.is_full_protocol(dataset)
+    assert registry.declared_sensors(dataset, "poses") == ("acc",)
+    assert not registry.is_full_protocol(dataset)
 
 
 def test_known_angle_hand_turns_on_rotation3d_phases(session):

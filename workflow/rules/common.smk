@@ -11,8 +11,7 @@ from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
 from imucal.terms import TermSettings
 from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
-from imucal.pipeline.partial import is_full_protocol
-from imucal.pipeline.registry import full_protocol_artifacts
+from imucal.pipeline.registry import full_protocol_artifacts, is_full_protocol
 
 DATASETS = sorted(config["datasets"])
 #: The public recordings' configs (config/real/*.yaml), each checked against the schema
@@ -289,7 +288,7 @@ def calibration_of(wildcards):
 
 
 #: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/.
-from imucal.export import FORMATS as EXPORT_FORMATS
+from imucal.export.formats import FORMATS as EXPORT_FORMATS
 
 EXPORT_FILES = [name for names in EXPORT_FORMATS.values() for name in names]
 

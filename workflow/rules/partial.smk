@@ -58,7 +58,8 @@ rule stages:
         ),
     log:
         "results/{dataset}/logs/stages.log",
+    localrule: True
     conda:
         "../envs/imucal.yaml"
-    script:
-        "../scripts/copy_json.py"
+    shell:
+        "cp {input.stages} {output.stages} 2> {log}"

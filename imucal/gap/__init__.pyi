@@ -1,0 +1,1 @@
+from .diagnosis import FORMAT_VERSION, DiagnosisSettings, diagnose

@@ -1,0 +1,12 @@
+from .gsensitivity import fit_g_sensitivity
+from .leverarm import fit_lever_arm
+from .loop import (
+    close_loop,
+    corrected_session,
+    diagnosis_after,
+    final_calibration,
+    terms_summary,
+)
+from .magdelay import fit_mag_delay
+from .selection import EFFECT_OF_TERM, TermSettings, decide
+from .temperature import fit_temperature, select_model
