@@ -4,9 +4,8 @@ from .loop import (
     close_loop,
     corrected_session,
     diagnosis_after,
-    final_calibration,
     terms_summary,
 )
 from .magdelay import fit_mag_delay
-from .selection import EFFECT_OF_TERM, TermSettings, decide
+from .selection import EFFECT_OF_TERM, TermSettings, decide, final_calibration
 from .temperature import fit_temperature, select_model

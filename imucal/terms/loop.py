@@ -190,12 +190,6 @@ def terms_summary(result: Mapping) -> dict:
     }
 
 
-def final_calibration(paper: Mapping, summary: Mapping) -> dict:
-    """calibration.json: the closed loop's recalibration when it has terms, else the paper's
-    calibration unchanged (byte for byte what the loop switched off writes)."""
-    return dict(summary["calibration"]) if summary.get("calibration") else dict(paper)
-
-
 def diagnosis_after(
     result: Mapping,
     reference: pd.DataFrame | None,

@@ -1,7 +1,8 @@
 """Which optional terms enter the model: the config switch per term and the diagnosis's word.
 
 A term is ``off`` (never), ``on`` (whenever its estimator can estimate it) or ``auto``
-(when the gap diagnosis accepts the effect behind it with its held-out shrink).
+(when the gap diagnosis accepts the effect behind it with its held-out shrink); and which
+calibration is the session's final one (:func:`final_calibration`).
 """
 
 from __future__ import annotations
@@ -110,3 +111,9 @@ def decide(term: str, settings: TermSettings, diagnosis: Mapping | None) -> tupl
         return True, f"auto: the diagnosis accepts {effect}, {told}{bound}"
     note = f"; {e['note']}" if e.get("note") else ""
     return False, f"auto: the diagnosis does not accept {effect}, {told}{bound}{note}"
+
+
+def final_calibration(paper: Mapping, summary: Mapping) -> dict:
+    """calibration.json: the closed loop's recalibration when it has terms, else the paper's
+    calibration unchanged (byte for byte what the loop switched off writes)."""
+    return dict(summary["calibration"]) if summary.get("calibration") else dict(paper)
