@@ -16,10 +16,10 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
 
 from imucal import errormodel, uncertainty
 from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration, SensorCalibration
@@ -42,9 +42,11 @@ from imucal.fits.alignment import (
 )
 from imucal.fits.propagation import alignment_sensitivity, upper_bias_covariance
 from imucal.pipeline.outcome import not_run_reason
-from imucal.plots import inertial as inertial_plots
 from imucal.segments.detector import is_clipped
 from imucal.segments.table import cut, rows_of
+
+if TYPE_CHECKING:  # matplotlib is imported by the stages that draw, when they draw
+    from matplotlib.figure import Figure
 
 logger = logging.getLogger(__name__)
 
@@ -124,6 +126,8 @@ def fit_acc_cube(
     figures : dict of str to Figure
         'acc_cube': |a| - g per position before/after (paper Fig. 10).
     """
+    from imucal.plots import inertial as inertial_plots
+
     rows = rows_of(segments, "cube", "position")
     positions = cut(cube, rows, ACC)
     fit = accelerometer.fit_cube(
@@ -275,6 +279,8 @@ def estimate_gyr_bias(
     figures : dict of str to Figure
         'gyr_bias': the static rates before and after bias removal (Figs. 16-17).
     """
+    from imucal.plots import inertial as inertial_plots
+
     names = (
         ["static"]
         if "static" in static_tables
@@ -691,6 +697,8 @@ def fit_gyr_table(
     figures : dict of str to Figure
         'gyr_table': magnitude errors per run before/after (paper Fig. 15).
     """
+    from imucal.plots import inertial as inertial_plots
+
     rows = rows_of(segments, "ratetable", "run")
     if rows.empty:
         raise ValueError("no rate-table run was segmented (the segmentation notes say why)")
@@ -952,6 +960,8 @@ def plot_phases(
     calibration : mapping
         A SensorCalibration dict of ``sensor`` (e.g. ``acc.json['calibration']``).
     """
+    from imucal.plots import inertial as inertial_plots
+
     if sensor not in ("acc", "gyr"):
         raise ValueError(f"phase figures are drawn for 'acc' or 'gyr', got {sensor!r}")
     cal = SensorCalibration.from_dict(sensor, dict(calibration))

@@ -90,6 +90,8 @@ rule phase_figures:
         ),
     log:
         "results/{dataset}/logs/phase_figures.log",
+    # off the way to calibration.json: runs on a core the stages leave free
+    priority: -1
     conda:
         "../envs/imucal.yaml"
     params:

@@ -13,6 +13,8 @@ rule ingest:
         "results/{dataset}/logs/ingest/{recording}.log",
     benchmark:
         "results/{dataset}/benchmarks/ingest/{recording}.tsv"
+    # ingest and segment lead to the gap diagnosis, the longest job (gap.smk): they go first
+    priority: 10
     conda:
         "../envs/imucal.yaml"
     params:
@@ -28,6 +30,8 @@ rule ingest_summary:
         summary="results/{dataset}/ingest/summary.json",
     log:
         "results/{dataset}/logs/ingest/summary.log",
+    # off the way to calibration.json: runs on a core the stages leave free
+    priority: -1
     conda:
         "../envs/imucal.yaml"
     params:

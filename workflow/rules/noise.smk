@@ -36,6 +36,8 @@ rule export:
         ros="results/{dataset}/export/ros_imu_covariance.yaml",
     log:
         "results/{dataset}/logs/export.log",
+    # off the way to calibration.json: runs on a core the stages leave free
+    priority: -1
     conda:
         "../envs/imucal.yaml"
     params:

@@ -39,6 +39,8 @@ rule stages_full:
         stages="results/{dataset}/full/stages.json",
     log:
         "results/{dataset}/logs/stages_full.log",
+    # off the way to calibration.json: runs on a core the stages leave free
+    priority: -1
     conda:
         "../envs/imucal.yaml"
     params:

@@ -33,6 +33,7 @@ rule segment:
         "results/{dataset}/logs/segment.log",
     benchmark:
         "results/{dataset}/benchmarks/segment.tsv"
+    priority: 10
     conda:
         "../envs/imucal.yaml"
     params:
@@ -50,6 +51,8 @@ rule plot_segments:
         png="results/{dataset}/segments/{recording}.png",
     log:
         "results/{dataset}/logs/segments/{recording}.log",
+    # off the way to calibration.json: runs on a core the stages leave free
+    priority: -1
     conda:
         "../envs/imucal.yaml"
     params:
