@@ -32,7 +32,7 @@ import imucal
 from imucal import io
 from imucal.columns import AXES, SENSORS
 from imucal.constants import IMU_RECORDINGS, REFERENCE
-from imucal.terms.heldout import gap_comparison
+from imucal.terms.comparison import gap_comparison
 
 #: Significant digits of the numbers in the report.
 DIGITS = 5

@@ -355,7 +355,7 @@ def test_pose_to_pose_gravity_held_out_improves_with_the_terms(drift):
 
 
 def test_gap_comparison_is_two_sided():
-    from imucal.terms.heldout import gap_comparison
+    from imucal.terms.comparison import gap_comparison
 
     before = {"gap": {"total": 5000.0, "null_p95": 30.0},
               "remaining": {"total": 150.0, "significant": True},
