@@ -3,29 +3,8 @@ batches (``checks``), the summary (``summary``), the packet counter and receive 
 (``timebase``), declared orientation references (``orientation``).
 """
 
-from imucal.ingest.checks import CountRange, LogChecks, check_count_range, check_log
-from imucal.ingest.orientation import ingest_orientation_reference
-from imucal.ingest.recording import (
-    REF_TICK_MODULUS,
-    counts_to_si,
-    ingest_recording,
-    ingest_to_parquet,
-    reference_to_table,
-)
-from imucal.ingest.summary import MAX_LISTED_GAPS, summarize_dataset, summarize_recording
+import lazy_loader
 
-__all__ = [
-    "MAX_LISTED_GAPS",
-    "REF_TICK_MODULUS",
-    "CountRange",
-    "LogChecks",
-    "check_count_range",
-    "check_log",
-    "counts_to_si",
-    "ingest_orientation_reference",
-    "ingest_recording",
-    "ingest_to_parquet",
-    "reference_to_table",
-    "summarize_dataset",
-    "summarize_recording",
-]
+# the names of __init__.pyi, each imported on first use (SPEC 1): a process that needs one
+# submodule does not pay for the others' imports
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -13,16 +13,18 @@ import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from imucal.calibration import ImuCalibration
 from imucal.columns import SEGMENT_COLUMNS, TIME
 from imucal.io.raw import _existing
+
+if TYPE_CHECKING:  # the calibration (and its rotations: scipy.spatial) only where one is read
+    from imucal.calibration import ImuCalibration
 
 #: Key of the parquet key-value metadata that holds the JSON description of a recording.
 METADATA_KEY = b"imucal"
@@ -352,6 +354,8 @@ def read_calibration(path: str | Path) -> ImuCalibration:
         If the file is newer than this package (``format_version``), is for another unit, or
         lacks a key; the message names the file.
     """
+    from imucal.calibration import ImuCalibration
+
     data = read_json(path)
     if not isinstance(data, dict):
         raise ValueError(f"{path}: top level is {type(data).__name__}; expected a JSON object")  # noqa: TRY004
