@@ -376,15 +376,13 @@ def _csv_options(
     types: dict[str, pa.DataType],
     delimiter: str,
     skip_rows: int,
-    block_size: int | None = None,
 ) -> tuple[pacsv.ReadOptions, pacsv.ParseOptions, pacsv.ConvertOptions]:
-    """pyarrow's CSV options of the native formats, for a whole read or one in batches.
+    """pyarrow's CSV options of the native formats, for a whole read or one block of lines.
 
     Blank lines are kept (as all-null rows) so that row i is line ``first_line + i``.
     """
-    read = {"block_size": block_size} if block_size is not None else {}
     return (
-        pacsv.ReadOptions(column_names=names, skip_rows=skip_rows, **read),
+        pacsv.ReadOptions(column_names=names, skip_rows=skip_rows),
         pacsv.ParseOptions(delimiter=delimiter, quote_char=False, ignore_empty_lines=False),
         pacsv.ConvertOptions(
             column_types=types,
@@ -393,6 +391,26 @@ def _csv_options(
             strings_can_be_null=False,
         ),
     )
+
+
+def _parse_delimited(
+    source: Any,
+    path: Path,
+    names: list[str],
+    types: dict[str, pa.DataType],
+    delimiter: str,
+    skip_rows: int,
+    first_line: int,
+) -> pa.Table:
+    """``source`` (the file ``path`` or a block of its lines) parsed by pyarrow's CSV reader;
+    when it cannot be, the offending line of the file is found and raised."""
+    try:
+        return pacsv.read_csv(source, *_csv_options(names, types, delimiter, skip_rows))
+    except pa.ArrowInvalid as err:
+        _locate_bad_line(path, names, types, delimiter, first_line)
+        raise RawDataError(
+            path, None, f"unreadable ({err})", "the format of docs/data-format.md"
+        ) from None
 
 
 def _read_delimited(
@@ -404,14 +422,7 @@ def _read_delimited(
     first_line: int,
 ) -> pa.Table:
     """Read the data rows with pyarrow's CSV reader; on failure find the offending line."""
-    read_options, parse_options, convert_options = _csv_options(names, types, delimiter, skip_rows)
-    try:
-        table = pacsv.read_csv(path, read_options, parse_options, convert_options)
-    except pa.ArrowInvalid as err:
-        _locate_bad_line(path, names, types, delimiter, first_line)
-        raise RawDataError(
-            path, None, f"unreadable ({err})", "the format of docs/data-format.md"
-        ) from None
+    table = _parse_delimited(path, path, names, types, delimiter, skip_rows, first_line)
     if table.num_rows == 0:
         raise RawDataError(
             path, first_line, "no data rows after the header", "at least one row of samples"
@@ -457,20 +468,13 @@ def _read_delimited_batches(
     as in a whole read (blank lines are all-null rows). A block that cannot be parsed is
     located in the file and raised.
     """
-    read_options, parse_options, convert_options = _csv_options(names, types, delimiter, 0)
     with path.open("rb") as f:
         for _ in range(skip_rows):
             digest.update(f.readline())
         for block in _line_blocks(f, batch_bytes, digest):
-            try:
-                table = pacsv.read_csv(
-                    pa.py_buffer(block), read_options, parse_options, convert_options
-                )
-            except pa.ArrowInvalid as err:
-                _locate_bad_line(path, names, types, delimiter, first_line)
-                raise RawDataError(
-                    path, None, f"unreadable ({err})", "the format of docs/data-format.md"
-                ) from None
+            table = _parse_delimited(
+                pa.py_buffer(block), path, names, types, delimiter, 0, first_line
+            )
             if table.num_rows:
                 yield from table.combine_chunks().to_batches()
 
