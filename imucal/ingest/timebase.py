@@ -5,11 +5,12 @@ One place for what ingest, low-pass filtering, segmentation and validation all n
 * :func:`resolve_packet_steps` and :func:`unwrap_counter`: the 16-bit packet counter ``seq``
   wraps at 65536; the receiver time resolves how many wraps a long silence hid.
 * :func:`sampling_period`, :func:`nominal_period` and :func:`gap_threshold_s`: the nominal
-  period of timestamps that may be *irregular*. Host receive times of a serial or radio link come in bursts (sunsided's
-  MPU6050 log: a median step of 2 ms at ~99 Hz, pauses up to 0.5 s followed by catch-up
-  bursts). Then the median step says nothing about the rate, and the effective period (mean
-  ordinary step) is the nominal period; a time gap is judged against the longest ordinary
-  steps, not against the period, since a pause of a few periods is buffering, not loss.
+  period of timestamps that may be *irregular*. Host receive times of a serial or radio link
+  come in bursts (sunsided's MPU6050 log: a median step of 2 ms at ~99 Hz, pauses up to 0.5 s
+  followed by catch-up bursts). Then the median step says nothing about the rate, and the
+  effective period (mean ordinary step) is the nominal period; a time gap is judged against
+  the longest ordinary steps, not against the period, since a pause of a few periods is
+  buffering, not loss.
 """
 
 from __future__ import annotations

@@ -492,10 +492,13 @@ def _mean_angle(angles: np.ndarray, variances: np.ndarray) -> tuple[float, float
 def _phase_angles(
     rotation3d: pd.DataFrame, segments: pd.DataFrame, measuring: list
 ) -> dict[str, dict]:
-    """Phase label -> its window (rows from the pause before to the pause after), the angles
-    of the sensors that measured it, the angle used (their weighted mean) with its std (rad),
-    and per sensor that measured it the window's rows of its valid samples in the two pauses
-    and its weight in the mean."""
+    """Phase label -> the angles of the sensors that measured it, the angle used (their
+    weighted mean) with its std (rad), and the gyroscope over the window from the pause before
+    to the pause after: its readings (``gyr``, the rows with a rate), their times (``t_s``)
+    and the integration weights that give the change of the mean angle as the sensors measured
+    it (``weights_s``, :func:`imucal.fits.gyroscope.pause_mean_weights` of each sensor's
+    pause samples, by its weight in the mean). Neither depends on the scale or the alignment,
+    so both passes of :func:`estimate_gyr_scale` use them."""
     out = {}
     for phase in rows_of(segments, "rotation3d", "phase").itertuples(index=False):
         before, after = _adjacent_static(segments, phase)
@@ -524,9 +527,19 @@ def _phase_angles(
         angle, std, weights = _mean_angle(
             np.array([angles[n] for n in angle_var]), np.array(list(angle_var.values()))
         )
+        window = rotation3d.iloc[start : int(after.end_index)]
+        gyr = column_values(window, GYR)
+        fresh = np.isfinite(gyr).all(axis=1)  # merged streams: rows of other sensors only
+        # a sample on a row without the gyroscope: its angle is that of the last rate row
+        rate_row = np.maximum(np.cumsum(fresh) - 1, 0)
+        t = integration_times(window[fresh])
         out[phase.label] = {
-            "window": rotation3d.iloc[start : int(after.end_index)],
-            "pauses": [(*rows, w) for rows, w in zip(pauses, weights, strict=True)],
+            "t_s": t,
+            "gyr": gyr[fresh],
+            "weights_s": sum(
+                w * gyroscope.pause_mean_weights(t, rate_row[b], rate_row[a])
+                for (b, a), w in zip(pauses, weights, strict=True)
+            ),
             "angles_rad": angles,
             "angle_rad": angle,
             "angle_std_rad": std,
@@ -549,28 +562,19 @@ def _phase_scales(
     The other axes' sensitivities enter the phase axis' rate through ``T_R``'s off-diagonal
     entries; weighting them by their scale relative to this axis' makes the ratio of angle to
     integral this axis' scale (eq. 36 takes them all as equal, ``scale`` = 1). The rate is
-    integrated to the change of the pauses' mean angle, as the sensors measured it
-    (:func:`imucal.fits.gyroscope.pause_mean_weights`)."""
+    integrated with the weights of :func:`_phase_angles`, to the change of the pauses' mean
+    angle."""
     per_phase = {}
     for label, phase in angles.items():
         k = AXES.index(label)
-        raw = column_values(phase["window"], GYR)
-        fresh = np.isfinite(raw).all(axis=1)  # merged streams: rows of other sensors only
-        # a sample on a row without the gyroscope: its angle is that of the last rate row
-        rate_row = np.maximum(np.cumsum(fresh) - 1, 0)
-        t = integration_times(phase["window"][fresh])
-        weights = sum(
-            w * gyroscope.pause_mean_weights(t, rate_row[b], rate_row[a])
-            for b, a, w in phase["pauses"]
-        )
         result = gyroscope.estimate_scale(
-            t,
-            errormodel.apply(rotation @ np.diag(scale / scale[k]), o, raw[fresh]),
+            phase["t_s"],
+            errormodel.apply(rotation @ np.diag(scale / scale[k]), o, phase["gyr"]),
             label,
             phase["angle_rad"],
             noise_std_rad_s=float(noise[k]),
             angle_std_rad=phase["angle_std_rad"],
-            weights=weights,
+            weights=phase["weights_s"],
         )
         per_phase[label] = {"angles_rad": phase["angles_rad"], **plain(result)}
     return per_phase
