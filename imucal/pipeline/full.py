@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -18,67 +17,10 @@ import pandas as pd
 from imucal import validation
 from imucal.calibration import ImuCalibration
 from imucal.columns import GYR, SEQ, TIME, column_values, sensor_columns
-from imucal.io.dataset import Dataset
 from imucal.pipeline import stages
+from imucal.pipeline.options import PipelineOptions
 from imucal.segments.filtering import lowpass_recording
 from imucal.segments.segmentation import segment_dataset
-
-
-@dataclass(frozen=True)
-class PipelineOptions:
-    """Settings of the workflow that change the fit (``config.yaml``; schema defaults).
-
-    Attributes
-    ----------
-    exact_rotation : bool
-    lowpass_order : int
-    lowpass_cutoff_hz : float
-    gravity_m_s2 : float
-    field_norm : float
-    range_counts, sensitivity : dict
-        Sensor -> largest |count|, SI unit per count (``dataset.yaml``).
-    ratetable : dict or None
-        ``{'axes': [...], 'rates_dps': [...]}``.
-    held_by_hand : tuple of str
-        Recordings whose holds the segmentation found held by hand (tremor above the noise,
-        :mod:`imucal.segments.holds`): not at rest, so their holds take no part in the resting
-        statistics of the diagnosis. Set from the session's segments; a replica keeps the
-        session's (its own holds are rendered without tremor).
-    with_covariance : bool
-        Carry the parameters' uncertainty into the calibration (the covariance and std of each
-        sensor; step 1's through the alignment costs ten alignment refits per sensor) and give
-        the alignments their covariance for residuals correlated in time (else the plain one).
-        The diagnosis's twin replicas go without: nothing they are measured by reads it. It
-        does not change the fitted values.
-    """
-
-    gravity_m_s2: float
-    sensitivity: Mapping
-    range_counts: Mapping
-    ratetable: Mapping | None
-    field_norm: float = 1.0
-    exact_rotation: bool = True
-    lowpass_order: int = 4
-    lowpass_cutoff_hz: float = 5.0
-    held_by_hand: tuple = ()
-    with_covariance: bool = True
-
-    @classmethod
-    def of_dataset(cls, dataset: Dataset, **settings: Any) -> PipelineOptions:
-        """The options of a dataset (``dataset.yaml``), with the workflow's ``settings``
-        (``exact_rotation``, ``lowpass_order``, ``lowpass_cutoff_hz``, ``held_by_hand``)."""
-        return cls(
-            dataset.gravity_m_s2,
-            dataset.sensitivity,
-            dataset.range_counts,
-            dataset.ratetable,
-            dataset.field_norm,
-            **settings,
-        )
-
-    def limit(self, sensor: str) -> float:
-        """Sensor range in SI units."""
-        return float(self.range_counts[sensor]) * float(self.sensitivity[sensor])
 
 
 @dataclass(frozen=True)
@@ -150,11 +92,18 @@ def calibrate_session(
     low = lowpass_recording(
         imu["rotation3d"], order=options.lowpass_order, cutoff_hz=options.lowpass_cutoff_hz
     )
-    exact, cov = options.exact_rotation, options.with_covariance
+    exact, cov, methods = options.exact_rotation, options.with_covariance, options.methods
+    step1 = stages.fit_mag_step1(
+        imu["rotation3d"],
+        imu["cube"],
+        field_norm=options.field_norm,
+        refine_lm=methods.mag_refine_lm,
+    )
     mag = stages.align_mag(
         imu["rotation3d"],
         segments,
-        stages.fit_mag_step1(imu["rotation3d"], imu["cube"], field_norm=options.field_norm),
+        step1,
+        method=methods.mag_alignment,
         exact=exact,
         with_covariance=cov,
     )
@@ -163,16 +112,29 @@ def calibrate_session(
         segments,
         gravity_m_s2=options.gravity_m_s2,
         saturation_limit_m_s2=options.limit("acc"),
+        method=methods.acc_cube,
         figures=False,
     )
-    acc = stages.align_acc(low, segments, cube, exact=exact, with_covariance=cov)
+    acc = stages.align_acc(
+        low, segments, cube, method=methods.acc_alignment, exact=exact, with_covariance=cov
+    )
     bias, _ = stages.estimate_gyr_bias(imu, segments, figures=False)
-    o, _ = stages.gyr_bias_value(bias, "ls")
-    align = stages.align_gyr(low, segments, o, exact=exact, with_covariance=cov)
+    o, _ = stages.gyr_bias_value(bias, methods.gyr_bias_estimator)
+    align = stages.align_gyr(
+        low, segments, o, method=methods.gyr_alignment, exact=exact, with_covariance=cov
+    )
     notes = []
     try:
         scale = stages.estimate_gyr_scale(
-            imu["rotation3d"], low, segments, bias, align, acc, mag, with_covariance=cov
+            imu["rotation3d"],
+            low,
+            segments,
+            bias,
+            align,
+            acc,
+            mag,
+            bias_estimator=methods.gyr_bias_estimator,
+            with_covariance=cov,
         )
     except ValueError as err:
         # eq. 36 integrates on the receive timestamps and refuses repeated ones, or phases
@@ -192,7 +154,13 @@ def calibrate_session(
                 figures=False,
             )
             table_align = stages.align_gyr(
-                low, segments, table["bias"], table["upper"], exact=exact, with_covariance=cov
+                low,
+                segments,
+                table["bias"],
+                table["upper"],
+                method=methods.gyr_alignment,
+                exact=exact,
+                with_covariance=cov,
             )
         except ValueError as err:
             # as the workflow: the tool-free result calibrates when eq. 36 ran
@@ -200,7 +168,15 @@ def calibrate_session(
                 raise
             notes.append(f"rate-table fit (eq. 33) failed: {err}; the tool-free result is used")
             table = table_align = None
-    gyr, _ = stages.combine_gyr(bias, scale, table, table_align, exact=exact, with_covariance=cov)
+    gyr, _ = stages.combine_gyr(
+        bias,
+        scale,
+        table,
+        table_align,
+        bias_estimator=methods.gyr_bias_estimator,
+        exact=exact,
+        with_covariance=cov,
+    )
     calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None
     if reference is not None:
@@ -246,12 +222,20 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     ImuCalibration
     """
     a, low, seg = fit.artifacts, fit.lowpass, fit.segments
-    cov = fit.extra["options"].with_covariance
+    options = fit.extra["options"]
+    cov, methods = options.with_covariance, options.methods
     mag = stages.align_mag(
-        fit.imu["rotation3d"], seg, a["mag"]["step1"], exact=exact, with_covariance=cov
+        fit.imu["rotation3d"],
+        seg,
+        a["mag"]["step1"],
+        method=methods.mag_alignment,
+        exact=exact,
+        with_covariance=cov,
     )
-    acc = stages.align_acc(low, seg, a["cube"], exact=exact, with_covariance=cov)
-    o, _ = stages.gyr_bias_value(a["bias"], "ls")
+    acc = stages.align_acc(
+        low, seg, a["cube"], method=methods.acc_alignment, exact=exact, with_covariance=cov
+    )
+    o, _ = stages.gyr_bias_value(a["bias"], methods.gyr_bias_estimator)
     scale = a["scale"]
     if scale is not None:
         refit = stages.align_gyr(
@@ -267,10 +251,22 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     table_align = None
     if a["table"] is not None:
         table_align = stages.align_gyr(
-            low, seg, a["table"]["bias"], a["table"]["upper"], exact=exact, with_covariance=cov
+            low,
+            seg,
+            a["table"]["bias"],
+            a["table"]["upper"],
+            method=methods.gyr_alignment,
+            exact=exact,
+            with_covariance=cov,
         )
     gyr, _ = stages.combine_gyr(
-        a["bias"], scale, a["table"], table_align, exact=exact, with_covariance=cov
+        a["bias"],
+        scale,
+        a["table"],
+        table_align,
+        bias_estimator=methods.gyr_bias_estimator,
+        exact=exact,
+        with_covariance=cov,
     )
     return stages.combine_calibration(acc, gyr, mag)
 

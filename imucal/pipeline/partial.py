@@ -40,6 +40,7 @@ from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
 from imucal.fits import accelerometer, gyroscope
 from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
+from imucal.pipeline.options import FitMethods
 from imucal.pipeline.outcome import not_run_reason
 from imucal.pipeline.registry import FINAL, STAGES, VALIDATE
 from imucal.segments.table import cut_finite, rows_of
@@ -120,7 +121,11 @@ class _Session:
         lowpass: Mapping[str, float],
         references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
         reference_where: Mapping[str, str] | None = None,
+        methods: FitMethods | None = None,
+        exact_rotation: bool = True,
     ):
+        self.methods = methods or FitMethods()
+        self.exact = exact_rotation
         self.tables = {k: v for k, v in tables.items() if k != "reference"}
         self.references = dict(references or {})
         self.reference_where = dict(reference_where or {})
@@ -175,6 +180,7 @@ def _mag_step1(s: _Session) -> dict:
     _, samples = magnetometer.field_samples(s.tables[primary])
     fit = magnetometer.fit_ellipsoid(
         samples,
+        refine_lm=s.methods.mag_refine_lm,
         field_norm=s.field_norm,
         extra_samples={r: magnetometer.field_samples(s.tables[r])[1] for r in extra} or None,
     )
@@ -184,7 +190,13 @@ def _mag_step1(s: _Session) -> dict:
 def _mag_step2(s: _Session) -> dict:
     _need("mag_step1" in s.done, "needs the ellipsoid fit (mag_step1)")
     s.need_phases("mag")
-    return stages.align_mag(s.tables["rotation3d"], s.segments, s.done["mag_step1"])
+    return stages.align_mag(
+        s.tables["rotation3d"],
+        s.segments,
+        s.done["mag_step1"],
+        method=s.methods.mag_alignment,
+        exact=s.exact,
+    )
 
 
 # -- accelerometer -------------------------------------------------------------------------
@@ -242,6 +254,7 @@ def _acc_cube(s: _Session) -> dict:
         s.gravity_m_s2,
         labels=[str(x) for x in rows["label"]],
         saturation_limit_m_s2=s.saturation_m_s2,
+        method=s.methods.acc_cube,
     )
     artifact = stages.plain(fit)
     artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
@@ -261,7 +274,13 @@ def _acc_cube(s: _Session) -> dict:
 def _acc_align(s: _Session) -> dict:
     _need("acc_cube" in s.done, "needs the cube fit (acc_cube)")
     s.need_phases("acc")
-    return stages.align_acc(s.rotation3d_lowpass, s.segments, s.done["acc_cube"])
+    return stages.align_acc(
+        s.rotation3d_lowpass,
+        s.segments,
+        s.done["acc_cube"],
+        method=s.methods.acc_alignment,
+        exact=s.exact,
+    )
 
 
 # -- gyroscope -----------------------------------------------------------------------------
@@ -287,7 +306,7 @@ def _gyr_bias(s: _Session) -> dict:
 
 
 def _bias(s: _Session) -> np.ndarray:
-    return np.asarray(s.done["gyr_bias"]["bias_ls_rad_s"], dtype=float)
+    return stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)[0]
 
 
 def _gyr_table(s: _Session) -> dict:
@@ -305,7 +324,13 @@ def _gyr_table(s: _Session) -> dict:
 def _gyr_align(s: _Session) -> dict:
     _need("gyr_bias" in s.done, "needs the gyroscope bias")
     s.need_phases("gyr")
-    return stages.align_gyr(s.rotation3d_lowpass, s.segments, _bias(s))
+    return stages.align_gyr(
+        s.rotation3d_lowpass,
+        s.segments,
+        _bias(s),
+        method=s.methods.gyr_alignment,
+        exact=s.exact,
+    )
 
 
 #: A rest this many samples or fewer away from a rotation section is next to it.
@@ -383,7 +408,7 @@ def _gyr_known_rotation(s: _Session) -> dict:
     )
     # the integrals' white noise is the static recording's sample noise; the bias's std (its
     # wander added where the blocks show it) enters every integral times its duration
-    bias, bias_std = stages.gyr_bias_value(s.done["gyr_bias"], "ls")
+    bias, bias_std = stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)
     fit = ferraris.fit_known_rotations(
         cut_finite(s.tables[recording], rest_to_rest(s.segments, recording, rows), GYR),
         known,
@@ -519,7 +544,7 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
         directions[1:],
         intervals,
         _bias(s),
-        bias_std_rad_s=stages.gyr_bias_value(s.done["gyr_bias"], "ls")[1],
+        bias_std_rad_s=stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)[1],
         direction_covariance=pose_direction_covariance(
             s.tables[recording], s.poses(recording), acc
         ),
@@ -544,6 +569,7 @@ def _gyr_scale(s: _Session) -> dict:
         s.done["gyr_align"],
         s.done.get("acc_align"),
         s.done.get("mag_step2"),
+        bias_estimator=s.methods.gyr_bias_estimator,
     )
 
 
@@ -579,6 +605,8 @@ def run_stages(
     lowpass_cutoff_hz: float = 5.0,
     references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
     reference_where: Mapping[str, str] | None = None,
+    methods: FitMethods | None = None,
+    exact_rotation: bool = True,
 ) -> list[Outcome]:
     """Run every stage the session allows, in :data:`STAGES` order.
 
@@ -605,6 +633,10 @@ def run_stages(
         ``gyr_reference`` (:mod:`imucal.pipeline.reference`).
     reference_where : mapping, optional
         Recording -> key path of its reference in dataset.yaml (error messages).
+    methods : FitMethods, optional
+        The method of each fit (the workflow's config; defaults when None).
+    exact_rotation : bool
+        Exact rotation in the alignments (else the paper's small-angle form, eq. 5).
 
     Returns
     -------
@@ -623,6 +655,8 @@ def run_stages(
         {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz},
         references,
         reference_where,
+        methods,
+        exact_rotation,
     )
     outcomes = []
     for name, runner in RUNNERS.items():
@@ -642,8 +676,19 @@ def run_stages(
 #: Stages whose result is a sensor's final calibration, best first.
 
 
-def final_calibration(outcomes: list[Outcome]) -> dict[str, Any]:
+def final_calibration(
+    outcomes: list[Outcome], methods: FitMethods | None = None, exact_rotation: bool = True
+) -> dict[str, Any]:
     """The best calibration per sensor from the stages that ran, and why a sensor has none.
+
+    Parameters
+    ----------
+    outcomes : list of Outcome
+        :func:`run_stages`'s.
+    methods : FitMethods, optional
+        The methods the stages ran with (the gyro bias estimator picks the bias).
+    exact_rotation : bool
+        As the stages ran (the tool-free gyroscope's combination).
 
     Returns
     -------
@@ -660,11 +705,12 @@ def final_calibration(outcomes: list[Outcome]) -> dict[str, Any]:
                 f"{o.name}: {o.reason}" for o in outcomes if o.name in FINAL[sensor]
             )
             continue
-        sensors[sensor] = {"stage": stage, "calibration": _calibration_of(stage, done)}
+        calibration = _calibration_of(stage, done, methods or FitMethods(), exact_rotation)
+        sensors[sensor] = {"stage": stage, "calibration": calibration}
     return {"sensors": sensors, "missing": missing}
 
 
-def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
+def _calibration_of(stage: str, done: Mapping[str, dict], methods: FitMethods, exact: bool) -> dict:
     artifact = done[stage]
     if stage == "mag_step1":
         from imucal.fits import magnetometer
@@ -696,9 +742,12 @@ def _calibration_of(stage: str, done: Mapping[str, dict]) -> dict:
             cov,
         ).to_dict()
     if stage == "gyr_scale":
-        return stages.tool_free_gyr(done["gyr_bias"], artifact).to_dict()
+        return stages.tool_free_gyr(
+            done["gyr_bias"], artifact, bias_estimator=methods.gyr_bias_estimator, exact=exact
+        ).to_dict()
     if stage == "gyr_bias":
-        bias, std = stages.gyr_bias_value(artifact, "ls")  # the wander's variance where it shows
+        # the wander's variance where it shows
+        bias, std = stages.gyr_bias_value(artifact, methods.gyr_bias_estimator)
         return SensorCalibration(
             "gyr",
             bias,

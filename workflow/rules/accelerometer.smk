@@ -21,7 +21,7 @@ rule acc_cube:
     params:
         gravity_m_s2=gravity,
         saturation_limit_m_s2=saturation_limit("acc"),
-        method=config["accelerometer"]["cube_method"],
+        method=FIT_METHODS["acc_cube"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/acc_cube.py"
@@ -41,8 +41,8 @@ rule acc_align:
     conda:
         "../envs/imucal.yaml"
     params:
-        method=config["accelerometer"]["alignment_method"],
-        exact=config["exact_rotation"],
+        method=FIT_METHODS["acc_alignment"],
+        exact=PIPELINE_SETTINGS["exact_rotation"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/acc_align.py"

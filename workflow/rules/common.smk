@@ -11,6 +11,7 @@ from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
 from imucal.terms import TermSettings
 from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
+from imucal.pipeline.options import pipeline_settings
 from imucal.pipeline.registry import full_protocol_artifacts, is_full_protocol
 
 DATASETS = sorted(config["datasets"])
@@ -38,6 +39,11 @@ SHEET_DATASETS = (
 )
 #: Package version as a param of every fit rule: an upgrade of imucal reruns them.
 IMUCAL_VERSION = imucal.__version__
+#: Every setting that changes a fit, read from the config once: the stage rules take theirs
+#: from here, and the in-process chain (diagnosis, closed loop, partial path) gets the whole
+#: dict, so the two agree by construction (imucal.pipeline.options).
+PIPELINE_SETTINGS = pipeline_settings(config)
+FIT_METHODS = PIPELINE_SETTINGS["methods"]
 
 
 wildcard_constraints:
@@ -492,14 +498,6 @@ def diagnosis_settings(check=None):
         return values
 
     return settings
-
-
-#: The pipeline settings a diagnosis refits its twin's replicas with (config, not dataset.yaml).
-PIPELINE_SETTINGS = {
-    "exact_rotation": config["exact_rotation"],
-    "lowpass_order": config["lowpass"]["order"],
-    "lowpass_cutoff_hz": config["lowpass"]["cutoff_hz"],
-}
 
 
 def fleet_calibrations(wildcards):

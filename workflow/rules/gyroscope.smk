@@ -40,9 +40,9 @@ rule gyr_align:
     conda:
         "../envs/imucal.yaml"
     params:
-        bias_estimator=config["gyroscope"]["bias_estimator"],
-        method=config["gyroscope"]["alignment_method"],
-        exact=config["exact_rotation"],
+        bias_estimator=FIT_METHODS["gyr_bias_estimator"],
+        method=FIT_METHODS["gyr_alignment"],
+        exact=PIPELINE_SETTINGS["exact_rotation"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gyr_align.py"
@@ -66,7 +66,7 @@ rule gyr_scale:
     conda:
         "../envs/imucal.yaml"
     params:
-        bias_estimator=config["gyroscope"]["bias_estimator"],
+        bias_estimator=FIT_METHODS["gyr_bias_estimator"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gyr_scale.py"
@@ -110,8 +110,8 @@ rule gyr_table_align:
     conda:
         "../envs/imucal.yaml"
     params:
-        method=config["gyroscope"]["alignment_method"],
-        exact=config["exact_rotation"],
+        method=FIT_METHODS["gyr_alignment"],
+        exact=PIPELINE_SETTINGS["exact_rotation"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gyr_table_align.py"
@@ -135,8 +135,8 @@ rule gyr:
     conda:
         "../envs/imucal.yaml"
     params:
-        bias_estimator=config["gyroscope"]["bias_estimator"],
-        exact=config["exact_rotation"],
+        bias_estimator=FIT_METHODS["gyr_bias_estimator"],
+        exact=PIPELINE_SETTINGS["exact_rotation"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gyr.py"

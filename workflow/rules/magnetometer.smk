@@ -15,7 +15,7 @@ rule mag_step1:
         "../envs/imucal.yaml"
     params:
         field_norm=field_norm,
-        refine_lm=config["magnetometer"]["refine_lm"],
+        refine_lm=FIT_METHODS["mag_refine_lm"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/mag_step1.py"
@@ -55,8 +55,8 @@ rule mag_step2:
     conda:
         "../envs/imucal.yaml"
     params:
-        method=config["magnetometer"]["step2_method"],
-        exact=config["exact_rotation"],
+        method=FIT_METHODS["mag_alignment"],
+        exact=PIPELINE_SETTINGS["exact_rotation"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/mag_step2.py"

@@ -23,8 +23,7 @@ rule partial:
     conda:
         "../envs/imucal.yaml"
     params:
-        lowpass_order=config["lowpass"]["order"],
-        lowpass_cutoff_hz=config["lowpass"]["cutoff_hz"],
+        pipeline=PIPELINE_SETTINGS,
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/partial.py"

@@ -16,8 +16,8 @@ rule lowpass:
     conda:
         "../envs/imucal.yaml"
     params:
-        order=config["lowpass"]["order"],
-        cutoff_hz=config["lowpass"]["cutoff_hz"],
+        order=PIPELINE_SETTINGS["lowpass_order"],
+        cutoff_hz=PIPELINE_SETTINGS["lowpass_cutoff_hz"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/lowpass.py"

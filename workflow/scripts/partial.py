@@ -8,11 +8,14 @@ from imucal.calibration import FORMAT_VERSION
 from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial
+from imucal.pipeline.options import FitMethods
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+settings = snakemake.params.pipeline
+methods = FitMethods.of(settings["methods"])
 
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 names = [n for n in dataset.recordings if n != "reference"]
@@ -26,17 +29,19 @@ outcomes = partial.run_stages(
     tables,
     read_segments(snakemake.input.segments),
     notes=segment_meta.get("notes", {}),
-    lowpass_order=snakemake.params.lowpass_order,
-    lowpass_cutoff_hz=snakemake.params.lowpass_cutoff_hz,
+    lowpass_order=settings["lowpass_order"],
+    lowpass_cutoff_hz=settings["lowpass_cutoff_hz"],
     gravity_m_s2=dataset.gravity_m_s2,
     field_norm=dataset.field_norm,
     ratetable=dataset.ratetable,
     references=references,
     reference_where={name: dataset.reference_where(name) for name in references},
+    methods=methods,
+    exact_rotation=settings["exact_rotation"],
 )
 for o in outcomes:
     logging.info("%-22s %-8s %s", o.name, o.status, o.reason)
-final = partial.final_calibration(outcomes)
+final = partial.final_calibration(outcomes, methods, settings["exact_rotation"])
 calibration = {
     "format_version": FORMAT_VERSION,
     **{sensor: entry["calibration"] for sensor, entry in final["sensors"].items()},
