@@ -8,7 +8,7 @@ and six at 45 degrees on a V-block; the 45-degree positions make the cross terms
 Step 2 (the rotation ``T_R,acc`` into frame B) is done in :mod:`imucal.fits.alignment`.
 
 The magnitude model is shared with the gyroscope's magnitude-only rate-table fit
-(:func:`imucal.fits.gyroscope.fit_rate_table_magnitude`) through :func:`fit_magnitude_model`.
+(:func:`imucal.fits.ratetable.fit_rate_table_magnitude`) through :func:`fit_magnitude_model`.
 
 The module is long (about 590 lines): one fit, its input checks, its goodness of fit and
 its covariance (with the inflation rule) belong together.

@@ -41,6 +41,7 @@ from imucal.fits.alignment import (
     phase_samples,
 )
 from imucal.fits.propagation import alignment_sensitivity, upper_bias_covariance
+from imucal.fits.ratetable import fit_rate_table, rate_table_crlb
 from imucal.pipeline.outcome import not_run_reason
 from imucal.segments.detector import is_clipped
 from imucal.segments.table import cut, rows_of
@@ -691,7 +692,7 @@ def fit_gyr_table(
     """Rate-table step 1 (eq. 33, vector form): full matrix and bias from the run means.
 
     Runs with saturated samples are left out with a warning; the fit is refused (by
-    :func:`imucal.fits.gyroscope.fit_rate_table`) only when too few runs remain. ``figures``
+    :func:`imucal.fits.ratetable.fit_rate_table`) only when too few runs remain. ``figures``
     False skips the figure (the in-process chain does not need it).
 
     Returns
@@ -718,13 +719,13 @@ def fit_gyr_table(
     runs = [r for r, k in zip(runs, keep, strict=True) if k]
     unit = {a: np.eye(3)[i] for i, a in enumerate(AXES)}
     rates = np.array([np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)])
-    fit = gyroscope.fit_rate_table(
+    fit = fit_rate_table(
         np.array([r.mean(axis=0) for r in runs]), rates, np.array([len(r) for r in runs])
     )
     # the runs' ends are where a segmentation can take in the ramps: the fit on runs without
     # their outer tenths shows how far that moves (K, b), a systematic term of the covariance
     inner = [r[len(r) // 10 : len(r) - len(r) // 10] for r in runs]
-    trimmed = gyroscope.fit_rate_table(
+    trimmed = fit_rate_table(
         np.array([r.mean(axis=0) for r in inner]), rates, np.array([len(r) for r in inner])
     )
     # the bound for the runs' own sample noise (pooled about each run's mean): how far the
@@ -732,7 +733,7 @@ def fit_gyr_table(
     within = np.sqrt(
         sum(np.sum((r - r.mean(axis=0)) ** 2, axis=0) for r in runs) / sum(len(r) - 1 for r in runs)
     )
-    crlb = gyroscope.rate_table_crlb(fit.matrix, rates, np.array([len(r) for r in runs]), within)
+    crlb = rate_table_crlb(fit.matrix, rates, np.array([len(r) for r in runs]), within)
     artifact = plain(fit)
     artifact.update(
         std_over_crlb=(np.sqrt(np.diag(fit.covariance)) / np.sqrt(np.diag(crlb))).tolist(),

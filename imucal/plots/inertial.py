@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 
 from imucal.columns import AXES
 from imucal.fits.accelerometer import CubeFit
-from imucal.fits.gyroscope import RateTableFit
+from imucal.fits.ratetable import RateTableFit
 
 #: Okabe-Ito colours (colour-blind safe): before / after, and per axis.
 BEFORE_COLOUR = "#E69F00"

@@ -24,12 +24,8 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.fits.accelerometer import cube_crlb, fit_cube
-from imucal.fits.gyroscope import (
-    estimate_bias,
-    fit_rate_table,
-    fit_rate_table_magnitude,
-    rate_table_crlb,
-)
+from imucal.fits.gyroscope import estimate_bias
+from imucal.fits.ratetable import fit_rate_table, fit_rate_table_magnitude, rate_table_crlb
 from imucal.sim.protocol import CUBE_UP_B
 
 G = 9.81

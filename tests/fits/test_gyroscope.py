@@ -16,13 +16,11 @@ from imucal.fits.accelerometer import fit_cube
 from imucal.fits.gyroscope import (
     estimate_bias,
     estimate_scale,
-    fit_rate_table,
-    fit_rate_table_magnitude,
     make_calibration,
     measure_angle_change,
     pause_mean_weights,
-    rate_table_crlb,
 )
+from imucal.fits.ratetable import fit_rate_table, fit_rate_table_magnitude, rate_table_crlb
 from imucal.io.dataset import read_dataset
 from imucal.segments.ratetable import segment_ratetable
 from imucal.sim.protocol import CUBE_UP_B
