@@ -287,10 +287,11 @@ def calibration_of(wildcards):
     return calibration_path(wildcards.dataset)
 
 
-#: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/.
+#: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/, one folder
+#: per format.
 from imucal.export.formats import FORMATS as EXPORT_FORMATS
 
-EXPORT_FILES = [name for names in EXPORT_FORMATS.values() for name in names]
+EXPORT_FILES = [f"{fmt}/{name}" for fmt, names in EXPORT_FORMATS.items() for name in names]
 
 
 def noise_targets(name):

@@ -30,10 +30,10 @@ rule export:
         calibration=calibration_of,
         noise="results/{dataset}/noise.json",
     output:
-        kalibr_imu="results/{dataset}/export/kalibr_imu.yaml",
-        kalibr_chain="results/{dataset}/export/kalibr_imu_chain.yaml",
-        openvins="results/{dataset}/export/openvins_kalibr_imu_chain.yaml",
-        ros="results/{dataset}/export/ros_imu_covariance.yaml",
+        kalibr_imu="results/{dataset}/export/kalibr/imu.yaml",
+        kalibr_results="results/{dataset}/export/kalibr/imucal-imu.yaml",
+        openvins="results/{dataset}/export/openvins/kalibr_imu_chain.yaml",
+        ros="results/{dataset}/export/ros/imu_covariance.yaml",
     log:
         "results/{dataset}/logs/export.log",
     # off the way to calibration.json: runs on a core the stages leave free
