@@ -1,9 +1,11 @@
 # Helpers shared by the rules: the dataset table, input functions, wildcard constraints.
 # No rules here.
+import os
 from functools import lru_cache
 from pathlib import Path
 
 import yaml
+from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
 import imucal
@@ -100,11 +102,47 @@ def dataset_of(name):
     return read_dataset(folder_of(name))
 
 
+def config_source(name):
+    """Where config `datasets` got the dataset `name`: the last config file that names it (a
+    --configfile overrides config/config.yaml), or the command line's --config."""
+    for path in reversed(workflow.configfiles):
+        data = yaml.safe_load(Path(path).read_text()) or {}
+        if name in (data.get("datasets") or {}):
+            path = Path(path).absolute()
+            inside = path.is_relative_to(Path.cwd())
+            return str(path.relative_to(Path.cwd())) if inside else str(path)
+    return "the command line (--config)"
+
+
+def check_configured_datasets():
+    """Read the dataset.yaml of every configured dataset when the workflow is parsed, so that a
+    wrong folder or setting stops the run before any rule, in one paragraph that names the
+    config file, the dataset's key, the folder and the fix (a raised error, no traceback)."""
+    for name, folder in sorted(config["datasets"].items()):
+        source = f"{config_source(name)}, datasets.{name}: {folder!r}"
+        try:
+            dataset_of(name)
+        except FileNotFoundError:
+            where = Path(os.path.normpath(Path.cwd() / folder))  # as typed, symlinks kept
+            missing = "has no dataset.yaml" if where.is_dir() else "does not exist"
+            raise WorkflowError(
+                f"{source}: the folder {where} {missing}. Give the folder that holds the "
+                f"dataset's dataset.yaml (relative to {Path.cwd()}, or absolute), or remove "
+                f"'{name}' from datasets; docs/data-format.md describes the folder."
+            ) from None
+        except ValueError as err:
+            raise WorkflowError(
+                f"{source}: {err} Fix the file and run again; docs/data-format.md lists the "
+                "settings."
+            ) from None
+
+
 def full_protocol(name):
     """The session follows the paper's protocol (stage-per-rule workflow), else `partial`."""
     return is_full_protocol(dataset_of(name))
 
 
+check_configured_datasets()
 #: The configured and public datasets: a lab report is one of theirs (reports/blind.html and
 #: reports/stress.html are the checks' pages, not datasets).
 ALL_DATASETS_PATTERN = (
