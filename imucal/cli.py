@@ -181,9 +181,12 @@ def _run_lookup(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with all subcommands."""
+    from imucal import __version__
+
     parser = argparse.ArgumentParser(
         prog="imucal", description="IMU calibration on a 3-D rotation platform"
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_simulate(sub)
     _add_apply(sub)
