@@ -29,6 +29,7 @@ from imucal.report import (
 from imucal.sim import simulate
 
 SECTION_HEADINGS = (
+    "Summary: how good is the calibration",
     "Session and data quality",
     "Warnings",
     "Methods used",

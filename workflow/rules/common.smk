@@ -413,6 +413,15 @@ def reference_input(wildcards):
     return {"reference": f"results/{wildcards.dataset}/ingest/reference.parquet"}
 
 
+def ingest_benchmarks(name, info):
+    """Run times of the ingest of every recording, and of the noise stage where it runs: the
+    report's run-time table lists every rule behind it."""
+    paths = [f"results/{name}/benchmarks/ingest/{r}.tsv" for r in info.recordings]
+    if has_noise_recording(name):
+        paths.append(f"results/{name}/benchmarks/noise.tsv")
+    return paths
+
+
 def noise_report_inputs(name):
     """The noise section's inputs (noise.json, then its figure) when the dataset has one."""
     if not has_noise_recording(name):
@@ -431,12 +440,17 @@ def report_inputs(wildcards):
         inputs.update({k: f"results/{d}/partial/{k}.json" for k in ("mag", "acc", "gyr")})
         inputs["calibration"] = f"results/{d}/partial/calibration.json"
         benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
+        benchmarks += ingest_benchmarks(d, info)
         inputs["figure_dir"] = f"results/{d}/partial/figures"
         benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
         if has_orientation_reference(d):
             inputs["validation"] = f"results/{d}/reference/validation.json"
             figures.append(f"results/{d}/figures/reference_orientation.png")
             benchmarks.append(f"results/{d}/benchmarks/validate_references.tsv")
+            benchmarks += [
+                f"results/{d}/benchmarks/reference/ingest_{r}.tsv"
+                for r in info.orientation_references
+            ]
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
         noise = noise_report_inputs(d)
         return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
@@ -450,11 +464,13 @@ def report_inputs(wildcards):
     benchmarks = [
         f"results/{d}/benchmarks/{rule}.tsv"
         for rule in ("segment", "mag_step1", "mag_step2", "acc_cube", "acc_align")
-        + ("gyr_bias", "gyr_align", "gyr_scale", "validate")
+        + ("gyr_bias", "gyr_align", "gyr_scale", "validate", "gap_diagnose", "model_terms")
+        + ("lowpass/rotation3d",)
     ]
+    benchmarks += ingest_benchmarks(d, info)
     if "ratetable" in info.recordings:
         figures.append(f"results/{d}/figures/gyr_table.png")
-        benchmarks += [f"results/{d}/benchmarks/gyr_table.tsv"]
+        benchmarks += [f"results/{d}/benchmarks/{r}.tsv" for r in ("gyr_table", "gyr_table_align")]
     if "reference" in info.recordings:
         figures += [
             f"results/{d}/figures/validation_magnitudes.png",
