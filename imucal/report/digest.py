@@ -67,7 +67,10 @@ def _row(quantity: str, value: Any, unit: str = "", std: Any = None, digits: int
 
 def _table(title: str, rows: Sequence[dict | None]) -> dict | None:
     kept = [r for r in rows if r is not None]
-    return {"title": title, "kind": "rows", "rows": kept} if kept else None
+    if not kept:
+        return None
+    vector = any(len(r["cells"]) == 3 for r in kept)  # else one value column, no x, y, z
+    return {"title": title, "kind": "rows", "rows": kept, "vector": vector}
 
 
 def _maybe(quantity: str, value: Any, unit: str = "", std: Any = None, digits: int = 4):
@@ -250,17 +253,17 @@ def stage_tables(sensor: str, result: Mapping | None) -> list[dict]:
 
 
 def _offset_note(offset_s: float) -> str:
-    """What a time offset of the reference's clock means, in words."""
+    """What a time offset of the reference's clock (``t_ref = offset + t_module``) means."""
+    more = "more" if offset_s > 0 else "less"
     if abs(offset_s) >= 1.0:
         return (
-            f"the reference's clock reads {_fmt(abs(offset_s))} s "
-            f"{'more' if offset_s > 0 else 'less'} than the module's: the two recordings were "
-            "started that far apart; removed before the comparison"
+            f"at the same instant the reference's clock reads {_fmt(abs(offset_s))} s {more} "
+            "than the module's: the two recordings were started that far apart; removed before "
+            "the comparison"
         )
     return (
-        f"the reference's samples are {_fmt(abs(offset_s) * 1e3)} ms "
-        f"{'later' if offset_s > 0 else 'earlier'} than the module's (latency of one against "
-        "the other); removed before the comparison"
+        f"at the same instant the reference's clock reads {_fmt(abs(offset_s) * 1e3)} ms {more} "
+        "than the module's (a latency between the two streams); removed before the comparison"
     )
 
 
@@ -441,6 +444,16 @@ def _fallback(sensor: str, result: Mapping | None) -> tuple[list[str], str] | No
     return None
 
 
+#: Characters of a warning in the summary (the Warnings section has it whole).
+WARNING_CHARS = 90
+
+
+def _short(text: str) -> str:
+    """A warning's first clause, for the summary."""
+    text = text.split(" (", 1)[0]
+    return text if len(text) <= WARNING_CHARS else text[: WARNING_CHARS - 1].rstrip() + "…"
+
+
 def headline(
     calibration: Mapping,
     results: Mapping[str, Mapping | None],
@@ -453,7 +466,15 @@ def headline(
     missing = dict(calibration.get("missing", {}))
     out = []
     for sensor in ("acc", "gyr", "mag"):
-        own = [w["text"] for w in warnings if str(w.get("source", "")).startswith(sensor)]
+        # its stage's warnings, and those of the validation that name it
+        name = SENSOR_TITLES[sensor].lower()
+        own = [
+            w["text"]
+            for w in warnings
+            if str(w.get("source", "")).startswith(sensor)
+            or (str(w.get("source", "")).startswith("validation") and name in w["text"].lower())
+        ]
+        own = list(dict.fromkeys(_short(t) for t in own))
         if sensor in missing:
             first = str(missing[sensor]).split(": ", 1)[0]  # the sensor section has the rest
             out.append({"sensor": SENSOR_TITLES[sensor], "calibrated": False,
