@@ -120,9 +120,15 @@ def _add_export(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "export",
         help="write a calibration and its noise for Kalibr, OpenVINS or ROS",
-        description="Write the files one tool reads (docs/exports.md): kalibr (imu.yaml and the "
-        "scale-misalignment intrinsics), openvins (kalibr_imu_chain.yaml with Tw, R_IMUtoGYRO, "
-        "Ta, R_IMUtoACC, Tg), ros (sensor_msgs/Imu covariances).",
+        description="Write the files one tool reads, under the tool's own names "
+        "(docs/exports.md). kalibr: imu.yaml, of which Kalibr reads the noise densities, random "
+        "walks, update_rate and rostopic, nothing else; and imucal-imu.yaml, our intrinsics (M, "
+        "A, C_gyro_i) in the layout of Kalibr's results file <bag>-imu.yaml, for comparison: "
+        "Kalibr estimates them itself and does not take them as input. openvins: "
+        "kalibr_imu_chain.yaml, read through OpenCV: the noise values, model, Tw, R_IMUtoGYRO, "
+        "Ta, R_IMUtoACC, Tg and rostopic (the biases are estimated online, not read). ros: "
+        "imu_covariance.yaml, the sensor_msgs/Imu covariances and the calibration the driver "
+        "applies (ROS applies none itself). Noise values are not inflated.",
     )
     p.add_argument("--format", required=True, choices=sorted(FORMATS), dest="fmt")
     p.add_argument("calibration", help="calibration.json (full or partial)")
@@ -175,9 +181,12 @@ def _run_lookup(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with all subcommands."""
+    from imucal import __version__
+
     parser = argparse.ArgumentParser(
         prog="imucal", description="IMU calibration on a 3-D rotation platform"
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_simulate(sub)
     _add_apply(sub)

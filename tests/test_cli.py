@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
@@ -91,3 +92,12 @@ def test_apply_adds_the_parameter_std_columns(tmp_path):
     for k, column in enumerate(ACC):
         np.testing.assert_allclose(out[column + "_param_std"], expected[k], rtol=1e-9)
     assert "gyr_x_param_std" not in out.columns  # no covariance, no column
+
+
+def test_version_prints_the_package_version(capsys):
+    import imucal
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out == f"imucal {imucal.__version__}\n"

@@ -249,6 +249,16 @@ def test_command_plans_expected_jobs(command, dry_runs):
 @pytest.mark.parametrize("command", IMUCAL_COMMANDS)
 def test_imucal_command_parses(command):
     argv = shlex.split(command)[1:]
+    if argv[0].startswith("--"):  # an option of the program itself, e.g. --version
+        run = subprocess.run(
+            [sys.executable, "-m", "imucal.cli", *argv],
+            env={**os.environ, "PYTHONPATH": str(REPO)},
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert run.returncode == 0 and run.stdout.startswith("imucal "), run.stderr
+        return
     help_run = subprocess.run(
         [sys.executable, "-m", "imucal.cli", argv[0], "--help"],
         env={**os.environ, "PYTHONPATH": str(REPO)},

@@ -20,7 +20,12 @@ from imucal.export.ros import ros_imu_covariances
 
 
 class _Dumper(yaml.SafeDumper):
-    """Block mappings as in the tools' own files; rows of numbers as flow lists ``[a, b, c]``."""
+    """Block mappings as in the tools' own files; rows of numbers as flow lists ``[a, b, c]``;
+    the items of a block list indented under their key, as OpenCV's YAML reader requires
+    (``- [...]`` at the key's own indentation is "Incorrect indentation" there)."""
+
+    def increase_indent(self, flow: bool = False, indentless: bool = False) -> None:
+        return super().increase_indent(flow, False)
 
 
 def _represent_list(dumper: yaml.SafeDumper, data: list) -> yaml.Node:

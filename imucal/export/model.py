@@ -152,7 +152,23 @@ def noise_parameters(noise: Mapping) -> NoiseParameters:
                     f"(skipped: {noise.get('skipped', {}).get(sensor, 'no such columns')})"
                 )
             values[f"{sensor}_{key}"], resolved[f"{sensor}_{key}"] = value, ok
-    return NoiseParameters(**values, update_rate_hz=float(noise["rate_hz"]), resolved=resolved)
+    return NoiseParameters(
+        **values, update_rate_hz=export_rate(noise["rate_hz"]), resolved=resolved
+    )
+
+
+#: Significant digits of the sample rate written in the exports.
+RATE_DIGITS = 6
+
+
+def export_rate(rate_hz: float) -> float:
+    """The sample rate as the files give it, to :data:`RATE_DIGITS` significant digits, Hz.
+
+    The rate comes from the median (or mean) time step, so a 100 Hz recording gives
+    100.00000000000213 Hz; time stamps of 1 us resolution fix a 1 kHz rate to about 1e-3
+    relative, so six digits keep all that is known.
+    """
+    return float(f"{float(rate_hz):.{RATE_DIGITS}g}")
 
 
 def matrix_list(matrix: np.ndarray) -> list[list[float]]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from imucal.calibration import CONVENTION, SensorCalibration
 from imucal.columns import AXES
-from imucal.export.model import matrix_list
+from imucal.export.model import export_rate, matrix_list
 from imucal.noise import sensor_noise
 
 #: Element 0 of a covariance that ROS readers must disregard (Imu.msg).
@@ -45,7 +45,7 @@ def sample_covariance(
 
 def ros_imu_covariances(calibration: Mapping[str, SensorCalibration], noise: Mapping) -> dict:
     """The three covariance fields of ``sensor_msgs/Imu`` and the calibration to apply."""
-    rate = float(noise["rate_hz"])
+    rate = export_rate(noise["rate_hz"])
     gyr = sample_covariance(calibration["gyr"], axis_densities(noise, "gyr"), rate)
     acc = sample_covariance(calibration["acc"], axis_densities(noise, "acc"), rate)
     _, ok_g = sensor_noise(noise, "gyr", "N")

@@ -33,7 +33,9 @@ def plot_gap_map(diagnosis: Mapping) -> Figure:
         i = rows.index((d["stage"], d["sensor"], d["axis"], d["segment"]))
         j = cols.index(d["statistic"])
         z[i, j], flag[i, j] = d["z"], d["in_gap"]
-    fig = Figure(figsize=(max(6, 0.55 * len(cols) + 3), max(4, 0.22 * len(rows) + 1.5)))
+    # at most 10 in wide: saved at 110 dpi it fits the report's page without being scaled
+    # down, so that the 8-point labels stay readable (about 12 px)
+    fig = Figure(figsize=(min(10, max(6, 0.4 * len(cols) + 4)), max(4, 0.2 * len(rows) + 2.5)))
     ax = fig.add_subplot()
     a = np.abs(z)
     im = ax.imshow(np.where(np.isfinite(a), np.maximum(a, 0.1), np.nan), cmap="cividis",
@@ -42,8 +44,8 @@ def plot_gap_map(diagnosis: Mapping) -> Figure:
     for i, j in zip(*np.where(flag), strict=True):
         ax.text(j, i, "+" if z[i, j] > 0 else "-", ha="center", va="center", color="red",
                 fontsize=9, fontweight="bold")  # fmt: skip
-    ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=7)
-    ax.set_yticks(range(len(rows)), ["/".join(r) for r in rows], fontsize=6)
+    ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=8)
+    ax.set_yticks(range(len(rows)), ["/".join(r) for r in rows], fontsize=8)
     ax.set_xlabel("statistic")
     ax.set_ylabel("stage / sensor / axis / segment")
     fig.colorbar(im, ax=ax, label="|z| against the twin's null (marked: in the gap, Holm)")

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
 import functools
 import os
+import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -149,6 +151,9 @@ def read_dataset(folder: str | Path) -> Dataset:
     if errors:
         err = errors[0]
         where = "/".join(str(p) for p in err.path) or "(top level)"
+        unknown = _unknown_keys(err)
+        if unknown:
+            raise ValueError(f"{path}: {unknown}") from None
         raise ValueError(f"{path}: key '{where}': {err.message}")
     cfg = _with_defaults(validator.schema, raw)
     if "ratetable" in cfg["recordings"] and "ratetable" not in cfg:
@@ -200,6 +205,29 @@ def read_dataset(folder: str | Path) -> Dataset:
         count_range=count_range,
         orientation_references=references,
     )
+
+
+def _unknown_keys(err: jsonschema.ValidationError) -> str | None:
+    """For a key the schema does not know (``additionalProperties``): which, where, and the
+    closest known key (a typo); None for any other error."""
+    if err.validator != "additionalProperties" or not isinstance(err.instance, dict):
+        return None
+    known = sorted(err.schema.get("properties", {}))
+    patterns = list(err.schema.get("patternProperties", {}))
+    extra = [
+        k for k in err.instance if k not in known and not any(re.match(p, k) for p in patterns)
+    ]
+    if not extra:
+        return None
+    parent = "/".join(str(p) for p in err.path)
+    parts = []
+    for key in extra:
+        name = f"{parent}/{key}" if parent else key
+        close = difflib.get_close_matches(str(key), known, n=1, cutoff=0.6)
+        hint = f", did you mean {close[0]!r}?" if close else "."
+        parts.append(f"key {name!r} is not a known key here{hint}")
+    notes = " (keys starting with 'x-' are free for notes)" if "^x-" in patterns else ""
+    return f"{' '.join(parts)} Known keys here: {', '.join(known)}{notes}."
 
 
 def _count_range(schema: dict, declared: dict, where: str) -> dict[str, tuple[int, int]]:

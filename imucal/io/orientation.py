@@ -38,6 +38,16 @@ CONVENTION = (
 )
 
 
+def _place(rec: Any, row: int, file: str) -> str:
+    """Where a data row is, for a message: the 1-based line of a text file, else the 1-based
+    sample (MATLAB and HDF5 files have no lines; a table sorted by time no longer follows its
+    lines)."""
+    first = rec.metadata.get("first_line")
+    if first is not None:
+        return f"{file}, line {first + row}"
+    return f"{file}, sample {row + 1} (counted from 1)"
+
+
 def read_orientation_reference(
     declaration: Mapping[str, Any], *, where: str
 ) -> tuple[pd.DataFrame, dict]:
@@ -101,7 +111,7 @@ def read_orientation_reference(
         row = int(np.flatnonzero(partial)[0])
         raise DeclarationError(
             f"{where}.columns",
-            f"row {row} of {entry['file']} has only some of the {kind}'s components",
+            f"{_place(rec, row, entry['file'])} has only some of the {kind}'s components",
             "all of them (an orientation) or none (tracking lost) per row",
         )
     ok = finite.all(axis=1)
@@ -117,7 +127,7 @@ def read_orientation_reference(
             row = int(np.flatnonzero(ok)[worst])
             raise DeclarationError(
                 f"{where}.columns",
-                f"row {row} of {entry['file']} has |q| = {norm[worst]:.6g}",
+                f"{_place(rec, row, entry['file'])} has |q| = {norm[worst]:.6g}",
                 f"unit quaternions (| |q| - 1 | <= {UNIT_TOLERANCE}); check that the columns "
                 "are the four components of one quaternion",
             )
@@ -134,7 +144,7 @@ def read_orientation_reference(
             row = int(np.flatnonzero(ok)[i])
             raise DeclarationError(
                 f"{where}.columns",
-                f"row {row} of {entry['file']} is not a rotation matrix (max |R^T R - I| = "
+                f"{_place(rec, row, entry['file'])} is not a rotation matrix (max |R^T R - I| = "
                 f"{error[i]:.3g}, det {det[i]:.6g})",
                 f"rotation matrices given row by row as r_11, r_12, ..., r_33 (tolerance "
                 f"{UNIT_TOLERANCE})",

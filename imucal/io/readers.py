@@ -706,7 +706,8 @@ def _check_rows(
         raise io.RawDataError(
             path,
             _line(first_line, row),
-            f"{', '.join(empty)} empty but not the other {sensor} column(s) (row {row})",
+            f"{', '.join(empty)} empty but not the other {sensor} column(s)"
+            + ("" if first_line is not None else f" (sample {row + 1}, counted from 1)"),
             f"all three {sensor} values (a sample) or none",
         )
     if not some.any():

@@ -17,6 +17,7 @@ import base64
 import datetime as _dt
 import json
 import math
+import os
 import re
 from collections.abc import Mapping, Sequence
 from importlib.metadata import PackageNotFoundError, version
@@ -31,7 +32,8 @@ import yaml
 import imucal
 from imucal import io
 from imucal.columns import AXES, SENSORS
-from imucal.constants import IMU_RECORDINGS, REFERENCE
+from imucal.constants import REFERENCE
+from imucal.report import digest
 from imucal.terms.comparison import gap_comparison
 
 #: Significant digits of the numbers in the report.
@@ -85,6 +87,13 @@ DEFAULT_CAPTIONS = {
     "gyr_table": "Rate-table magnitude errors |w| - |w_true| per run before and after "
     "calibration (paper Fig. 15).",
     "validation": "Magnitudes of the calibrated module and of the reference (paper Fig. 20).",
+    "validation_magnitudes": "Magnitudes of the calibrated module and of the reference after "
+    "time alignment and mounting (paper Fig. 20).",
+    "validation_xcorr": "Cross-correlation of the rate magnitudes of module and reference: its "
+    "peak gives the time offset of the reference's clock.",
+    "reference_orientation": "Orientation error integrated from the gyroscope against the "
+    "declared orientation reference, raw, with the bias only and calibrated.",
+    "noise_allan": "Allan deviation per axis with confidence bars and the fitted noise model.",
 }
 #: Titles and units of the paper's tables in ``tables.csv`` (key: the ``table`` column).
 TABLE_TITLES = {
@@ -255,8 +264,9 @@ def _caption(path: Path, captions: Mapping[str, str]) -> str:
     if stem in DEFAULT_CAPTIONS:
         return DEFAULT_CAPTIONS[stem]
     words = re.sub(r"[_\-]+", " ", stem).strip()
-    where = "Segmentation" if path.parent.name == "segments" else "Figure"
-    return f"{where}: {words} ({path.name})."
+    if path.parent.name == "segments":
+        return f"Segments found in the {words} recording."
+    return f"{words[:1].upper()}{words[1:]}."
 
 
 def read_benchmarks(
@@ -402,7 +412,7 @@ def _cell(value: Any) -> str:
 # Sections
 
 
-def _session(summary: Mapping) -> dict:
+def _session(summary: Mapping, declared_reference: bool = False) -> dict:
     recordings = summary.get("recordings", {})
     rows, gaps = [], []
     for name, rec in recordings.items():
@@ -454,9 +464,12 @@ def _session(summary: Mapping) -> dict:
                 }
             )
     durations = [
-        rec.get("duration_s") or 0.0 for name, rec in recordings.items() if name in IMU_RECORDINGS
+        rec.get("duration_s") or 0.0 for name, rec in recordings.items() if name != REFERENCE
     ]
-    notes = [text for name, text in _RECORDING_ABSENT.items() if name not in recordings]
+    absent = {name for name in _RECORDING_ABSENT if name not in recordings}
+    if declared_reference:
+        absent.discard(REFERENCE)  # a reference declared with a recording (dataset.yaml)
+    notes = [text for name, text in _RECORDING_ABSENT.items() if name in absent]
     return {
         "recordings": rows,
         "gaps": gaps,
@@ -592,6 +605,7 @@ def build_report_context(
     gap: Sequence[str | Path] | None = None,
     noise: Sequence[str | Path] | None = None,
     terms: Sequence[str | Path] | None = None,
+    report_path: str | Path | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -630,6 +644,9 @@ def build_report_context(
         Package version; default :data:`imucal.__version__`.
     generated : str, optional
         Time stamp of the report; default now (UTC, ISO 8601, seconds).
+    report_path : path, optional
+        Where the report will be written: the stage results given as paths are linked from it
+        by their path relative to its folder (none linked without it).
 
     Returns
     -------
@@ -653,6 +670,15 @@ def build_report_context(
             "expected acc, gyr and mag"
         )
     stages = _optional_json(stages, "stages.json")
+    links = {
+        name: _link(obj, report_path)
+        for name, obj in (
+            ("mag", mag_result),
+            ("acc", acc_result),
+            ("gyr", gyr_result),
+            ("validation", validation),
+        )  # fmt: skip
+    }
     results = {
         "mag": _optional_json(mag_result, "mag.json"),
         "acc": _optional_json(acc_result, "acc.json"),
@@ -693,6 +719,8 @@ def build_report_context(
                     "parameters": None,
                     "result_file": f"{sensor}.json",
                     "result": None,
+                    "tables": [],
+                    "link": links[sensor],
                     "figures": figure_items[section],
                     "notes": [f"Not calibrated: {not_calibrated[sensor]}"],
                 }
@@ -705,6 +733,8 @@ def build_report_context(
                 "parameters": _sensor_parameters(sensor, calibration[sensor]),
                 "result_file": f"{sensor}.json",
                 "result": None if result is None else flatten_fields(result),
+                "tables": digest.stage_tables(sensor, result),
+                "link": links[sensor],
                 "figures": figure_items[section],
                 "notes": (
                     [_RECORDING_ABSENT[RATE_TABLE]]
@@ -728,7 +758,11 @@ def build_report_context(
     return {
         "dataset": dataset,
         "generated": generated,
-        "session": _session(summary),
+        "session": _session(summary, declared_reference=validation is not None),
+        "headline": digest.headline(calibration, results, validation, warnings),
+        "gap_sentence": digest.gap_sentence(
+            _optional_json(gap[0], "gap diagnosis") if gap else None
+        ),
         "warnings": warnings,
         "methods": [
             {
@@ -752,8 +786,10 @@ def build_report_context(
             for k in ("format_version", "frame", "convention")
             if k in calibration
         },
-        "has_reference": REFERENCE in recordings,
+        "has_reference": REFERENCE in recordings or validation is not None,
         "validation": None if validation is None else flatten_fields(validation),
+        "validation_tables": digest.validation_tables(validation),
+        "validation_link": links["validation"],
         "validation_figures": figure_items["validation"],
         "provenance": {
             "imucal_version": imucal_version,
@@ -775,6 +811,14 @@ def build_report_context(
         "noise": _noise_section(noise),
         "terms": _terms_section(terms, gap),
     }
+
+
+def _link(obj: Any, report_path: str | Path | None) -> str | None:
+    """Path of a stage result given as a file, relative to the report's folder (for a link)."""
+    if report_path is None or obj is None or isinstance(obj, Mapping):
+        return None
+    start = Path(report_path).resolve().parent
+    return Path(os.path.relpath(Path(obj).resolve(), start)).as_posix()
 
 
 def _plus_minus(value: Any, std: Any) -> str:

@@ -171,7 +171,7 @@ def _kalibr_check(imu0, calibration, raw):
 
 
 def test_kalibr_equation_gives_our_calibration(files, calibration, raw):
-    a = _kalibr_check(files["kalibr_imu_chain.yaml"]["imu0"], calibration, raw)
+    a = _kalibr_check(files["imucal-imu.yaml"]["imu0"], calibration, raw)
     np.testing.assert_array_equal(a, np.zeros((3, 3)))  # no g-sensitivity in the model
 
 
@@ -182,14 +182,14 @@ def _openvins_d(t):
 
 
 def test_openvins_equation_gives_our_calibration(files, calibration, raw):
-    _openvins_check(files["openvins_kalibr_imu_chain.yaml"]["imu0"], calibration, raw)
+    _openvins_check(files["kalibr_imu_chain.yaml"]["imu0"], calibration, raw)
 
 
 @pytest.mark.parametrize(
     ("name", "check"),
     [
-        ("kalibr_imu_chain.yaml", "_kalibr_check"),
-        ("openvins_kalibr_imu_chain.yaml", "_openvins_check"),
+        ("imucal-imu.yaml", "_kalibr_check"),
+        ("kalibr_imu_chain.yaml", "_openvins_check"),
     ],
 )
 def test_the_g_sensitivity_is_carried_and_the_terms_dropped_are_named(
@@ -204,7 +204,7 @@ def test_the_g_sensitivity_is_carried_and_the_terms_dropped_are_named(
 
 
 def test_the_ros_block_names_every_term(files_with_terms):
-    ros = files_with_terms["ros_imu_covariance.yaml"]
+    ros = files_with_terms["imu_covariance.yaml"]
     assert "model terms temperature, g_sensitivity of calibration.json" in ros
 
 
@@ -226,7 +226,7 @@ def _openvins_check(imu0, calibration, raw):
 
 def test_ros_calibration_block_and_covariance(files, calibration, noise, raw):
     """The published sample is K (v_m - b); its covariance is K diag(N^2 f_s) K^T."""
-    ros = files["ros_imu_covariance.yaml"]
+    ros = files["imu_covariance.yaml"]
     for sensor, key in (("acc", "linear_acceleration_covariance"),
                         ("gyr", "angular_velocity_covariance")):  # fmt: skip
         block = ros["calibration"][sensor]
@@ -262,12 +262,12 @@ def test_ros_covariance_matches_calibrated_white_noise(calibration, noise):
 
 
 def test_files_load_and_carry_the_keys_each_tool_reads(files):
-    assert set(files["kalibr_imu.yaml"]) == KALIBR_IMU_KEYS
-    assert KALIBR_CHAIN_KEYS <= set(files["kalibr_imu_chain.yaml"]["imu0"])
-    assert set(files["kalibr_imu_chain.yaml"]["imu0"]["gyroscopes"]) == {"M", "A", "C_gyro_i"}
-    assert set(files["kalibr_imu_chain.yaml"]["imu0"]["accelerometers"]) == {"M"}
-    assert OPENVINS_KEYS <= set(files["openvins_kalibr_imu_chain.yaml"]["imu0"])
-    assert ROS_KEYS <= set(files["ros_imu_covariance.yaml"])
+    assert set(files["imu.yaml"]) == KALIBR_IMU_KEYS
+    assert KALIBR_CHAIN_KEYS <= set(files["imucal-imu.yaml"]["imu0"])
+    assert set(files["imucal-imu.yaml"]["imu0"]["gyroscopes"]) == {"M", "A", "C_gyro_i"}
+    assert set(files["imucal-imu.yaml"]["imu0"]["accelerometers"]) == {"M"}
+    assert OPENVINS_KEYS <= set(files["kalibr_imu_chain.yaml"]["imu0"])
+    assert ROS_KEYS <= set(files["imu_covariance.yaml"])
 
 
 def test_noise_values_round_trip(files, noise):
@@ -276,17 +276,17 @@ def test_noise_values_round_trip(files, noise):
     for sensor, prefix in (("acc", "accelerometer"), ("gyr", "gyroscope")):
         expected[f"{prefix}_noise_density"] = sensor_noise(noise, sensor, "N")[0]
         expected[f"{prefix}_random_walk"] = sensor_noise(noise, sensor, "K")[0]
-    for name in ("kalibr_imu.yaml",):
+    for name in ("imu.yaml",):
         for key, value in expected.items():
             assert files[name][key] == value
-    for name in ("kalibr_imu_chain.yaml", "openvins_kalibr_imu_chain.yaml"):
+    for name in ("imucal-imu.yaml", "kalibr_imu_chain.yaml"):
         for key, value in expected.items():
             assert files[name]["imu0"][key] == value
-        assert files[name]["imu0"]["update_rate"] == noise["rate_hz"]
+        assert files[name]["imu0"]["update_rate"] == pytest.approx(noise["rate_hz"], rel=1e-6)
 
 
 def test_files_state_the_inflation_and_how_each_value_was_obtained(calibration, noise):
-    text = export_files("kalibr", calibration, noise)["kalibr_imu.yaml"]
+    text = export_files("kalibr", calibration, noise)["imu.yaml"]
     assert "NOT inflated" in text and "10-20x" in text
     params = noise_parameters(noise)
     assert all(isinstance(v, bool) for v in params.resolved.values())
@@ -294,8 +294,119 @@ def test_files_state_the_inflation_and_how_each_value_was_obtained(calibration, 
 
 
 def test_openvins_file_starts_with_a_directive_opencv_and_pyyaml_read(calibration, noise):
-    text = export_files("openvins", calibration, noise)["openvins_kalibr_imu_chain.yaml"]
+    text = export_files("openvins", calibration, noise)["kalibr_imu_chain.yaml"]
     assert text.startswith("%YAML 1.0\n---\n")
+
+
+#: What OpenVINS reads under imu0 of kalibr_imu_chain.yaml, through OpenCV's FileStorage
+#: (ov_core/src/utils/opencv_yaml_parse.h): the noise values as double
+#: (VioManagerOptions.h, print_and_load_noise), the model as string (StateOptions.h), the topic
+#: as string (the ROS nodes' subscriber) and the five 3x3 matrices as a sequence of three rows
+#: of three numbers (print_and_load_state; parse() of Eigen::Matrix3d reads file_node[r][c]).
+OPENVINS_REALS = ("gyroscope_noise_density", "gyroscope_random_walk",
+                  "accelerometer_noise_density", "accelerometer_random_walk")  # fmt: skip
+OPENVINS_STRINGS = ("model", "rostopic")
+OPENVINS_MATRICES = ("Tw", "Ta", "R_IMUtoACC", "R_IMUtoGYRO", "Tg")
+
+
+def _opencv_imu0(path):
+    """imu0 of a file as OpenVINS reads it: through cv2.FileStorage, node by node."""
+    cv2 = pytest.importorskip("cv2", reason="OpenCV (opencv-python-headless, the test extra)")
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    assert storage.isOpened()
+    imu0 = storage.getNode("imu0")
+    assert imu0.isMap()
+    out = {}
+    for name in OPENVINS_REALS:
+        node = imu0.getNode(name)
+        assert node.isReal(), name
+        out[name] = node.real()
+    for name in OPENVINS_STRINGS:
+        node = imu0.getNode(name)
+        assert node.isString(), name
+        out[name] = node.string()
+    for name in OPENVINS_MATRICES:
+        node = imu0.getNode(name)
+        assert node.isSeq() and node.size() == 3, name
+        rows = [node.at(r) for r in range(3)]
+        assert all(row.isSeq() and row.size() == 3 for row in rows), name
+        out[name] = [[row.at(c).real() for c in range(3)] for row in rows]
+    for name in ("imucal_acc_bias", "imucal_gyr_bias"):  # ours, for the check below
+        node = imu0.getNode(name)
+        out[name] = [node.at(i).real() for i in range(3)]
+    storage.release()
+    return out
+
+
+@pytest.mark.parametrize("terms", [False, True])
+def test_openvins_reads_the_file_with_opencv(tmp_path, calibration, with_terms, noise, raw,
+                                            terms):  # fmt: skip
+    """OpenCV's FileStorage opens the file and every node OpenVINS reads has its type and
+    shape; OpenVINS's equation on the numbers OpenCV read gives our calibrated samples."""
+    cal = with_terms if terms else calibration
+    path = tmp_path / "kalibr_imu_chain.yaml"
+    path.write_text(export_files("openvins", cal, noise)["kalibr_imu_chain.yaml"])
+    imu0 = _opencv_imu0(path)
+    assert imu0["model"] == "kalibr" and imu0["rostopic"] == "/imu0"
+    expected = yaml.safe_load(path.read_text())["imu0"]
+    for name in OPENVINS_REALS:
+        assert imu0[name] == expected[name]
+    tg = _openvins_check(imu0, cal, raw)
+    assert (np.abs(tg).max() > 1e-5) == terms
+
+
+def test_kalibr_reads_the_imu_file_as_its_config_reader_does(tmp_path, calibration, noise):
+    """Kalibr's ImuParameters (kalibr_common/ConfigReader.py): yaml.safe_load, rostopic a str,
+    update_rate > 0, each density and random walk > 0; the discrete-time sigma it derives is
+    density / sqrt(1 / update_rate)."""
+    (tmp_path / "imu.yaml").write_text(export_files("kalibr", calibration, noise)["imu.yaml"])
+    with open(tmp_path / "imu.yaml") as f:
+        data = yaml.safe_load(f)
+    assert isinstance(data["rostopic"], str)
+    assert isinstance(data["update_rate"], float) and data["update_rate"] > 0.0
+    for prefix in ("accelerometer", "gyroscope"):
+        density, walk = data[f"{prefix}_noise_density"], data[f"{prefix}_random_walk"]
+        assert isinstance(density, float) and density > 0.0
+        assert isinstance(walk, float) and walk > 0.0
+    sensor = noise["sensors"]["gyr"]["axes"]
+    largest = max(sensor[a]["terms"]["N"]["value"] for a in "xyz")
+    discrete = data["gyroscope_noise_density"] / np.sqrt(1.0 / data["update_rate"])
+    assert discrete == pytest.approx(largest * np.sqrt(RATE), rel=1e-9)
+
+
+def test_the_kalibr_results_file_has_kalibrs_imu_set_layout(files):
+    """Kalibr's ImuSetParameters writes one entry per IMU, imu0, imu1, ...; the entry holds the
+    ImuParameters keys and the model's matrices, each 3x3 of floats."""
+    data = files["imucal-imu.yaml"]
+    assert list(data) == ["imu0"]
+    imu0 = data["imu0"]
+    for block, names in (("accelerometers", ("M",)), ("gyroscopes", ("M", "A", "C_gyro_i"))):
+        for name in names:
+            m = np.asarray(imu0[block][name], dtype=np.float64)
+            assert m.shape == (3, 3)
+    assert np.asarray(imu0["T_i_b"], dtype=np.float64).shape == (4, 4)
+
+
+def test_ros_file_has_the_message_layout(files):
+    """sensor_msgs/Imu: each covariance float64[9], row major, symmetric and positive
+    definite for the rates and accelerations; -1 in element 0 of the orientation's."""
+    ros = files["imu_covariance.yaml"]
+    for key in ROS_KEYS:
+        assert len(ros[key]) == 9 and all(isinstance(v, float) for v in ros[key])
+    assert ros["orientation_covariance"] == [-1.0] + [0.0] * 8
+    for key in ("angular_velocity_covariance", "linear_acceleration_covariance"):
+        cov = np.reshape(ros[key], (3, 3))
+        np.testing.assert_array_equal(cov, cov.T)
+        assert np.all(np.linalg.eigvalsh(cov) > 0)
+
+
+def test_the_rate_is_written_rounded(calibration, noise):
+    """The rate from the median time step (100.00000000000213 Hz) is written as 100.0."""
+    rough = {**noise, "rate_hz": 100.00000000000213}
+    for fmt in FORMATS:
+        for name, text in export_files(fmt, calibration, rough).items():
+            if "update_rate" in text:
+                assert "update_rate: 100.0\n" in text, name
 
 
 def test_a_partial_calibration_without_accelerometer_is_refused(calibration, noise):
@@ -327,7 +438,7 @@ def test_cli_writes_every_format(tmp_path, calibration, noise, capsys):
 def test_a_stage_that_did_not_run_writes_yaml_records(tmp_path):
     from imucal.pipeline.outcome import not_run_reason, write_not_run
 
-    path = tmp_path / "export" / "kalibr_imu.yaml"
+    path = tmp_path / "export" / "imu.yaml"
     write_not_run("export", "no static recording", {"kalibr_imu": path})
     assert not_run_reason(yaml.safe_load(path.read_text())) == (
         "export did not run: no static recording"

@@ -132,7 +132,10 @@ def test_unknown_recording_name(session: Path) -> None:
     text = DATASET_YAML.replace("  cube: cube.csv\n", "  cube: cube.csv\n  rotation3D: r.csv\n")
     (session / "dataset.yaml").write_text(text)
     message = ingest_fails(session)
-    assert "dataset.yaml: key 'recordings'" in message and "'rotation3D' was unexpected" in message
+    assert (
+        "dataset.yaml: key 'recordings/rotation3D' is not a known key here, did you mean "
+        "'rotation3d'?" in message
+    )
 
 
 def test_missing_column(session: Path) -> None:
@@ -306,7 +309,7 @@ def test_workflow_rule_fails_and_leaves_no_parquet(session: Path, tmp_path: Path
     write(session, lines)
     work = tmp_path / "work"
     work.mkdir()
-    for name in ("Snakefile", "workflow", "config"):
+    for name in ("Snakefile", "workflow", "config", "data"):  # config.yaml names data/demo
         os.symlink(REPO / name, work / name)
     (tmp_path / "config.yaml").write_text(f"datasets:\n  broken: {session}\n")
     snakemake = shutil.which("snakemake") or pytest.skip("snakemake executable not found")
@@ -326,3 +329,6 @@ def test_workflow_rule_fails_and_leaves_no_parquet(session: Path, tmp_path: Path
     log = work / "results/broken/logs/ingest/rotation3d.log"
     assert log.is_file(), f"the ingest job did not run; snakemake said:\n{run.stderr[-3000:]}"
     assert "rotation3d.csv, line 18: column 'gyr_x' holds '-2x7'" in log.read_text()
+    # The terminal shows the message, not a traceback (that stays in the log).
+    assert "ingest of rotation3d: " in run.stderr and "rotation3d.csv, line 18" in run.stderr
+    assert "Traceback" not in run.stderr

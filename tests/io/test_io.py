@@ -383,3 +383,21 @@ def test_write_table_round_trip(tmp_path: Path) -> None:
     )
     io.write_table(table, tmp_path / "out" / "tables.csv")
     pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "out" / "tables.csv"), table)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "expected"),
+    [
+        ("\ngravity_m_s2:", "\ngravity_ms2:", "key 'gravity_ms2' is not a known key here, did you mean 'gravity_m_s2'?"),
+        ("gyr: ", "gry: ", "key 'sensitivity/gry' is not a known key here, did you mean 'gyr'?"),
+    ],
+)  # fmt: skip
+def test_a_misspelt_key_of_dataset_yaml_names_the_closest_setting(tmp_path, old, new, expected):
+    text = (Path(__file__).resolve().parents[2] / "data/demo/dataset.yaml").read_text()
+    assert old in text
+    (tmp_path / "dataset.yaml").write_text(text.replace(old, new, 1))
+    with pytest.raises(ValueError) as info:
+        read_dataset(tmp_path)
+    message = str(info.value)
+    assert message.startswith(f"{tmp_path / 'dataset.yaml'}: {expected} Known keys here: ")
+    assert "does not match any of the regexes" not in message

@@ -103,11 +103,13 @@ def test_bad_declarations_name_the_key(files):
         part[3, 2] = np.nan
         f["quat_part"] = part
     ds = write(files, quaternion("quat_bad", "first", rate_hz=120.0))
-    with pytest.raises(DeclarationError, match=r"recordings.poses.reference.columns: row 7 of "
-                       r".*imu.h5 has \|q\| = 0.9; expected unit quaternions"):  # fmt: skip
+    with pytest.raises(DeclarationError, match=r"recordings.poses.reference.columns: .*imu.h5, "
+                       r"sample 8 \(counted from 1\) has \|q\| = 0.9; expected unit quaternions"):  # fmt: skip
         ingest_orientation_reference("poses", ds, "test")
     ds = write(files, quaternion("quat_part", "first", rate_hz=120.0))
-    with pytest.raises(DeclarationError, match=r"reference.columns: row 3 of .* only some"):
+    with pytest.raises(
+        DeclarationError, match=r"reference.columns: .*imu.h5, sample 4 .* only some"
+    ):
         ingest_orientation_reference("poses", ds, "test")
     ds = write(files, {**quaternion("quat_wxyz", "first", rate_hz=120.0), "orientation": "matrix"})
     with pytest.raises(DeclarationError, match=r"reference.scalar: scalar with a matrix"):
@@ -125,3 +127,18 @@ def test_bad_declarations_name_the_key(files):
     (files / "dataset.yaml").write_text(yaml.safe_dump(cfg))
     with pytest.raises(ValueError, match=r"recordings.poses.reference: beside parts"):
         read_dataset(files)
+
+
+def test_a_bad_row_of_a_text_reference_is_named_by_its_file_line(files):
+    """Errors in a text file name the 1-based line of the file (comment lines and the header
+    counted), not the 0-based index of the data row."""
+    q = WXYZ.copy()
+    q[7] *= 0.9  # data row 7 (from 0): line 11, after two comment lines and the header
+    lines = ["# mocap export", "# 120 Hz", "t,qw,qx,qy,qz"]
+    lines += [f"{i / 120:.6f}," + ",".join(f"{v:.9f}" for v in row) for i, row in enumerate(q)]
+    (files / "mocap.csv").write_text("\n".join(lines) + "\n")
+    ref = {"reader": "table", "file": "mocap.csv", "orientation": "quaternion", "scalar": "first",
+           "rotates": "body_to_world", "up": "+z", "skip_lines": 2, "header": True,
+           "columns": {"t_s": "t", "q_0": "qw", "q_1": "qx", "q_2": "qy", "q_3": "qz"}}  # fmt: skip
+    with pytest.raises(DeclarationError, match=r"mocap.csv, line 11 has \|q\| = 0.9;"):
+        ingest_orientation_reference("poses", write(files, ref), "test")

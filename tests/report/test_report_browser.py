@@ -173,7 +173,19 @@ def test_report_loads_in_chromium_without_errors(tmp_path):
         dataset="demo",
         summary=summary,
         calibration=calibration,
-        mag_result={"warnings": ["a warning"], "rms": 0.01},
+        mag_result={
+            "warnings": ["a warning"],
+            "rms": 0.01,
+            # the designed tables and the collapsed listing of every field, with long values
+            "step1": {
+                "used": "svd+lm",
+                "n_samples": 1993,
+                "coverage_pct": 62.0,
+                "lm": {"residual_rms": 0.004, "upper": np.eye(3).tolist()},
+                "convention": "step1 = upper @ (reading - bias); |step1| = field_norm " * 4,
+                "used_points": list(range(40)),
+            },
+        },  # fmt: skip
         figures=figures,
         config={"datasets": {"demo": "data/demo"}},
     )
@@ -189,6 +201,11 @@ def test_report_loads_in_chromium_without_errors(tmp_path):
         ]
         for domain in ("Page", "Runtime", "Log", "Network"):
             browser.send(f"{domain}.enable", session=session)
+        browser.send(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False},
+            session=session,
+        )
         browser.send("Page.navigate", {"url": page.as_uri()}, session=session)
         browser.wait_for("Page.loadEventFired", session)
         probe = browser.send(
@@ -196,7 +213,9 @@ def test_report_loads_in_chromium_without_errors(tmp_path):
             {
                 "expression": "JSON.stringify({images: Array.from(document.images, i => "
                 "[i.complete, i.naturalWidth]), h2: document.querySelectorAll('h2').length, "
-                "title: document.title})",
+                "title: document.title, width: document.documentElement.scrollWidth, "
+                "clipped: Array.from(document.querySelectorAll('.scroll, pre'), "
+                "e => e.scrollWidth - e.clientWidth)})",
                 "returnByValue": True,
             },
             session=session,
@@ -206,7 +225,10 @@ def test_report_loads_in_chromium_without_errors(tmp_path):
 
     result = json.loads(probe)
     assert result["title"] == "IMU calibration report: demo"
-    assert result["h2"] == 10
+    assert result["h2"] == 11
+    # nothing wider than the page at 1280 px, and no table scrolls inside its box
+    assert result["width"] <= 1280
+    assert all(extra <= 1 for extra in result["clipped"]), result["clipped"]
     # segmentation, magnetometer, validation: the order of the report
     assert result["images"] == [[True, w] for w in expected_widths]
     errors = (

@@ -1,9 +1,11 @@
 # Helpers shared by the rules: the dataset table, input functions, wildcard constraints.
 # No rules here.
+import os
 from functools import lru_cache
 from pathlib import Path
 
 import yaml
+from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
 import imucal
@@ -106,11 +108,47 @@ def dataset_of(name):
     return read_dataset(folder_of(name))
 
 
+def config_source(name):
+    """Where config `datasets` got the dataset `name`: the last config file that names it (a
+    --configfile overrides config/config.yaml), or the command line's --config."""
+    for path in reversed(workflow.configfiles):
+        data = yaml.safe_load(Path(path).read_text()) or {}
+        if name in (data.get("datasets") or {}):
+            path = Path(path).absolute()
+            inside = path.is_relative_to(Path.cwd())
+            return str(path.relative_to(Path.cwd())) if inside else str(path)
+    return "the command line (--config)"
+
+
+def check_configured_datasets():
+    """Read the dataset.yaml of every configured dataset when the workflow is parsed, so that a
+    wrong folder or setting stops the run before any rule, in one paragraph that names the
+    config file, the dataset's key, the folder and the fix (a raised error, no traceback)."""
+    for name, folder in sorted(config["datasets"].items()):
+        source = f"{config_source(name)}, datasets.{name}: {folder!r}"
+        try:
+            dataset_of(name)
+        except FileNotFoundError:
+            where = Path(os.path.normpath(Path.cwd() / folder))  # as typed, symlinks kept
+            missing = "has no dataset.yaml" if where.is_dir() else "does not exist"
+            raise WorkflowError(
+                f"{source}: the folder {where} {missing}. Give the folder that holds the "
+                f"dataset's dataset.yaml (relative to {Path.cwd()}, or absolute), or remove "
+                f"'{name}' from datasets; docs/data-format.md describes the folder."
+            ) from None
+        except ValueError as err:
+            raise WorkflowError(
+                f"{source}: {err} Fix the file and run again; docs/data-format.md lists the "
+                "settings."
+            ) from None
+
+
 def full_protocol(name):
     """The session follows the paper's protocol (stage-per-rule workflow), else `partial`."""
     return is_full_protocol(dataset_of(name))
 
 
+check_configured_datasets()
 #: The configured and public datasets: a lab report is one of theirs (reports/blind.html and
 #: reports/stress.html are the checks' pages, not datasets).
 ALL_DATASETS_PATTERN = (
@@ -293,10 +331,11 @@ def calibration_of(wildcards):
     return calibration_path(wildcards.dataset)
 
 
-#: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/.
+#: Files of the export rule (imucal.export.FORMATS), under results/{dataset}/export/, one folder
+#: per format.
 from imucal.export.formats import FORMATS as EXPORT_FORMATS
 
-EXPORT_FILES = [name for names in EXPORT_FORMATS.values() for name in names]
+EXPORT_FILES = [f"{fmt}/{name}" for fmt, names in EXPORT_FORMATS.items() for name in names]
 
 
 def noise_targets(name):
@@ -380,6 +419,15 @@ def reference_input(wildcards):
     return {"reference": f"results/{wildcards.dataset}/ingest/reference.parquet"}
 
 
+def ingest_benchmarks(name, info):
+    """Run times of the ingest of every recording, and of the noise stage where it runs: the
+    report's run-time table lists every rule behind it."""
+    paths = [f"results/{name}/benchmarks/ingest/{r}.tsv" for r in info.recordings]
+    if has_noise_recording(name):
+        paths.append(f"results/{name}/benchmarks/noise.tsv")
+    return paths
+
+
 def noise_report_inputs(name):
     """The noise section's inputs (noise.json, then its figure) when the dataset has one."""
     if not has_noise_recording(name):
@@ -398,12 +446,17 @@ def report_inputs(wildcards):
         inputs.update({k: f"results/{d}/partial/{k}.json" for k in ("mag", "acc", "gyr")})
         inputs["calibration"] = f"results/{d}/partial/calibration.json"
         benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
+        benchmarks += ingest_benchmarks(d, info)
         inputs["figure_dir"] = f"results/{d}/partial/figures"
         benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
         if has_orientation_reference(d):
             inputs["validation"] = f"results/{d}/reference/validation.json"
             figures.append(f"results/{d}/figures/reference_orientation.png")
             benchmarks.append(f"results/{d}/benchmarks/validate_references.tsv")
+            benchmarks += [
+                f"results/{d}/benchmarks/reference/ingest_{r}.tsv"
+                for r in info.orientation_references
+            ]
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
         noise = noise_report_inputs(d)
         return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
@@ -417,11 +470,13 @@ def report_inputs(wildcards):
     benchmarks = [
         f"results/{d}/benchmarks/{rule}.tsv"
         for rule in ("segment", "mag_step1", "mag_step2", "acc_cube", "acc_align")
-        + ("gyr_bias", "gyr_align", "gyr_scale", "validate")
+        + ("gyr_bias", "gyr_align", "gyr_scale", "validate", "gap_diagnose", "model_terms")
+        + ("lowpass/rotation3d",)
     ]
+    benchmarks += ingest_benchmarks(d, info)
     if "ratetable" in info.recordings:
         figures.append(f"results/{d}/figures/gyr_table.png")
-        benchmarks += [f"results/{d}/benchmarks/gyr_table.tsv"]
+        benchmarks += [f"results/{d}/benchmarks/{r}.tsv" for r in ("gyr_table", "gyr_table_align")]
     if "reference" in info.recordings:
         figures += [
             f"results/{d}/figures/validation_magnitudes.png",

@@ -16,9 +16,21 @@ rule gap_diagnose:
         dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
     output:
-        diagnosis="results/{dataset}/gap/diagnosis.json",
-        gap_map="results/{dataset}/gap/gap_map.png",
-        effects="results/{dataset}/gap/effects.png",
+        diagnosis=report(
+            "results/{dataset}/gap/diagnosis.json",
+            caption="../report/gap.rst",
+            category="Sim-to-real gap",
+        ),
+        gap_map=report(
+            "results/{dataset}/gap/gap_map.png",
+            caption="../report/gap.rst",
+            category="Sim-to-real gap",
+        ),
+        effects=report(
+            "results/{dataset}/gap/effects.png",
+            caption="../report/gap.rst",
+            category="Sim-to-real gap",
+        ),
     log:
         "results/{dataset}/logs/gap_diagnose.log",
     benchmark:
@@ -43,9 +55,21 @@ rule gap_diagnose_partial:
         unpack(gap_partial_inputs),
         dataset_yaml=dataset_yaml,
     output:
-        diagnosis="results/{dataset}/gap/diagnosis.json",
-        gap_map="results/{dataset}/gap/gap_map.png",
-        effects="results/{dataset}/gap/effects.png",
+        diagnosis=report(
+            "results/{dataset}/gap/diagnosis.json",
+            caption="../report/gap.rst",
+            category="Sim-to-real gap",
+        ),
+        gap_map=report(
+            "results/{dataset}/gap/gap_map.png",
+            caption="../report/gap.rst",
+            category="Sim-to-real gap",
+        ),
+        effects=report(
+            "results/{dataset}/gap/effects.png",
+            caption="../report/gap.rst",
+            category="Sim-to-real gap",
+        ),
     log:
         "results/{dataset}/logs/gap_diagnose_partial.log",
     benchmark:

@@ -7,8 +7,16 @@ rule noise:
     input:
         unpack(noise_input),
     output:
-        noise="results/{dataset}/noise.json",
-        figure="results/{dataset}/figures/noise_allan.png",
+        noise=report(
+            "results/{dataset}/noise.json",
+            caption="../report/noise.rst",
+            category="Noise and exports",
+        ),
+        figure=report(
+            "results/{dataset}/figures/noise_allan.png",
+            caption="../report/noise.rst",
+            category="Noise and exports",
+        ),
     log:
         "results/{dataset}/logs/noise.log",
     benchmark:
@@ -30,10 +38,30 @@ rule export:
         calibration=calibration_of,
         noise="results/{dataset}/noise.json",
     output:
-        kalibr_imu="results/{dataset}/export/kalibr_imu.yaml",
-        kalibr_chain="results/{dataset}/export/kalibr_imu_chain.yaml",
-        openvins="results/{dataset}/export/openvins_kalibr_imu_chain.yaml",
-        ros="results/{dataset}/export/ros_imu_covariance.yaml",
+        kalibr_imu=report(
+            "results/{dataset}/export/kalibr/imu.yaml",
+            caption="../report/exports.rst",
+            category="Noise and exports",
+            subcategory="Kalibr",
+        ),
+        kalibr_results=report(
+            "results/{dataset}/export/kalibr/imucal-imu.yaml",
+            caption="../report/exports.rst",
+            category="Noise and exports",
+            subcategory="Kalibr",
+        ),
+        openvins=report(
+            "results/{dataset}/export/openvins/kalibr_imu_chain.yaml",
+            caption="../report/exports.rst",
+            category="Noise and exports",
+            subcategory="OpenVINS",
+        ),
+        ros=report(
+            "results/{dataset}/export/ros/imu_covariance.yaml",
+            caption="../report/exports.rst",
+            category="Noise and exports",
+            subcategory="ROS",
+        ),
     log:
         "results/{dataset}/logs/export.log",
     # off the way to calibration.json: runs on a core the stages leave free

@@ -53,7 +53,11 @@ rule report:
     input:
         unpack(report_inputs),
     output:
-        html="reports/{dataset}.html",
+        html=report(
+            "reports/{dataset}.html",
+            caption="../report/lab_report.rst",
+            category="Lab report",
+        ),
     log:
         "results/{dataset}/logs/report.log",
     benchmark:

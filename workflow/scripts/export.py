@@ -12,12 +12,12 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 logger = logging.getLogger("export")
-folder = Path(snakemake.output.ros).parent
+folder = Path(snakemake.output.ros).parent.parent  # results/{dataset}/export/{format}/
 
 with stage_guard("export", snakemake.output):
     calibration = read_artifact(snakemake.input.calibration)
     noise = read_artifact(snakemake.input.noise)
     for fmt in FORMATS:
         for name, text in export_files(fmt, calibration, noise).items():
-            (folder / name).write_text(text, encoding="utf-8")
-            logger.info("wrote %s", folder / name)
+            (folder / fmt / name).write_text(text, encoding="utf-8")
+            logger.info("wrote %s", folder / fmt / name)

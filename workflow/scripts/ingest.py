@@ -29,6 +29,9 @@ try:
         snakemake.output.table,
         metadata["sha256"],
     )
+except (ValueError, FileNotFoundError) as err:  # the data's fault: its message, no traceback
+    log.exception("ingest of %s failed", snakemake.input.raw)
+    raise SystemExit(f"ingest of {snakemake.wildcards.recording}: {err}") from None
 except Exception:
     log.exception("ingest of %s failed", snakemake.input.raw)
     raise

@@ -13,8 +13,12 @@ if TYPE_CHECKING:
 
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
-table, metadata = ingest_orientation_reference(
-    snakemake.wildcards.recording, dataset, imucal_version=snakemake.params.imucal_version
-)
+try:
+    table, metadata = ingest_orientation_reference(
+        snakemake.wildcards.recording, dataset, imucal_version=snakemake.params.imucal_version
+    )
+except (ValueError, FileNotFoundError) as err:  # the data's fault: its message, no traceback
+    logging.exception("reference of %s failed", snakemake.wildcards.recording)
+    raise SystemExit(f"reference of {snakemake.wildcards.recording}: {err}") from None
 write_recording(table, snakemake.output.table, metadata)
 logging.info("%d rows, %d gap rows", len(table), metadata["gap_rows"])

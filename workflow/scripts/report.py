@@ -31,6 +31,7 @@ context = build_report_context(
     config=dict(snakemake.params.settings),
     git_commit=workflow_commit(snakemake.scriptdir),
     imucal_version=snakemake.params.imucal_version,
+    report_path=snakemake.output.html,
     gap=list(snakemake.input.gap) if "gap" in snakemake.input.keys() else None,  # noqa: SIM118
     noise=list(snakemake.input.noise) if "noise" in snakemake.input.keys() else None,  # noqa: SIM118
     terms=[snakemake.input.terms, snakemake.input.gap_after]
