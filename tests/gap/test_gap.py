@@ -132,3 +132,41 @@ def test_deviance_charges_an_effect_for_the_spread_it_adds():
     assert null.gap(session, widening) == 0.0
     assert null.deviance(session, mean_shift) < 1.0
     assert null.deviance(session, widening) == pytest.approx(1 + np.log(401), rel=0.01)
+
+
+def test_a_location_whose_replicas_are_all_equal_has_no_score():
+    """A statistic without a resolution floor that every replica gives alike (a trend of a
+    reading that never changes) has no spread to score against: any departure, however small,
+    would be infinitely significant. It is left unscored and named."""
+    keys = [
+        ("noise", "gyr", "x", "static", "trend_per_s"),
+        ("noise", "gyr", "y", "static", "trend_per_s"),
+    ]
+    rng = np.random.default_rng(2)
+    null = NullModel.from_values(keys, np.column_stack([np.zeros(20), rng.standard_normal(20)]))
+    assert null.constant == [keys[0]]
+    t = null.t({keys[0]: 1e-12, keys[1]: 0.0})
+    assert np.isnan(t[0]) and np.isfinite(t[1])
+    assert not holm(null.p_values(t), 0.05).any()
+    assert np.all(np.isfinite(null.leave_one_out_gaps()))
+
+
+def test_the_null_95th_percentile_is_positive_where_resolution_floors_dominate():
+    """30 locations whose replicas scatter by a tenth of their floor (ref_scale, floor 1e-4)
+    and 4 noise-dominated ones: charging every location the full null mean of t^2 leaves
+    every replica's leave-one-out gap at 0 (a null 95th percentile of 0, so any session is
+    'significant'); charging each its share of spread does not."""
+    rng = np.random.default_rng(3)
+    floored = [("reference", "gyr", "x", f"r{k}", "ref_scale") for k in range(30)]
+    noisy = [("reference", "gyr", "x", f"r{k}", "rate3") for k in range(4)]
+    values = np.hstack([1.0 + 1e-5 * rng.standard_normal((20, 30)), rng.standard_normal((20, 4))])
+    null = NullModel.from_values(floored + noisy, values)
+    assert null.spread_share[:30].max() < 0.05 and np.all(null.spread_share[30:] == 1.0)
+    loo = null.leave_one_out_gaps()
+    assert np.percentile(loo, 95) > 0
+    unweighted = []
+    for i in range(20):
+        rest = NullModel.from_values(floored + noisy, np.delete(values, i, axis=0))
+        unweighted.append(total_gap((values[i] - rest.mean) / rest.scale, rest.df))
+    assert np.percentile(unweighted, 95) == 0.0
+

@@ -8,11 +8,13 @@ and diagnosed from that table alone.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from imucal.columns import SENSOR_COLUMNS, TIME
+from imucal.columns import SENSOR_COLUMNS, SENSORS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session
 from imucal.gap.static import diagnose_static
@@ -26,9 +28,12 @@ DURATION_S = 300.0
 REPLICAS = 12
 
 
-def _session(seed: int, effects: tuple = ()) -> pd.DataFrame:
-    """An ingested static recording rendered by the simulator, rows in receive order."""
+def _session(seed: int, effects: tuple = (), noise_counts: float | None = None) -> pd.DataFrame:
+    """An ingested static recording rendered by the simulator, rows in receive order (white
+    noise of ``noise_counts`` quantisation steps when given, else the paper's)."""
     truth = make_truth("paper", stream_rng(0, "truth"))
+    if noise_counts is not None:
+        truth = replace(truth, noise={s: noise_counts * SENSITIVITY[s] for s in SENSORS})
     streams = {"imu": (int(DURATION_S * 100) + 1, 100.0), "mag": (int(DURATION_S * 75) + 1, 75.0)}
     # a slow cooling of 0.3 K, like a module on a desk, carried by the temperature channel
     t = np.linspace(0.0, DURATION_S, 50)
@@ -67,6 +72,18 @@ def test_no_effect_explains_nothing(seed):
     assert d["explained"] == []
     # the total gap of a clean session is a draw from the null: well below 3x its 95th percentile
     assert d["gap"]["total"] < 3 * d["gap"]["null_p95"]
+
+
+def test_a_recording_with_noise_below_one_count_gets_a_null_with_spread():
+    """White noise of 0.15 counts rounded: the readings flip between counts now and then. The
+    twin measures that noise under the rounding (subtracting step^2 / 12 called it 0, every
+    replica read the same counts and the null's 95th percentile was 0)."""
+    d = _diagnose(_session(8, noise_counts=0.15))
+    assert d["gap"]["null_p95"] > 0
+    white = d["twin"]["noise_process"]["gyr"]["white"]
+    # an axis whose reading never flips has no noise to find; the others do
+    assert max(white) > 0.1 * SENSITIVITY["gyr"]
+    assert d["explained"] == []
 
 
 def test_timing_jitter_is_found_estimated_and_explained():
