@@ -7,6 +7,7 @@ import pytest
 from scipy import stats as sps
 
 from imucal.gap import effects as gap_effects
+from imucal.gap.diagnosis import verdict_of
 from imucal.gap.null import NullModel, build_null, holm, run_replicas, total_gap
 from imucal.gap.statistics import compute_statistics
 from imucal.gap.twin import build_twin, render_replica
@@ -170,3 +171,47 @@ def test_the_null_95th_percentile_is_positive_where_resolution_floors_dominate()
         unweighted.append(total_gap((values[i] - rest.mean) / rest.scale, rest.df))
     assert np.percentile(unweighted, 95) == 0.0
 
+
+def _result(significant, effects=(), remaining=()):
+    def loc(stage, sensor, statistic, z):
+        return {
+            "stage": stage,
+            "sensor": sensor,
+            "axis": "x",
+            "segment": "r",
+            "statistic": statistic,
+            "z": z,
+            "in_gap": True,
+        }
+
+    rem = [loc(*r) for r in remaining]
+    return {
+        "gap": {"total": 50.0 if significant else 0.0, "null_p95": 3.0, "significant": significant},
+        "effects": [
+            {"name": n, "accepted": True, "heldout_shrink": s, "params": {}} for n, s in effects
+        ],
+        "remaining": {"significant": bool(rem), "locations": rem},
+    }
+
+
+def test_the_verdict_tells_a_clean_session_an_effect_and_a_shortfall_of_the_twin():
+    assert verdict_of(_result(False))["outcome"] == "nothing beyond the model"
+    found = verdict_of(_result(True, [("g_sensitivity", 0.8)]))
+    assert found["outcome"] == "effect"
+    assert found["sentence"] == "Effect g_sensitivity, shrink 80% held out."
+    # the gap in the reference comparison's rate curvature, no effect accepted: the reference
+    lacks = verdict_of(_result(True, remaining=[("reference", "gyr", "rate3", 300.0),
+                                                ("reference", "mag", "dir_resid_rad", 20.0)]))  # fmt: skip
+    assert lacks["outcome"] == "twin lacks"
+    assert [g["what"] for g in lacks["lacks"]] == [
+        "the reference's error beyond white noise (smoothing, latency, glitches)",
+        "a uniform magnetic field",
+    ]
+    assert lacks["lacks"][0]["share"] == pytest.approx(300**2 / (300**2 + 20**2))
+    # an accepted reference effect names the reference, not a physical effect
+    jitter = verdict_of(_result(True, [("reference_jitter", 0.6)]))
+    assert jitter["outcome"] == "twin lacks" and jitter["effects"] == []
+    assert "reference_jitter shrinks the gap 60% held out" in jitter["sentence"]
+    # a gap in a physical response no effect closes: an effect the library does not hold
+    other = verdict_of(_result(True, remaining=[("temperature", "gyr", "temp_slope", 9.0)]))
+    assert other["lacks"][0]["what"] == "an effect the library does not hold"

@@ -72,6 +72,8 @@ def test_no_effect_explains_nothing(seed):
     assert d["explained"] == []
     # the total gap of a clean session is a draw from the null: well below 3x its 95th percentile
     assert d["gap"]["total"] < 3 * d["gap"]["null_p95"]
+    assert d["verdict"]["outcome"] in ("nothing beyond the model", "twin lacks")
+    assert d["verdict"]["effects"] == []
 
 
 def test_a_recording_with_noise_below_one_count_gets_a_null_with_spread():
@@ -83,7 +85,7 @@ def test_a_recording_with_noise_below_one_count_gets_a_null_with_spread():
     white = d["twin"]["noise_process"]["gyr"]["white"]
     # an axis whose reading never flips has no noise to find; the others do
     assert max(white) > 0.1 * SENSITIVITY["gyr"]
-    assert d["explained"] == []
+    assert d["explained"] == [] and d["verdict"]["effects"] == []
 
 
 def test_timing_jitter_is_found_estimated_and_explained():
@@ -92,6 +94,8 @@ def test_timing_jitter_is_found_estimated_and_explained():
     assert d["gap"]["significant"]
     assert {loc["statistic"] for loc in d["locations"]} >= {"stamp_scatter_s", "burst_fraction"}
     assert d["explained"][:1] == ["timing_jitter"]
+    assert d["verdict"]["outcome"] == "effect"
+    assert d["verdict"]["sentence"].startswith("Effect timing_jitter, shrink ")
     jitter = next(e for e in d["effects"] if e["name"] == "timing_jitter")
     # the estimator inverts the model's mean latency over ~50k samples: a few % at most
     assert jitter["params"]["std_s"] == pytest.approx(true_std, rel=0.1)
