@@ -79,7 +79,14 @@ def plot_effects(diagnosis: Mapping) -> Figure:
 
 
 def verdict(diagnosis: Mapping) -> str:
-    """A plain-language summary of the diagnosis."""
+    """The diagnosis's verdict in one sentence (:func:`imucal.gap.diagnosis.verdict_of`), or
+    the summary for a diagnosis.json written before verdicts were."""
+    found = diagnosis.get("verdict")
+    return found["sentence"] if found else summary(diagnosis)
+
+
+def summary(diagnosis: Mapping) -> str:
+    """A plain-language summary of the diagnosis: where the gap lies, what explains it."""
     gap = diagnosis["gap"]
     if not gap["significant"]:
         return ("The session behaves like its twin: no location is outside what noise alone "
@@ -126,6 +133,8 @@ def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
     return {
         **observations_context(diagnosis),
         "verdict": verdict(diagnosis),
+        "outcome": (diagnosis.get("verdict") or {}).get("outcome"),
+        "summary": summary(diagnosis),
         "gap": diagnosis["gap"],
         "locations": diagnosis["locations"][:20],
         "effects": diagnosis["effects"],
