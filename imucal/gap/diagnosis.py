@@ -52,6 +52,10 @@ TWIN_SHORTFALLS = (
 #: Library effects that model the reference rather than the sensor or the world: accepted,
 #: they name what the twin's reference lacks.
 REFERENCE_EFFECTS = {"reference_jitter": "the reference's sample timing (reference_jitter)"}
+#: Library effects of the acquisition (the host, the logger, the clocks) rather than of the
+#: sensor or the world; the verdict names their kind, so that a user does not read a receive
+#: latency as a physical disturbance. Every other effect is ``physical``.
+ACQUISITION_EFFECTS = ("packet_loss", "timing_jitter", "time_offset")
 
 
 @dataclass(frozen=True)
@@ -173,7 +177,8 @@ def verdict_of(result: Mapping) -> dict:
     * ``nothing beyond the model``: no location is in the gap;
     * ``effect``: an effect of the sensor, the platform or the acquisition was accepted (it
       shrinks the gap held out by at least the settings' ``min_heldout_shrink``); the
-      sentence names it with its held-out shrink;
+      sentence names it with its kind (``physical`` or ``acquisition``,
+      :data:`ACQUISITION_EFFECTS`) and its held-out shrink;
     * ``twin lacks``: the gap is significant and no such effect closes it. What the twin
       lacks is read from where the remaining gap lies: statistics of what the twin does not
       replay (:data:`TWIN_SHORTFALLS`: receive timing, slow noise, the reference's error, the
@@ -185,20 +190,28 @@ def verdict_of(result: Mapping) -> dict:
     ----------
     result : dict
         diagnosis.json as :func:`scored_diagnosis` assembles it (``gap``, ``effects``,
-        ``remaining``).
+        ``remaining``; ``explained`` orders the accepted effects).
 
     Returns
     -------
     dict
-        ``outcome``, ``sentence``, ``effects`` (accepted, with ``heldout_shrink``),
+        ``outcome``, ``sentence``, ``effects`` (accepted, with ``kind`` and ``heldout_shrink``),
         ``lacks`` (what, share of the remaining gap's squared scores, locations, top
         location), in that order of share.
     """
     gap = result["gap"]
-    accepted = [e for e in result["effects"] if e["accepted"]]
+    order = {name: k for k, name in enumerate(result.get("explained", []))}
+    accepted = sorted(
+        (e for e in result["effects"] if e["accepted"]), key=lambda e: order.get(e["name"], 0)
+    )
     physical = [e for e in accepted if e["name"] not in REFERENCE_EFFECTS]
     named = [
-        {"name": e["name"], "heldout_shrink": e["heldout_shrink"], "params": e["params"]}
+        {
+            "name": e["name"],
+            "kind": "acquisition" if e["name"] in ACQUISITION_EFFECTS else "physical",
+            "heldout_shrink": e["heldout_shrink"],
+            "params": e["params"],
+        }
         for e in physical
     ]
     groups: dict = {}
@@ -232,7 +245,7 @@ def verdict_of(result: Mapping) -> dict:
     elif named:
         outcome = "effect"
         sentence = "Effect " + "; then ".join(
-            f"{e['name']}, shrink {e['heldout_shrink']:.0%} held out" for e in named
+            f"{e['name']} ({e['kind']}), shrink {e['heldout_shrink']:.1%} held out" for e in named
         )
         sentence += (
             f"; the twin still lacks {lacks[0]['what']} (at {lacks[0]['top']})."
@@ -246,7 +259,7 @@ def verdict_of(result: Mapping) -> dict:
         if "effect" in top:
             shrink = next(e["heldout_shrink"] for e in accepted if e["name"] == top["effect"])
             sentence = (
-                f"The twin lacks {top['what']}: {top['effect']} shrinks the gap {shrink:.0%} "
+                f"The twin lacks {top['what']}: {top['effect']} shrinks the gap {shrink:.1%} "
                 f"held out{also}."
             )
         else:

@@ -198,7 +198,10 @@ def test_the_verdict_tells_a_clean_session_an_effect_and_a_shortfall_of_the_twin
     assert verdict_of(_result(False))["outcome"] == "nothing beyond the model"
     found = verdict_of(_result(True, [("g_sensitivity", 0.8)]))
     assert found["outcome"] == "effect"
-    assert found["sentence"] == "Effect g_sensitivity, shrink 80% held out."
+    assert found["sentence"] == "Effect g_sensitivity (physical), shrink 80.0% held out."
+    assert verdict_of(_result(True, [("timing_jitter", 0.998)]))["effects"][0]["kind"] == (
+        "acquisition"
+    )
     # the gap in the reference comparison's rate curvature, no effect accepted: the reference
     lacks = verdict_of(_result(True, remaining=[("reference", "gyr", "rate3", 300.0),
                                                 ("reference", "mag", "dir_resid_rad", 20.0)]))  # fmt: skip
@@ -211,7 +214,7 @@ def test_the_verdict_tells_a_clean_session_an_effect_and_a_shortfall_of_the_twin
     # an accepted reference effect names the reference, not a physical effect
     jitter = verdict_of(_result(True, [("reference_jitter", 0.6)]))
     assert jitter["outcome"] == "twin lacks" and jitter["effects"] == []
-    assert "reference_jitter shrinks the gap 60% held out" in jitter["sentence"]
+    assert "reference_jitter shrinks the gap 60.0% held out" in jitter["sentence"]
     # a gap in a physical response no effect closes: an effect the library does not hold
     other = verdict_of(_result(True, remaining=[("temperature", "gyr", "temp_slope", 9.0)]))
     assert other["lacks"][0]["what"] == "an effect the library does not hold"

@@ -95,7 +95,7 @@ def test_timing_jitter_is_found_estimated_and_explained():
     assert {loc["statistic"] for loc in d["locations"]} >= {"stamp_scatter_s", "burst_fraction"}
     assert d["explained"][:1] == ["timing_jitter"]
     assert d["verdict"]["outcome"] == "effect"
-    assert d["verdict"]["sentence"].startswith("Effect timing_jitter, shrink ")
+    assert d["verdict"]["sentence"].startswith("Effect timing_jitter (acquisition), shrink ")
     jitter = next(e for e in d["effects"] if e["name"] == "timing_jitter")
     # the estimator inverts the model's mean latency over ~50k samples: a few % at most
     assert jitter["params"]["std_s"] == pytest.approx(true_std, rel=0.1)
