@@ -119,12 +119,14 @@ def _params(params: Mapping) -> str:
 
 def observations_context(diagnosis: Mapping) -> dict:
     """What the diagnosis says besides the gap (any scope): why the full diagnosis could not
-    run, what it noted, which recordings were held by hand."""
+    run, what it noted, which recordings were held by hand, which rest stands in for a static
+    recording."""
     return {
         "fallback": diagnosis.get("fallback"),
         "held_by_hand": diagnosis.get("held_by_hand", []),
         "noted": diagnosis.get("noted", []),
         "saturation": diagnosis.get("saturation"),
+        "static_source": diagnosis.get("static_source"),
     }
 
 

@@ -14,9 +14,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imucal.columns import SENSOR_COLUMNS, SENSORS, TIME
+from imucal.columns import SEGMENT_COLUMNS, SENSOR_COLUMNS, SENSORS, TIME
 from imucal.gap import DiagnosisSettings
-from imucal.gap.composite import diagnose_partial_session
+from imucal.gap.composite import diagnose_partial_session, rest_as_static
 from imucal.gap.static import diagnose_static
 from imucal.gap.streams import split_streams
 from imucal.gap.twin import StaticTwin, render_static
@@ -134,3 +134,23 @@ def test_too_few_replicas_are_refused():
         DiagnosisSettings(replicas=3)
     with pytest.raises(ValueError, match=r"unknown diagnosis settings \['replica'\]"):
         DiagnosisSettings.from_config({"replica": 20})
+
+
+def test_the_longest_rest_stands_in_for_a_missing_static_recording():
+    """Two recordings with rests of 30 s and 45 s: the 45 s one is cut out as the static
+    recording; with a 60 s minimum none is, and the reason gives the longest."""
+    rest = _session(9).iloc[: int(50 * 175)]  # the first 50 s (100 + 75 rows a second)
+    tables = {"a": rest, "b": rest}
+    rows = [
+        {"recording": r, "label": label, "kind": "static", "start_s": 1.0, "end_s": 1.0 + d,
+         "start_index": 0, "end_index": 0, "axis": "", "rate_dps": np.nan, "sense": 0,
+         "turns": np.nan, "up": "", "angle_deg": np.nan}
+        for r, label, d in (("a", "s01", 30.0), ("b", "s02", 45.0))
+    ]  # fmt: skip
+    segments = pd.DataFrame(rows, columns=list(SEGMENT_COLUMNS))
+    table, source = rest_as_static(tables, segments)
+    assert source == "the rest s02 of recording b (45.0 s)"
+    t = table[TIME].to_numpy()
+    assert t.min() >= 1.0 and t.max() <= 46.0 and t.max() - t.min() > 44.9
+    none, why = rest_as_static(tables, segments, min_duration_s=60.0)
+    assert none is None and why.startswith("the longest rest is 45.0 s; a rest is scored from 60 s")
