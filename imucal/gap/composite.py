@@ -8,6 +8,9 @@ locations differ (stages ``static``/``temperature`` and ``reference``), so one d
 them together (:func:`diagnose_partial_session`): a replica of the composite is a replica of each part with the same seed, its
 statistics the union of theirs. An effect is rendered in the part whose library holds it (the
 part whose locations can show it), and its estimator reads that part of the session.
+
+A session with neither has its longest rest scored as its static recording when the rest is
+long enough for the static statistics (:func:`rest_as_static`).
 """
 
 from __future__ import annotations
@@ -38,6 +41,11 @@ from imucal.gap.static import (
 from imucal.gap.statistics import HALVES
 from imucal.gap.streams import split_streams, static_statistics
 from imucal.gap.twin import Replica, build_static_twin
+from imucal.segments.table import rows_of
+
+#: Shortest rest scored in place of a static recording (s): each half of it must hold twice the
+#: 10 s averaging time of the Allan statistic (:func:`imucal.gap.streams.noise_statistics`).
+MIN_REST_S = 40.0
 
 
 @dataclass(frozen=True)
@@ -90,11 +98,54 @@ def composite_library(libraries: Mapping[str, Mapping[str, EffectModel]]) -> dic
     return out
 
 
+def rest_as_static(
+    tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame, min_duration_s: float = MIN_REST_S
+) -> tuple[pd.DataFrame | None, str]:
+    """The longest rest of a session's recordings, as a static recording.
+
+    Parameters
+    ----------
+    tables : mapping of str to DataFrame
+        Ingested recordings by name.
+    segments : DataFrame
+        The segments table; its ``static`` and ``position`` rows are the rests.
+    min_duration_s : float
+        Shortest rest that is scored (s).
+
+    Returns
+    -------
+    table : DataFrame or None
+        The rows of the longest rest (None when no rest is long enough).
+    source : str
+        Which rest it is, or why none is scored.
+    """
+    best = None
+    for name, table in tables.items():
+        for row in rows_of(segments, name, "static", "position").itertuples():
+            duration = float(row.end_s) - float(row.start_s)
+            if best is None or duration > best[0]:
+                best = (duration, name, row)
+    if best is None or best[0] < min_duration_s:
+        need = (
+            f"a rest is scored from {min_duration_s:g} s (each half twice the 10 s averaging "
+            "time of the static statistics)"
+        )
+        if best is None:
+            return None, f"no rest was found; {need}"
+        return None, f"the longest rest is {best[0]:.1f} s; {need}"
+    duration, name, row = best
+    table = tables[name]
+    t = table["t_s"].to_numpy(dtype=float)
+    part = table[(t >= float(row.start_s)) & (t <= float(row.end_s))].reset_index(drop=True)
+    return part, f"the rest {row.label} of recording {name} ({duration:.1f} s)"
+
+
 def diagnose_partial_session(
     static: pd.DataFrame | None,
     *,
     motion: tuple[Mapping[str, MotionRecording], MotionTwin] | None = None,
     reference_not_scored: str | None = None,
+    static_source: str | None = None,
     dataset: str,
     calibration: Mapping | None,
     sensitivity: Mapping[str, float],
@@ -113,6 +164,9 @@ def diagnose_partial_session(
     reference_not_scored : str, optional
         Why the session's recordings with a reference are not scored
         (:func:`imucal.gap.motion.reference_part`); kept in the result.
+    static_source : str, optional
+        Where ``static`` comes from when it is not the session's static recording (a rest,
+        :func:`rest_as_static`), or why a session without one has none; kept in the result.
     dataset : str
     calibration, sensitivity, gravity_m_s2, settings
         As in :func:`imucal.gap.static.diagnose_static`.
@@ -128,12 +182,16 @@ def diagnose_partial_session(
     streams = split_streams(static) if static is not None else {}
     if motion is None:
         extra = {"reference_not_scored": reference_not_scored} if reference_not_scored else {}
+        if static_source:
+            extra["static_source"] = static_source
         if static is None:
             reason = (
                 "the session has neither a static recording nor a recording with an "
                 "orientation reference; the twin of a partial session renders only these (its "
                 "other recordings are hand-held motions nothing measures independently)"
             )
+            if static_source:
+                reason += f"; rests: {static_source}"
             if reference_not_scored:
                 reason = (
                     "the session has no static recording, and its recordings with an "

@@ -3,7 +3,7 @@
 ``diagnose`` runs the session through the in-process pipeline, builds its twin, renders the
 null replicas, scores every location, attributes the gap forward and assembles
 ``diagnosis.json`` (``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``,
-``explained``, ``remaining``) plus the detail the report needs, and ``noted``: effects present that open no gap
+``explained``, ``remaining``, ``verdict``: :func:`verdict_of`) plus the detail the report needs, and ``noted``: effects present that open no gap
 with this pipeline (large misalignment under the exact rotation), with ``misalignment``.
 
 A session whose calibration chain stops on its data (too few positions, a fit the samples do not
@@ -32,6 +32,30 @@ from imucal.pipeline.full import PipelineOptions, calibrate_session
 
 FORMAT_VERSION = 1
 LOCATION_FIELDS = ("stage", "sensor", "axis", "segment", "statistic")
+#: What the twin does not replay, by the statistics that show it: (stage, statistics, what).
+#: The twin renders regular sample times without loss, the session's noise as white noise,
+#: bias instability and bias random walk (partial sessions) and its reference with white
+#: orientation noise through the measured clock and mounting, in a uniform field; a gap left in
+#: these statistics is a shortfall of that model, not a physical effect (``ref_scale`` is
+#: among them: a gyroscope calibrated against the reference matches its scale, so a held-out
+#: recording departs there through the reference as much as through the sensor). Statistics
+#: not listed respond to physical effects (temperature, g-sensitivity, misalignment...).
+TWIN_SHORTFALLS = (
+    ("ingest", ("loss_fraction", "stamp_scatter_s", "stamp_wander_s", "burst_fraction",
+                "long_gap_fraction"), "the host's receive timing"),
+    ("noise", ("adev_10s_excess", "adev_long_excess", "trend_per_s"),
+     "the sensor's slow bias drift"),
+    ("reference", ("resid_rms", "rate2", "rate3", "ref_scale", "ori_median_rad"),
+     "the reference's error beyond white noise (smoothing, latency, glitches)"),
+    ("reference", ("dir_resid_rad",), "a uniform magnetic field"),
+)  # fmt: skip
+#: Library effects that model the reference rather than the sensor or the world: accepted,
+#: they name what the twin's reference lacks.
+REFERENCE_EFFECTS = {"reference_jitter": "the reference's sample timing (reference_jitter)"}
+#: Library effects of the acquisition (the host, the logger, the clocks) rather than of the
+#: sensor or the world; the verdict names their kind, so that a user does not read a receive
+#: latency as a physical disturbance. Every other effect is ``physical``.
+ACQUISITION_EFFECTS = ("packet_loss", "timing_jitter", "time_offset")
 
 
 @dataclass(frozen=True)
@@ -134,6 +158,119 @@ def _effect_order(c: Candidate) -> tuple:
     return (not c.accepted, -shrink)
 
 
+def _shortfall(location: Mapping) -> str | None:
+    """What the twin lacks when a location departs, or None for a physical statistic."""
+    for stage, statistics, what in TWIN_SHORTFALLS:
+        if location["stage"] == stage and location["statistic"] in statistics:
+            return what
+    return None
+
+
+def _name(location: Mapping) -> str:
+    parts = [location[f] for f in LOCATION_FIELDS[:4] if location[f] not in ("-", "all")]
+    return f"{'/'.join(parts)} {location['statistic']} (z = {location['z']:.3g})"
+
+
+def verdict_of(result: Mapping) -> dict:
+    """The diagnosis in one of three outcomes a user can act on, and one sentence.
+
+    * ``nothing beyond the model``: no location is in the gap;
+    * ``effect``: an effect of the sensor, the platform or the acquisition was accepted (it
+      shrinks the gap held out by at least the settings' ``min_heldout_shrink``); the
+      sentence names it with its kind (``physical`` or ``acquisition``,
+      :data:`ACQUISITION_EFFECTS`) and its held-out shrink;
+    * ``twin lacks``: the gap is significant and no such effect closes it. What the twin
+      lacks is read from where the remaining gap lies: statistics of what the twin does not
+      replay (:data:`TWIN_SHORTFALLS`: receive timing, slow noise, the reference's error, the
+      field's uniformity), an accepted reference effect (:data:`REFERENCE_EFFECTS`), or, for
+      a gap in a statistic of a physical response that no library effect closes, "an effect
+      the library does not hold" at those locations.
+
+    Parameters
+    ----------
+    result : dict
+        diagnosis.json as :func:`scored_diagnosis` assembles it (``gap``, ``effects``,
+        ``remaining``; ``explained`` orders the accepted effects).
+
+    Returns
+    -------
+    dict
+        ``outcome``, ``sentence``, ``effects`` (accepted, with ``kind`` and ``heldout_shrink``),
+        ``lacks`` (what, share of the remaining gap's squared scores, locations, top
+        location), in that order of share.
+    """
+    gap = result["gap"]
+    order = {name: k for k, name in enumerate(result.get("explained", []))}
+    accepted = sorted(
+        (e for e in result["effects"] if e["accepted"]), key=lambda e: order.get(e["name"], 0)
+    )
+    physical = [e for e in accepted if e["name"] not in REFERENCE_EFFECTS]
+    named = [
+        {
+            "name": e["name"],
+            "kind": "acquisition" if e["name"] in ACQUISITION_EFFECTS else "physical",
+            "heldout_shrink": e["heldout_shrink"],
+            "params": e["params"],
+        }
+        for e in physical
+    ]
+    groups: dict = {}
+    for e in accepted:
+        if e["name"] in REFERENCE_EFFECTS:
+            what = REFERENCE_EFFECTS[e["name"]]
+            groups[what] = {"what": what, "weight": 0.0, "locations": [], "effect": e["name"]}
+    remaining = result["remaining"]["locations"] if result["remaining"]["significant"] else []
+    for loc in remaining:
+        what = _shortfall(loc) or "an effect the library does not hold"
+        g = groups.setdefault(what, {"what": what, "weight": 0.0, "locations": []})
+        g["weight"] += loc["z"] ** 2
+        g["locations"].append(loc)
+    total = sum(g["weight"] for g in groups.values()) or 1.0
+    lacks = [
+        {
+            "what": g["what"],
+            "share": g["weight"] / total,
+            "locations": len(g["locations"]),
+            "top": _name(g["locations"][0]) if g["locations"] else None,
+            **({"effect": g["effect"]} if "effect" in g else {}),
+        }
+        for g in sorted(groups.values(), key=lambda g: -g["weight"])
+    ]
+    if not gap["significant"]:
+        outcome = "nothing beyond the model"
+        sentence = (
+            "Nothing beyond the model: no location departs from the session's twin (total gap "
+            f"{gap['total']:.3g} against a null 95th percentile of {gap['null_p95']:.3g})."
+        )
+    elif named:
+        outcome = "effect"
+        sentence = "Effect " + "; then ".join(
+            f"{e['name']} ({e['kind']}), shrink {e['heldout_shrink']:.1%} held out" for e in named
+        )
+        sentence += (
+            f"; the twin still lacks {lacks[0]['what']} (at {lacks[0]['top']})."
+            if lacks and lacks[0]["top"]
+            else "."
+        )
+    else:
+        outcome = "twin lacks"
+        top = lacks[0] if lacks else {"what": "an effect the library does not hold", "top": None}
+        also = f"; also {lacks[1]['what']}" if len(lacks) > 1 else ""
+        if "effect" in top:
+            shrink = next(e["heldout_shrink"] for e in accepted if e["name"] == top["effect"])
+            sentence = (
+                f"The twin lacks {top['what']}: {top['effect']} shrinks the gap {shrink:.1%} "
+                f"held out{also}."
+            )
+        else:
+            at = f", above all at {top['top']}" if top.get("top") else ""
+            sentence = (
+                f"The twin lacks {top['what']}{at}{also}: no effect of the library closes "
+                "the gap held out."
+            )
+    return {"outcome": outcome, "sentence": sentence, "effects": named, "lacks": lacks}
+
+
 def scored_diagnosis(
     twin: Twin | StaticTwin,
     session,
@@ -169,7 +306,9 @@ def scored_diagnosis(
     -------
     dict
         ``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``, ``explained``,
-        ``remaining``, ``confusable``, ``all_locations``, ``null``.
+        ``remaining``, ``confusable``, ``all_locations``, ``null`` (with the locations whose
+        replicas are all equal, which have no score: ``constant_locations``), ``verdict``
+        (:func:`verdict_of`).
     """
     alpha = settings.alpha
     null_full = build_null(replicas, None, stats[None])
@@ -185,7 +324,7 @@ def scored_diagnosis(
     )  # fmt: skip
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
-    return {
+    result = {
         "format_version": FORMAT_VERSION,
         "dataset": dataset,
         "gap": {
@@ -212,8 +351,12 @@ def scored_diagnosis(
             "n_locations": len(keys),
             "loo_gap_median": float(np.median(loo)),
             "loo_false_alarm": float(np.mean(null_full.leave_one_out_flags(alpha))),
+            "constant_locations": [
+                dict(zip(LOCATION_FIELDS, k, strict=True)) for k in null_full.constant
+            ],
         },
     }
+    return {**result, "verdict": verdict_of(result)}
 
 
 def diagnose(

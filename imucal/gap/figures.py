@@ -81,7 +81,14 @@ def plot_effects(diagnosis: Mapping) -> Figure:
 
 
 def verdict(diagnosis: Mapping) -> str:
-    """A plain-language summary of the diagnosis."""
+    """The diagnosis's verdict in one sentence (:func:`imucal.gap.diagnosis.verdict_of`), or
+    the summary for a diagnosis.json written before verdicts were."""
+    found = diagnosis.get("verdict")
+    return found["sentence"] if found else summary(diagnosis)
+
+
+def summary(diagnosis: Mapping) -> str:
+    """A plain-language summary of the diagnosis: where the gap lies, what explains it."""
     gap = diagnosis["gap"]
     if not gap["significant"]:
         return ("The session behaves like its twin: no location is outside what noise alone "
@@ -114,12 +121,14 @@ def _params(params: Mapping) -> str:
 
 def observations_context(diagnosis: Mapping) -> dict:
     """What the diagnosis says besides the gap (any scope): why the full diagnosis could not
-    run, what it noted, which recordings were held by hand."""
+    run, what it noted, which recordings were held by hand, which rest stands in for a static
+    recording."""
     return {
         "fallback": diagnosis.get("fallback"),
         "held_by_hand": diagnosis.get("held_by_hand", []),
         "noted": diagnosis.get("noted", []),
         "saturation": diagnosis.get("saturation"),
+        "static_source": diagnosis.get("static_source"),
     }
 
 
@@ -128,6 +137,8 @@ def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
     return {
         **observations_context(diagnosis),
         "verdict": verdict(diagnosis),
+        "outcome": (diagnosis.get("verdict") or {}).get("outcome"),
+        "summary": summary(diagnosis),
         "gap": diagnosis["gap"],
         "locations": diagnosis["locations"][:20],
         "effects": diagnosis["effects"],

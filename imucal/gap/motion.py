@@ -19,7 +19,10 @@ measure of the same rotation. Its locations are stage ``reference`` x sensor x a
 The twin (:class:`MotionTwin`) renders the recording's own motion: the calibrated gyroscope's
 rates in B are the true body rate and are integrated from the reference's first present
 orientation, so the true orientation and rate agree exactly; the session's calibration is the
-truth, with white noise measured at the recording's rests (else on the whole recording, robustly);
+truth, with the session's own noise per axis (:func:`session_noise`: white noise at the
+recording's rests, else on the whole recording, robustly, with the rounding taken out; bias
+instability and bias random walk from the Allan deviation of the longest rest; readings rounded
+to the quantisation step);
 the reference is rendered from the true orientation at the recorded reference times through the
 measured clock and mounting, with white orientation noise from its third differences and the
 recorded gaps. A replica is measured with the clock and mounting the recording was measured with
@@ -48,6 +51,7 @@ from imucal.columns import AXES, GYR, MAG, QUAT, SENSORS, TIME
 from imucal.gap.effects import EffectModel, Estimate
 from imucal.gap.statistics import HALVES
 from imucal.gap.twin import Replica, identity_calibration, quantum
+from imucal.noise.process import NoiseProcess, dither_std, fit_noise_process, white_process
 from imucal.orientation import (
     integrate_rates,
     interpolate_orientation,
@@ -61,7 +65,7 @@ from imucal.segments.table import rows_of
 from imucal.sim import World
 from imucal.sim.effects import RecordingContext, stream_rng
 from imucal.sim.motion import KinematicState
-from imucal.sim.sensors import INT16_MAX, sensor_readings, true_signals
+from imucal.sim.sensors import INT16_MAX, quantise, sensor_readings, true_signals
 from imucal.sim.truth import REFERENCE_NOISE, Truth
 from imucal.validation.orientation import (
     OrientationAlignment,
@@ -238,16 +242,47 @@ def motion_statistics(
 # --------------------------------------------------------------------------- the recording
 
 
-def white_noise(values: np.ndarray, rests: np.ndarray | None) -> float:
-    """White-noise std (pooled over axes) from first differences: at rests when they hold
-    at least 100 samples, else robustly (MAD) over the whole recording, where motion inflates
-    it a little."""
-    if rests is not None and np.count_nonzero(rests) >= 100:
-        d = np.diff(values[rests], axis=0)
-        return float(np.sqrt(np.mean(np.var(d, axis=0)) / 2.0))
-    d = np.diff(values, axis=0)
+def _runs(mask: np.ndarray) -> list[slice]:
+    """Contiguous runs of True in a boolean mask, as slices."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [slice(a, b) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def session_noise(parts: Sequence[tuple], step: float) -> NoiseProcess:
+    """The noise process of one sensor from the rests of the recordings with a reference.
+
+    Parameters
+    ----------
+    parts : sequence of (ndarray, ndarray or None, float)
+        Per recording: the readings, shape (n, 3) (SI, finite), the mask of its samples at
+        rest (shape (n,), or None) and its sample rate (Hz).
+    step : float
+        Quantisation step (SI per count).
+
+    Returns
+    -------
+    NoiseProcess
+        White noise per axis from first differences within the rests when they hold at least
+        100 samples (else robustly, by the MAD of the first differences, over the whole
+        recordings, where the motion inflates it a little), the rounding taken out; bias
+        instability and bias random walk from the Allan deviation of the longest rest when
+        it holds :data:`~imucal.noise.process.MIN_FIT_SAMPLES` samples.
+    """
+    rests = [
+        (v[run], rate)
+        for v, mask, rate in parts
+        if mask is not None
+        for run in _runs(mask)
+        if run.stop - run.start >= 2
+    ]
+    if sum(len(r) for r, _ in rests) >= 100:
+        longest, rate = max(rests, key=lambda r: len(r[0]))
+        return fit_noise_process(longest, rate, step, [r for r, _ in rests])
+    d = np.vstack([np.diff(v, axis=0) for v, _, _ in parts])
     mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    return float(np.sqrt(np.mean((1.4826 * mad) ** 2) / 2.0))
+    white = np.array([dither_std((1.4826 * m) ** 2 / 2.0, step) for m in mad])
+    zero = np.zeros(3)
+    return NoiseProcess(white, zero, np.ones(3), zero.copy(), float(step))
 
 
 def slow_residual_variance(rec: MotionRecording) -> tuple[float, float]:
@@ -293,13 +328,19 @@ class MotionTwin:
     Attributes
     ----------
     truth : Truth
-        The session's calibration (identity for a sensor it does not calibrate); white noise.
+        The session's calibration (identity for a sensor it does not calibrate); white noise
+        pooled over the axes (for the effects that read it).
     sensitivity : dict
-        Sensor -> quantisation step (SI per count): the full scale of ``scale_nonlinearity``.
+        Sensor -> quantisation step (SI per count): the readings are rounded to it, and it
+        sets the full scale of ``scale_nonlinearity``.
     recordings : dict
         Name -> what its replica is rendered from.
     windows_s : tuple of float
     notes : list of str
+    noise : dict
+        Sensor -> :class:`~imucal.noise.process.NoiseProcess`, the session's noise (drawn
+        instead of the truth's white noise, which a sensor without one gets; only the
+        sensors with one are rounded).
     """
 
     truth: Truth
@@ -307,11 +348,13 @@ class MotionTwin:
     recordings: dict
     windows_s: tuple = WINDOWS_S
     notes: list = field(default_factory=list)
+    noise: dict = field(default_factory=dict)
 
     def describe(self) -> dict:
         """JSON-ready summary."""
         return {
             "noise": {k: float(v) for k, v in self.truth.noise.items()},
+            "noise_process": {k: p.describe() for k, p in self.noise.items()},
             "reference_noise_rad": {k: r.reference_noise_rad for k, r in self.recordings.items()},
             "recordings": {
                 k: {
@@ -429,23 +472,30 @@ def build_motion_twin(
     """
     cals = _calibrations(calibration)
     notes = [f"{s}: the session's calibration ({cals[s].method})" for s in SENSORS]
-    noise, sens, spec = {}, {}, {}
+    noise, sens, spec, processes = {}, {}, {}, {}
     raw = {s: [] for s in ("gyr", "mag")}
     for name, rec in recordings.items():
         table = tables[name]
         values = table[list(GYR)].to_numpy(dtype=float)
         ok = np.all(np.isfinite(values), axis=1)
-        raw["gyr"].append((values[ok], rests.get(name)))
+        rate = (len(rec.t_s) - 1) / (rec.t_s[-1] - rec.t_s[0])
+        raw["gyr"].append((values[ok], rests.get(name), rate))
         if rec.mag is not None:
-            raw["mag"].append((table[list(MAG)].to_numpy(dtype=float)[ok], rests.get(name)))
+            mag = table[list(MAG)].to_numpy(dtype=float)[ok]
+            fresh = np.all(np.isfinite(mag), axis=1)
+            keep = None if rests.get(name) is None else rests[name][fresh]
+            raw["mag"].append((mag[fresh], keep, rate))
     for s, parts in raw.items():
         if parts:
-            noise[s] = float(np.sqrt(np.mean([white_noise(v, r) ** 2 for v, r in parts])))
-            joined = np.vstack([v for v, _ in parts])
+            joined = np.vstack([v for v, _, _ in parts])
             sens[s] = float(sensitivity.get(s) or quantum(joined))
+            processes[s] = session_noise(parts, sens[s])
+            noise[s] = float(np.sqrt(np.mean(processes[s].white ** 2)))
     notes.append(
-        "noise: first differences at the rests (segments static/position), else robustly "
-        "over the whole recording"
+        "noise: the session's own per axis: white from first differences at the rests "
+        "(segments static/position), else robustly over the whole recording, the rounding "
+        "taken out; bias instability and bias random walk where the Allan deviation of the "
+        "longest rest resolves them; readings rounded to the quantisation step"
     )
     for s in SENSORS:
         noise.setdefault(s, 0.0)
@@ -479,7 +529,7 @@ def build_motion_twin(
         mounting_rotvec_rad=np.zeros(3),
         preset="twin",
     )
-    quiet = MotionTwin(truth, sens, spec, tuple(float(w) for w in windows_s), notes)
+    quiet = MotionTwin(truth, sens, spec, tuple(float(w) for w in windows_s), notes, processes)
     # the reference's noise: what the recording's slowest intervals show beyond the
     # gyroscope's share, which a replica without reference noise measures
     replica = render_motion(quiet, NOISE_SEED)
@@ -535,9 +585,18 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
         true = true_signals(state, truth.world)
         for effect in effects:
             true = effect.on_true_signals(true, state, ctx)
-        readings = sensor_readings(cal, true, truth.noise, stream_rng(seed, f"noise/{name}"))
+        rng = stream_rng(seed, f"noise/{name}")
+        # the session's noise per axis, drawn below, instead of the truth's white noise
+        readings = sensor_readings(cal, true, dict.fromkeys(SENSORS, 0.0), rng)
+        for s in SENSORS:
+            process = twin.noise.get(s) or white_process(truth.noise[s], twin.sensitivity[s])
+            drawn = process.draw(len(r.t_s), rate_hz, rng)
+            readings = readings.with_sensor(s, readings.sensor(s) + drawn)
         for effect in effects:
             readings = effect.on_readings(readings, true, state, ctx)
+        for s in twin.noise:
+            counts, _ = quantise(readings.sensor(s), twin.sensitivity[s])
+            readings = readings.with_sensor(s, counts * twin.sensitivity[s])
         gyr = errormodel.apply(cal.gyr.matrix, cal.gyr.bias, readings.gyr)
         mag = errormodel.apply(cal.mag.matrix, cal.mag.bias, readings.mag) if r.has_mag else None
         # the reference: body -> world = (B -> world) M, at the instants its samples are

@@ -7,8 +7,11 @@ satisfies ``(x - m) / (sqrt(s^2 + f^2) sqrt(1 + 1/R)) ~ t(R - 1)`` when the stat
 to Gaussian, which is what the log transforms of :data:`~imucal.gap.statistics.CATALOGUE` are
 for. Locations are declared in the gap by Holm's step-down procedure at family-wise level
 ``alpha`` over all locations. The total gap is the sum of squared scores beyond what noise alone
-gives: ``max(sum t^2 - L df / (df - 2), 0)`` over the ``L`` scored locations (``df / (df - 2)``
-is the mean of ``t^2`` for ``t ~ t(df)``), so that the share of it an effect closes does not
+gives: ``max(sum t^2 - sum_l w_l df / (df - 2), 0)`` over the scored locations (``df / (df - 2)``
+is the mean of ``t^2`` for ``t ~ t(df)``, and ``w_l = s^2 / (s^2 + f^2)`` the share of a
+location's scale that is the replicas' spread rather than its resolution floor: a location
+whose floor dominates scores near 0 under the null, and charging it the full mean would leave
+the gap of every replica at 0 and the null's 95th percentile with it), so that the share of it an effect closes does not
 shrink as statistics are added. Its null 95th percentile comes from scoring each replica against
 the other ``R - 1`` (leave-one-out), which includes the small-sample inflation of the scores.
 """
@@ -51,12 +54,16 @@ class NullModel:
         Replica mean and ``sqrt(s^2 + floor^2) sqrt(1 + 1/R)``.
     values : ndarray, shape (R, L)
         Transformed replica values.
+    spread_share : ndarray, shape (L,), optional
+        ``s^2 / (s^2 + floor^2)`` per location: the share of the null mean of ``t^2`` that
+        noise gives there (:func:`total_gap`); all 1 when omitted.
     """
 
     keys: list
     mean: np.ndarray
     scale: np.ndarray
     values: np.ndarray
+    spread_share: np.ndarray | None = None
 
     @property
     def n_replicas(self) -> int:
@@ -64,11 +71,27 @@ class NullModel:
 
     @classmethod
     def from_values(cls, keys: Sequence[Key], values: np.ndarray) -> NullModel:
+        """The null of replica values, shape (R, L) (transformed units).
+
+        A location whose replicas are all equal and whose statistic has no resolution floor
+        (:data:`~imucal.gap.statistics.CATALOGUE`) gives no spread to score against: its scale
+        is NaN, so it has no score (rather than an infinite one for any departure, which would
+        put every session in the gap there and leave the null's own leave-one-out gaps at 0).
+        :attr:`constant` names those locations.
+        """
         r = values.shape[0]
         mean = np.nanmean(values, axis=0)
         std = np.nanstd(values, axis=0, ddof=1)
         floor = np.array([CATALOGUE[k[4]].floor for k in keys])
-        return cls(list(keys), mean, np.sqrt(std**2 + floor**2) * np.sqrt(1 + 1 / r), values)
+        scale = np.sqrt(std**2 + floor**2) * np.sqrt(1 + 1 / r)
+        ok = scale > 0
+        share = np.divide(std**2, std**2 + floor**2, out=np.zeros_like(scale), where=ok)
+        return cls(list(keys), mean, np.where(ok, scale, np.nan), values, share)
+
+    @property
+    def constant(self) -> list:
+        """Locations the null cannot score: replicas all equal, no resolution floor."""
+        return [k for k, s in zip(self.keys, self.scale, strict=True) if not np.isfinite(s)]
 
     def t(self, stats: Mapping[Key, float], shift: Mapping | None = None) -> np.ndarray:
         """Scores of a session's statistics, shape (L,) (NaN where the session lacks one).
@@ -93,7 +116,7 @@ class NullModel:
     def gap(self, stats: Mapping[Key, float], shift: Mapping | None = None) -> float:
         """The total gap (:func:`total_gap`) of a session's statistics against this null,
         moved by ``shift``."""
-        return total_gap(self.t(stats, shift), self.df)
+        return total_gap(self.t(stats, shift), self.df, self.spread_share)
 
     def deviance(self, stats: Mapping[Key, float], shift: Mapping | None = None) -> float:
         """Gaussian deviance of a session's statistics against this null moved by ``shift``:
@@ -113,7 +136,7 @@ class NullModel:
             rest = np.delete(self.values, i, axis=0)
             m = NullModel.from_values(self.keys, rest)
             t = (self.values[i] - m.mean) / m.scale
-            out.append(total_gap(t, m.df))
+            out.append(total_gap(t, m.df, m.spread_share))
         return np.array(out)
 
     def leave_one_out_flags(self, alpha: float) -> np.ndarray:
@@ -145,7 +168,7 @@ def build_null(
     return NullModel.from_values(keys, values)
 
 
-def total_gap(t: np.ndarray, df: int) -> float:
+def total_gap(t: np.ndarray, df: int, spread_share: np.ndarray | None = None) -> float:
     """Sum of squared scores beyond its null mean, over the locations that have a score.
 
     Parameters
@@ -154,18 +177,22 @@ def total_gap(t: np.ndarray, df: int) -> float:
         Scores (NaN where a location has none).
     df : int
         Degrees of freedom of the scores (> 2).
+    spread_share : ndarray, shape (L,), optional
+        Per location, the share of its scale that is the replicas' spread
+        (:attr:`NullModel.spread_share`); all 1 when omitted.
 
     Returns
     -------
     float
-        ``max(sum t^2 - n df / (df - 2), 0)`` with ``n`` the finite scores: 0 when they add up
-        to no more than noise alone gives on average.
+        ``max(sum t^2 - sum w df / (df - 2), 0)`` over the finite scores, ``w`` the spread
+        share: 0 when they add up to no more than noise alone gives on average.
     """
     if df <= 2:
         raise ValueError(f"the gap needs scores with more than 2 degrees of freedom, got {df}")
     t = np.asarray(t, dtype=float)
     ok = np.isfinite(t)
-    return float(max(np.sum(t[ok] ** 2) - ok.sum() * df / (df - 2), 0.0))
+    w = np.ones(t.shape) if spread_share is None else np.asarray(spread_share, dtype=float)
+    return float(max(np.sum(t[ok] ** 2) - np.sum(w[ok]) * df / (df - 2), 0.0))
 
 
 def holm(p: np.ndarray, alpha: float) -> np.ndarray:

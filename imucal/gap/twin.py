@@ -19,11 +19,14 @@ differ only in their random seed.
 **StaticTwin** (a partial session's ``static`` recording, :mod:`imucal.gap.static`): the
 simulator's ``static`` plan (a ``hold``), the sensor model, quantisation and the effects' hooks,
 configured with the session's fitted calibration (identity for a sensor the session could not
-calibrate: static statistics are about noise and drift, not about the mean), white noise
-estimated from the static readings, and the session's own timing: the number of samples and
-effective rate ``(n - 1) / duration`` of the acc/gyro stream and of the magnetometer stream, and
-its temperature channel carried over by time. No effect beyond the paper's model: regular sample
-times, no loss, constant biases.
+calibrate: static statistics are about noise and drift, not about the mean), the session's own
+noise (:func:`imucal.noise.process.fit_noise_process` on each stream: white noise per axis with
+the quantisation taken out, bias instability and bias random walk from the IEEE 952 fit of its
+Allan deviation after the readings' line on the temperature channel is taken out, rounded to
+the recording's quantisation step), and the session's own timing:
+the number of samples and effective rate ``(n - 1) / duration`` of the acc/gyro stream and of
+the magnetometer stream, and its temperature channel carried over by time. No effect beyond the
+paper's model and the session's noise: regular sample times, no loss, no temperature drift.
 
 The module holds both twins (about 560 lines) so that what a replica is, and how a recorded
 session becomes the simulator's configuration, is defined in one place.
@@ -39,13 +42,15 @@ import pandas as pd
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
+from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SEQ, TIME, temperature_column
 from imucal.gap.blocks import COUNT_COLUMNS, STATIC_WINDOW_S, StaticBlocks
 from imucal.gap.statistics import HALVES, compute_statistics
-from imucal.gap.streams import STREAMS, Stream, static_statistics, white_std
+from imucal.gap.streams import STREAMS, Stream, static_statistics
 from imucal.ingest import reference_to_table
 from imucal.io.raw import MtManagerExport
+from imucal.noise.process import fit_noise_process, white_process
 from imucal.pipeline.full import PipelineOptions, SessionFit, calibrate_session, calibrated
 from imucal.sim import SENSITIVITY, ProtocolConfig, World, plan_session, simulate_session
 from imucal.sim.effects import RecordingContext, stream_rng
@@ -593,9 +598,17 @@ class StaticTwin:
     Attributes
     ----------
     truth : Truth
-        Calibration = the session's (identity where it has none); white noise per sensor.
+        Calibration = the session's (identity where it has none); white noise per sensor
+        (pooled over the axes, for the effects that read it).
     sensitivity : dict
         Sensor -> quantisation step (SI per count), from dataset.yaml or the data.
+    noise : dict
+        Sensor -> :class:`~imucal.noise.process.NoiseProcess`, the session's noise (the
+        replicas draw it; a sensor without one gets the truth's white noise).
+    level : dict
+        Sensor -> the recording's mean reading, shape (3,) (SI): the replicas' noise-free
+        reading, so that a noise below one count flips the counts as often as in the
+        recording (a sensor without one reads the hold through the calibration).
     streams : dict
         Stream name -> (number of samples, effective rate in Hz).
     temperature : tuple of ndarray or None
@@ -609,6 +622,8 @@ class StaticTwin:
     streams: dict
     temperature: tuple | None = None
     notes: list = field(default_factory=list)
+    noise: dict = field(default_factory=dict)
+    level: dict = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float:
@@ -618,6 +633,7 @@ class StaticTwin:
         """JSON-ready summary."""
         return {
             "noise": {k: float(v) for k, v in self.truth.noise.items()},
+            "noise_process": {k: p.describe() for k, p in self.noise.items()},
             "sensitivity": {k: float(v) for k, v in self.sensitivity.items()},
             "streams": {
                 k: {"samples": int(n), "rate_hz": float(r)} for k, (n, r) in self.streams.items()
@@ -689,18 +705,25 @@ def build_static_twin(
             notes.append(f"{s}: the session's fitted calibration ({cals[s].method})")
         else:
             cals[s] = identity_calibration(s)
-    noise, sens = {}, {}
+    noise, sens, processes, level = {}, {}, {}, {}
     for name, stream in streams.items():
         for s, x in stream.values.items():
             q = float(sensitivity.get(s) or quantum(x))
             if not sensitivity.get(s):
                 notes.append(f"{s}: quantisation step {q:.4g} SI estimated from the readings")
-            var = np.mean(white_std(x) ** 2) - q**2 / 12
-            noise[s], sens[s] = float(np.sqrt(max(var, 0.0))), q
+            level[s] = x.mean(axis=0)
+            processes[s] = fit_noise_process(
+                _untempered(x, stream.temperature_c), stream.rate_hz, q, level=level[s]
+            )
+            noise[s], sens[s] = float(np.sqrt(np.mean(processes[s].white ** 2))), q
     missing = [s for s in SENSORS if s not in noise]
     for s in missing:  # not rendered into any stream; the simulator needs a value
         noise[s], sens[s] = 0.0, 1e-3
-    notes.append("noise: std of first differences / sqrt(2), quantisation removed, axes pooled")
+    notes.append(
+        "noise: the session's own, per axis: white from first differences with the rounding "
+        "taken out, bias instability and bias random walk where the IEEE 952 fit of the "
+        "recording's Allan deviation resolves them"
+    )
     notes.append("timing: regular sample times at each stream's effective rate, no loss")
     truth = Truth(
         calibration=ImuCalibration(cals["acc"], cals["gyr"], cals["mag"]),
@@ -716,7 +739,19 @@ def build_static_twin(
         temp = (imu.t_s - imu.t_s[0], imu.temperature_c)
         notes.append("temperature channel carried over by time")
     spec = {name: (len(st.t_s), st.rate_hz) for name, st in streams.items()}
-    return StaticTwin(truth, sens, spec, temp, notes)
+    return StaticTwin(truth, sens, spec, temp, notes, processes, level)
+
+
+def _untempered(x: np.ndarray, temperature_c: np.ndarray | None) -> np.ndarray:
+    """Readings (n, 3) less their least-squares line on the temperature channel: the noise is
+    measured on what the temperature does not explain, so that a drift with temperature stays
+    a physical effect (``temperature_drift``) instead of entering the twin's noise."""
+    if temperature_c is None:
+        return x
+    d_t = temperature_c - temperature_c.mean()
+    if not d_t @ d_t > 0:
+        return x
+    return x - np.outer(d_t, d_t @ (x - x.mean(axis=0)) / (d_t @ d_t))
 
 
 def render_static(twin: StaticTwin, seed: int, effects: tuple = ()) -> dict[str, Stream]:
@@ -751,11 +786,20 @@ def render_static(twin: StaticTwin, seed: int, effects: tuple = ()) -> dict[str,
         )
         state = evaluate_motion(plan.motion, np.arange(n) / rate)
         true = true_signals(state, truth.world)
+        # the recording's own level: the hold's reading moved to it (before any effect)
+        moved = {
+            s: twin.level[s] - errormodel.invert(cal.matrix, cal.bias, true.sensor(s)[:1])[0]
+            for s, cal in ((s, truth.calibration.sensor(s)) for s in twin.level)
+        }
         for effect in effects:
             true = effect.on_true_signals(true, state, ctx)
-        readings = sensor_readings(
-            truth.calibration, true, truth.noise, stream_rng(seed, f"noise/{rec}")
-        )
+        rng = stream_rng(seed, f"noise/{rec}")
+        # the session's noise per axis, drawn below, instead of the truth's white noise
+        readings = sensor_readings(truth.calibration, true, dict.fromkeys(SENSORS, 0.0), rng)
+        for s in STREAMS[name]:
+            process = twin.noise.get(s) or white_process(truth.noise[s], twin.sensitivity[s])
+            drawn = process.draw(n, rate, rng) + moved.get(s, 0.0)
+            readings = readings.with_sensor(s, readings.sensor(s) + drawn)
         for effect in effects:
             readings = effect.on_readings(readings, true, state, ctx)
         counts = {s: quantise(readings.sensor(s), twin.sensitivity[s])[0] for s in SENSORS}

@@ -7,6 +7,7 @@ import pytest
 from scipy import stats as sps
 
 from imucal.gap import effects as gap_effects
+from imucal.gap.diagnosis import verdict_of
 from imucal.gap.null import NullModel, build_null, holm, run_replicas, total_gap
 from imucal.gap.statistics import compute_statistics
 from imucal.gap.twin import build_twin, render_replica
@@ -132,3 +133,88 @@ def test_deviance_charges_an_effect_for_the_spread_it_adds():
     assert null.gap(session, widening) == 0.0
     assert null.deviance(session, mean_shift) < 1.0
     assert null.deviance(session, widening) == pytest.approx(1 + np.log(401), rel=0.01)
+
+
+def test_a_location_whose_replicas_are_all_equal_has_no_score():
+    """A statistic without a resolution floor that every replica gives alike (a trend of a
+    reading that never changes) has no spread to score against: any departure, however small,
+    would be infinitely significant. It is left unscored and named."""
+    keys = [
+        ("noise", "gyr", "x", "static", "trend_per_s"),
+        ("noise", "gyr", "y", "static", "trend_per_s"),
+    ]
+    rng = np.random.default_rng(2)
+    null = NullModel.from_values(keys, np.column_stack([np.zeros(20), rng.standard_normal(20)]))
+    assert null.constant == [keys[0]]
+    t = null.t({keys[0]: 1e-12, keys[1]: 0.0})
+    assert np.isnan(t[0]) and np.isfinite(t[1])
+    assert not holm(null.p_values(t), 0.05).any()
+    assert np.all(np.isfinite(null.leave_one_out_gaps()))
+
+
+def test_the_null_95th_percentile_is_positive_where_resolution_floors_dominate():
+    """30 locations whose replicas scatter by a tenth of their floor (ref_scale, floor 1e-4)
+    and 4 noise-dominated ones: charging every location the full null mean of t^2 leaves
+    every replica's leave-one-out gap at 0 (a null 95th percentile of 0, so any session is
+    'significant'); charging each its share of spread does not."""
+    rng = np.random.default_rng(3)
+    floored = [("reference", "gyr", "x", f"r{k}", "ref_scale") for k in range(30)]
+    noisy = [("reference", "gyr", "x", f"r{k}", "rate3") for k in range(4)]
+    values = np.hstack([1.0 + 1e-5 * rng.standard_normal((20, 30)), rng.standard_normal((20, 4))])
+    null = NullModel.from_values(floored + noisy, values)
+    assert null.spread_share[:30].max() < 0.05 and np.all(null.spread_share[30:] == 1.0)
+    loo = null.leave_one_out_gaps()
+    assert np.percentile(loo, 95) > 0
+    unweighted = []
+    for i in range(20):
+        rest = NullModel.from_values(floored + noisy, np.delete(values, i, axis=0))
+        unweighted.append(total_gap((values[i] - rest.mean) / rest.scale, rest.df))
+    assert np.percentile(unweighted, 95) == 0.0
+
+
+def _result(significant, effects=(), remaining=()):
+    def loc(stage, sensor, statistic, z):
+        return {
+            "stage": stage,
+            "sensor": sensor,
+            "axis": "x",
+            "segment": "r",
+            "statistic": statistic,
+            "z": z,
+            "in_gap": True,
+        }
+
+    rem = [loc(*r) for r in remaining]
+    return {
+        "gap": {"total": 50.0 if significant else 0.0, "null_p95": 3.0, "significant": significant},
+        "effects": [
+            {"name": n, "accepted": True, "heldout_shrink": s, "params": {}} for n, s in effects
+        ],
+        "remaining": {"significant": bool(rem), "locations": rem},
+    }
+
+
+def test_the_verdict_tells_a_clean_session_an_effect_and_a_shortfall_of_the_twin():
+    assert verdict_of(_result(False))["outcome"] == "nothing beyond the model"
+    found = verdict_of(_result(True, [("g_sensitivity", 0.8)]))
+    assert found["outcome"] == "effect"
+    assert found["sentence"] == "Effect g_sensitivity (physical), shrink 80.0% held out."
+    assert verdict_of(_result(True, [("timing_jitter", 0.998)]))["effects"][0]["kind"] == (
+        "acquisition"
+    )
+    # the gap in the reference comparison's rate curvature, no effect accepted: the reference
+    lacks = verdict_of(_result(True, remaining=[("reference", "gyr", "rate3", 300.0),
+                                                ("reference", "mag", "dir_resid_rad", 20.0)]))  # fmt: skip
+    assert lacks["outcome"] == "twin lacks"
+    assert [g["what"] for g in lacks["lacks"]] == [
+        "the reference's error beyond white noise (smoothing, latency, glitches)",
+        "a uniform magnetic field",
+    ]
+    assert lacks["lacks"][0]["share"] == pytest.approx(300**2 / (300**2 + 20**2))
+    # an accepted reference effect names the reference, not a physical effect
+    jitter = verdict_of(_result(True, [("reference_jitter", 0.6)]))
+    assert jitter["outcome"] == "twin lacks" and jitter["effects"] == []
+    assert "reference_jitter shrinks the gap 60.0% held out" in jitter["sentence"]
+    # a gap in a physical response no effect closes: an effect the library does not hold
+    other = verdict_of(_result(True, remaining=[("temperature", "gyr", "temp_slope", 9.0)]))
+    assert other["lacks"][0]["what"] == "an effect the library does not hold"

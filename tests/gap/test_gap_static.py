@@ -8,13 +8,15 @@ and diagnosed from that table alone.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from imucal.columns import SENSOR_COLUMNS, TIME
+from imucal.columns import SEGMENT_COLUMNS, SENSOR_COLUMNS, SENSORS, TIME
 from imucal.gap import DiagnosisSettings
-from imucal.gap.composite import diagnose_partial_session
+from imucal.gap.composite import diagnose_partial_session, rest_as_static
 from imucal.gap.static import diagnose_static
 from imucal.gap.streams import split_streams
 from imucal.gap.twin import StaticTwin, render_static
@@ -26,9 +28,12 @@ DURATION_S = 300.0
 REPLICAS = 12
 
 
-def _session(seed: int, effects: tuple = ()) -> pd.DataFrame:
-    """An ingested static recording rendered by the simulator, rows in receive order."""
+def _session(seed: int, effects: tuple = (), noise_counts: float | None = None) -> pd.DataFrame:
+    """An ingested static recording rendered by the simulator, rows in receive order (white
+    noise of ``noise_counts`` quantisation steps when given, else the paper's)."""
     truth = make_truth("paper", stream_rng(0, "truth"))
+    if noise_counts is not None:
+        truth = replace(truth, noise={s: noise_counts * SENSITIVITY[s] for s in SENSORS})
     streams = {"imu": (int(DURATION_S * 100) + 1, 100.0), "mag": (int(DURATION_S * 75) + 1, 75.0)}
     # a slow cooling of 0.3 K, like a module on a desk, carried by the temperature channel
     t = np.linspace(0.0, DURATION_S, 50)
@@ -67,6 +72,20 @@ def test_no_effect_explains_nothing(seed):
     assert d["explained"] == []
     # the total gap of a clean session is a draw from the null: well below 3x its 95th percentile
     assert d["gap"]["total"] < 3 * d["gap"]["null_p95"]
+    assert d["verdict"]["outcome"] in ("nothing beyond the model", "twin lacks")
+    assert d["verdict"]["effects"] == []
+
+
+def test_a_recording_with_noise_below_one_count_gets_a_null_with_spread():
+    """White noise of 0.15 counts rounded: the readings flip between counts now and then. The
+    twin measures that noise under the rounding (subtracting step^2 / 12 called it 0, every
+    replica read the same counts and the null's 95th percentile was 0)."""
+    d = _diagnose(_session(8, noise_counts=0.15))
+    assert d["gap"]["null_p95"] > 0
+    white = d["twin"]["noise_process"]["gyr"]["white"]
+    # an axis whose reading never flips has no noise to find; the others do
+    assert max(white) > 0.1 * SENSITIVITY["gyr"]
+    assert d["explained"] == [] and d["verdict"]["effects"] == []
 
 
 def test_timing_jitter_is_found_estimated_and_explained():
@@ -75,6 +94,8 @@ def test_timing_jitter_is_found_estimated_and_explained():
     assert d["gap"]["significant"]
     assert {loc["statistic"] for loc in d["locations"]} >= {"stamp_scatter_s", "burst_fraction"}
     assert d["explained"][:1] == ["timing_jitter"]
+    assert d["verdict"]["outcome"] == "effect"
+    assert d["verdict"]["sentence"].startswith("Effect timing_jitter (acquisition), shrink ")
     jitter = next(e for e in d["effects"] if e["name"] == "timing_jitter")
     # the estimator inverts the model's mean latency over ~50k samples: a few % at most
     assert jitter["params"]["std_s"] == pytest.approx(true_std, rel=0.1)
@@ -113,3 +134,23 @@ def test_too_few_replicas_are_refused():
         DiagnosisSettings(replicas=3)
     with pytest.raises(ValueError, match=r"unknown diagnosis settings \['replica'\]"):
         DiagnosisSettings.from_config({"replica": 20})
+
+
+def test_the_longest_rest_stands_in_for_a_missing_static_recording():
+    """Two recordings with rests of 30 s and 45 s: the 45 s one is cut out as the static
+    recording; with a 60 s minimum none is, and the reason gives the longest."""
+    rest = _session(9).iloc[: int(50 * 175)]  # the first 50 s (100 + 75 rows a second)
+    tables = {"a": rest, "b": rest}
+    rows = [
+        {"recording": r, "label": label, "kind": "static", "start_s": 1.0, "end_s": 1.0 + d,
+         "start_index": 0, "end_index": 0, "axis": "", "rate_dps": np.nan, "sense": 0,
+         "turns": np.nan, "up": "", "angle_deg": np.nan}
+        for r, label, d in (("a", "s01", 30.0), ("b", "s02", 45.0))
+    ]  # fmt: skip
+    segments = pd.DataFrame(rows, columns=list(SEGMENT_COLUMNS))
+    table, source = rest_as_static(tables, segments)
+    assert source == "the rest s02 of recording b (45.0 s)"
+    t = table[TIME].to_numpy()
+    assert t.min() >= 1.0 and t.max() <= 46.0 and t.max() - t.min() > 44.9
+    none, why = rest_as_static(tables, segments, min_duration_s=60.0)
+    assert none is None and why.startswith("the longest rest is 45.0 s; a rest is scored from 60 s")

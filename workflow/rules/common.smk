@@ -183,7 +183,8 @@ def diagnosis_for_terms(wildcards):
 
 def gap_partial_inputs(wildcards):
     """A partial session's calibration, its static recording when it has one, and its
-    recordings with an orientation reference (with the references and the segments)."""
+    recordings with an orientation reference (with the references and the segments); with
+    neither, its recordings and segments, whose longest rest stands in for a static recording."""
     d = wildcards.dataset
     inputs = {"calibration": f"results/{d}/partial/calibration.json"}
     if has_recording(wildcards, "static"):
@@ -191,6 +192,9 @@ def gap_partial_inputs(wildcards):
     if dataset_info(wildcards).orientation_references:
         inputs |= {f"moving_{n}": p for n, p in orientation_recordings(wildcards).items()}
         inputs["orientation"] = orientation_references(wildcards)
+        inputs["segments"] = f"results/{d}/segments.parquet"
+    elif "static" not in inputs:
+        inputs |= {f"rest_{n}": p for n, p in ingested_imu_all(wildcards).items()}
         inputs["segments"] = f"results/{d}/segments.parquet"
     return inputs
 

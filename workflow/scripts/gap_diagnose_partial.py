@@ -5,7 +5,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.gap import DiagnosisSettings
-from imucal.gap.composite import diagnose_partial_session
+from imucal.gap.composite import diagnose_partial_session, rest_as_static
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.gap.motion import reference_part
 from imucal.io import read_json, read_recording, read_segments, write_json
@@ -18,7 +18,8 @@ logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 info = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 inputs = dict(snakemake.input.items())
 calibration = read_json(snakemake.input.calibration)
-motion = not_scored = None
+motion = not_scored = static_source = None
+static = read_recording(inputs["static"])[0] if "static" in inputs else None
 if "orientation" in inputs:
     references = {}
     for path in snakemake.input.orientation:
@@ -34,10 +35,20 @@ if "orientation" in inputs:
         gravity_m_s2=info.gravity_m_s2,
         windows_s=snakemake.params.windows_s,
     )
+elif static is None:
+    static, static_source = rest_as_static(
+        {
+            k.removeprefix("rest_"): read_recording(p)[0]
+            for k, p in inputs.items()
+            if k.startswith("rest_")
+        },
+        read_segments(snakemake.input.segments),
+    )
 result = diagnose_partial_session(
-    read_recording(inputs["static"])[0] if "static" in inputs else None,
+    static,
     motion=motion,
     reference_not_scored=not_scored,
+    static_source=static_source,
     dataset=snakemake.wildcards.dataset,
     calibration=calibration,
     sensitivity=info.sensitivity,
