@@ -85,7 +85,8 @@ PLANS: dict[str, Counter | str] = {
     "snakemake --cores 2 results/demo/calibrated/static.parquet": _CALIBRATION
     + Counter(apply_calibration=1),
     # nine datasets of eight public recordings, all on the partial path; four have a rest the
-    # noise stage analyses (noise, export); BROAD's two trials carry an orientation reference each
+    # noise stage analyses (noise, export); BROAD's two trials carry an orientation reference each;
+    # the CATS tag's declared poses with a temperature channel get the temperature hold-out
     "snakemake --cores 2 real": Counter(
         ingest=14,
         ingest_summary=9,
@@ -99,6 +100,7 @@ PLANS: dict[str, Counter | str] = {
         report=9,
         ingest_orientation=2,
         validate_references=1,
+        temperature_holdout=1,
         real=1,
     ),
     # 28 sessions with one hidden effect, 5 without, 2 with an effect outside the library

@@ -32,6 +32,7 @@ import imucal
 from imucal import io
 from imucal.columns import AXES, SENSORS
 from imucal.constants import IMU_RECORDINGS, REFERENCE
+from imucal.report.holdout import holdout_section
 from imucal.terms.comparison import gap_comparison
 
 #: Significant digits of the numbers in the report.
@@ -592,6 +593,7 @@ def build_report_context(
     gap: Sequence[str | Path] | None = None,
     noise: Sequence[str | Path] | None = None,
     terms: Sequence[str | Path] | None = None,
+    temperature_holdout: str | Path | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -630,6 +632,8 @@ def build_report_context(
         Package version; default :data:`imucal.__version__`.
     generated : str, optional
         Time stamp of the report; default now (UTC, ISO 8601, seconds).
+    temperature_holdout : path, optional
+        ``temperature_holdout.json`` (:mod:`imucal.report.holdout`), its own section.
 
     Returns
     -------
@@ -774,6 +778,7 @@ def build_report_context(
         "gap": _gap_section(gap),
         "noise": _noise_section(noise),
         "terms": _terms_section(terms, gap),
+        "holdout": holdout_section(temperature_holdout),
     }
 
 

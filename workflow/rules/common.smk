@@ -12,6 +12,7 @@ from imucal.terms import TermSettings
 from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.registry import full_protocol_artifacts, is_full_protocol
+from imucal.terms import poseholdout
 
 DATASETS = sorted(config["datasets"])
 #: The public recordings' configs (config/real/*.yaml), each checked against the schema
@@ -301,6 +302,28 @@ def noise_targets(name):
     return [f"results/{name}/noise.json", *exports]
 
 
+def holdout_recording(name):
+    """The recording with declared static poses and a temperature channel, or None."""
+    return poseholdout.holdout_recording(dataset_of(name))
+
+
+def holdout_report_inputs(name):
+    """The temperature hold-out section's input when the dataset has one."""
+    if holdout_recording(name) is None:
+        return {}
+    return {"temperature_holdout": f"results/{name}/temperature_holdout.json"}
+
+
+def holdout_recording_param(wildcards):
+    """The name of the recording of the temperature hold-out (a rule param)."""
+    return holdout_recording(wildcards.dataset)
+
+
+def holdout_input(wildcards):
+    """The ingested recording of the temperature hold-out."""
+    return f"results/{wildcards.dataset}/ingest/{holdout_recording(wildcards.dataset)}.parquet"
+
+
 def dataset_targets(name):
     """Final outputs of one dataset: its report, calibration, stage listing and plots."""
     recordings = dataset_of(name).recordings
@@ -316,6 +339,7 @@ def dataset_targets(name):
             targets += [f"results/{name}/reference/validation.json"]
     targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
     targets += noise_targets(name)
+    targets += list(holdout_report_inputs(name).values())
     return targets
 
 
@@ -399,7 +423,7 @@ def report_inputs(wildcards):
             figures.append(f"results/{d}/figures/reference_orientation.png")
             benchmarks.append(f"results/{d}/benchmarks/validate_references.tsv")
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
-        noise = noise_report_inputs(d)
+        noise = noise_report_inputs(d) | holdout_report_inputs(d)
         return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
