@@ -883,7 +883,7 @@ def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
     d = _load_json(diagnosis, "gap diagnosis")
     # a partial session's diagnosis (imucal.gap.static) says what it could score, or why not
     scope = {"scope": d.get("scope", "full"), "reason": d.get("reason", ""),
-             "not_observable": d.get("not_observable", {})}  # fmt: skip
+             "not_observable": d.get("not_observable", {}), "pose": d.get("pose")}  # fmt: skip
     if scope["scope"] == "none":
         return {**observations_context(d), **scope}
     return {**report_context(d, {f.stem: embed_figure(f) for f in figures}), **scope}

@@ -149,6 +149,10 @@ def gap_partial_inputs(wildcards):
         inputs |= {f"moving_{n}": p for n, p in orientation_recordings(wildcards).items()}
         inputs["orientation"] = orientation_references(wildcards)
         inputs["segments"] = f"results/{d}/segments.parquet"
+    if "static" not in inputs and holdout_recording(d) is not None:
+        # declared static poses with a temperature channel: the longest pose is its static part
+        inputs["poses"] = holdout_input(wildcards)
+        inputs["segments"] = f"results/{d}/segments.parquet"
     return inputs
 
 
