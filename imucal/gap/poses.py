@@ -18,14 +18,11 @@ from collections.abc import Mapping
 
 import pandas as pd
 
-from imucal.columns import TIME
+from imucal.columns import POSE_KINDS, TIME
 from imucal.gap.composite import diagnose_partial_session
 from imucal.gap.diagnosis import DiagnosisSettings
 from imucal.gap.motion import MotionRecording, MotionTwin
 from imucal.segments.table import rows_of
-
-#: Segment kinds that are static poses.
-POSE_KINDS = ("position", "static")
 
 
 def longest_pose(

@@ -35,6 +35,7 @@ import pandas as pd
 
 from imucal.columns import (
     AXES,
+    POSE_KINDS,
     SENSOR_COLUMNS,
     SENSORS,
     SI_UNITS,
@@ -47,8 +48,6 @@ from imucal.segments.table import row_bounds, rows_of
 
 #: The fewest poses a hold-out needs: one held out, at least two to fit on.
 MIN_POSES = 3
-#: Segment kinds that are static poses.
-POSE_KINDS = ("position", "static")
 
 
 @dataclass(frozen=True)
