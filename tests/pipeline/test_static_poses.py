@@ -168,3 +168,19 @@ def test_cats_declared_poses_give_the_gyro_bias_only(cats):
     assert run == ["gyr_bias"]
     assert "3 distinct orientation(s) (-z, -x, -y;" in outcomes["acc_cube"].reason
     assert outcomes["gyr_bias"].artifact["n_segments"] == 3
+
+
+def test_the_full_protocol_gyro_bias_leaves_a_short_pause_out():
+    """The stage-per-rule gyr_bias on rotation3d pauses, one of them 4 samples long."""
+    from imucal.pipeline.stages import estimate_gyr_bias
+
+    rng = np.random.default_rng(8)
+    n = 400
+    t = np.arange(n) / 100.0
+    gyr = GYR_BIAS + GYR_NOISE * rng.standard_normal((n, 3))
+    table = pd.DataFrame({TIME: t, **dict(zip(GYR, gyr.T))})
+    rows = [("a", 0, 150), ("b", 160, 164), ("c", 170, 400)]
+    segments = segments_frame([segment_row("rotation3d", k, "static", t, a, b) for k, a, b in rows])
+    artifact, _ = estimate_gyr_bias({"rotation3d": table}, segments, figures=False)
+    assert artifact["short_left_out"] == 1 and artifact["short_left_out_samples"] == 4
+    assert artifact["n_segments"] == 2 and artifact["n_samples"] == 380
