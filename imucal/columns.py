@@ -87,3 +87,5 @@ SEGMENT_COLUMNS = (
 )  # fmt: skip
 #: Kinds of segment.
 KINDS = ("static", "phase", "transition", "position", "run")
+#: Kinds of segment at rest in one orientation (a static pose).
+POSE_KINDS = ("position", "static")

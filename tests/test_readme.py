@@ -84,21 +84,23 @@ PLANS: dict[str, Counter | str] = {
     ),
     "snakemake --cores 2 results/demo/calibrated/static.parquet": _CALIBRATION
     + Counter(apply_calibration=1),
-    # eight datasets of seven public recordings, all on the partial path; three have a static
-    # recording (noise, export); BROAD's two trials carry an orientation reference each
+    # nine datasets of eight public recordings, all on the partial path; four have a rest the
+    # noise stage analyses (noise, export); BROAD's two trials carry an orientation reference each;
+    # the CATS tag's declared poses with a temperature channel get the temperature hold-out
     "snakemake --cores 2 real": Counter(
-        ingest=13,
-        ingest_summary=8,
-        segment=8,
-        plot_segments=13,
-        partial=8,
-        noise=3,
-        export=3,
-        gap_diagnose_partial=8,
-        stages=8,
-        report=8,
+        ingest=14,
+        ingest_summary=9,
+        segment=9,
+        plot_segments=14,
+        partial=9,
+        noise=4,
+        export=4,
+        gap_diagnose_partial=9,
+        stages=9,
+        report=9,
         ingest_orientation=2,
         validate_references=1,
+        temperature_holdout=1,
         real=1,
     ),
     # 28 sessions with one hidden effect, 5 without, 2 with an effect outside the library

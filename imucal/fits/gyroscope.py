@@ -96,6 +96,41 @@ def _static_segments(static: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarr
     return out
 
 
+def usable_static_segments(
+    pieces: Sequence[np.ndarray],
+) -> tuple[list[np.ndarray], np.ndarray, dict]:
+    """The static segments long enough for the bias; the shorter ones left out and counted.
+
+    A pause of a few samples (a handled logger at 1 Hz, a robot's stop) gives neither a slope
+    nor a noise estimate; it is left out rather than stopping the stage (its samples would add
+    almost nothing beside the long rests).
+
+    Parameters
+    ----------
+    pieces : sequence of ndarray, each shape (n_i, 3)
+        Gyroscope readings (rad/s) of each static segment.
+
+    Returns
+    -------
+    kept : list of ndarray
+        The segments with at least :data:`MIN_STATIC_SAMPLES` samples, in order.
+    keep : ndarray of bool, shape (n_segments,)
+        Which segments were kept.
+    left_out : dict
+        ``short_left_out`` (segments), ``short_left_out_samples`` (their samples) and
+        ``min_static_samples``, for the stage's record (the stages add it to their artifact
+        when a segment was left out).
+    """
+    keep = np.array([len(p) >= MIN_STATIC_SAMPLES for p in pieces], dtype=bool)
+    kept = [p for p, k in zip(pieces, keep) if k]
+    left_out = {
+        "short_left_out": int(np.sum(~keep)),
+        "short_left_out_samples": int(sum(len(p) for p, k in zip(pieces, keep) if not k)),
+        "min_static_samples": MIN_STATIC_SAMPLES,
+    }
+    return kept, keep, left_out
+
+
 #: Samples per block of the bias's goodness of fit (10 s at 100 Hz).
 BIAS_BLOCK_SAMPLES = 1000
 

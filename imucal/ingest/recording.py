@@ -386,7 +386,7 @@ def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, di
         "first_line": first_line if len(files) == 1 else None,
         "field_norm_t": dataset.field_norm_t,
     }
-    for key in ("streams", "parts", "part_gap_s", "sorted_by_time"):
+    for key in ("streams", "parts", "part_gap_s", "sorted_by_time", "time_units", "file_units"):
         if key in rec.metadata:
             meta[key] = rec.metadata[key]
     if sections is not None:

@@ -4,7 +4,7 @@ A recording of ``dataset.yaml`` is either a file name (the native IMU CSV, read 
 :func:`imucal.io.read_imu_csv`) or a mapping that declares how to read it
 (``docs/data-format.md``, section "Declared recordings"):
 
-* one file: ``reader`` (``table``, ``matlab`` or ``hdf5``), ``file`` and a column map;
+* one file: ``reader`` (``table``, ``matlab``, ``hdf5`` or ``netcdf``), ``file`` and a column map;
 * ``streams``: one file per sensor (each a one-file entry), merged on time;
 * ``parts``: one-file or ``streams`` entries concatenated in time.
 
@@ -17,8 +17,8 @@ Every problem raises :class:`DeclarationError` (a declaration that does not fit 
 message names the ``dataset.yaml`` key path and the column) or :class:`imucal.io.RawDataError`
 (the file breaks its declared format; the message names the file and the line or row).
 
-The module is long (about 1050 lines): every declared reader (tables, MATLAB v5/v7.3,
-HDF5, streams, parts, section lists, 2-D arrays) shares the declaration's checks and the
+The module is long (about 1150 lines): every declared reader (tables, MATLAB v5/v7.3,
+HDF5, netCDF4, streams, parts, section lists, 2-D arrays) shares the declaration's checks and the
 error messages naming the ``dataset.yaml`` key; splitting it by format would repeat them.
 """
 
@@ -39,14 +39,14 @@ from imucal.columns import AXES, SENSOR_COLUMNS, SENSORS, SEQ, TIME
 from imucal.constants import STANDARD_GRAVITY_M_S2
 
 #: Reader names of a one-file entry.
-READERS = ("table", "matlab", "hdf5")
+READERS = ("table", "matlab", "hdf5", "netcdf")
 #: Delimiters of the table reader; ``whitespace`` is any run of blanks and tabs.
 DELIMITERS = {",": ",", ";": ";", "\t": "\t", "whitespace": r"\s+"}
 #: Accepted source units per sensor and their factor to SI (None: needs ``sensitivity``, or is
 #: taken as it is for the already normalised magnetometer).
 UNIT_FACTORS: dict[str, dict[str, float | None]] = {
     "acc": {"m/s^2": 1.0, "g": STANDARD_GRAVITY_M_S2, "counts": None},
-    "gyr": {"rad/s": 1.0, "deg/s": math.pi / 180.0, "counts": None},
+    "gyr": {"rad/s": 1.0, "deg/s": math.pi / 180.0, "mrad/s": 1e-3, "counts": None},
     "mag": {"T": 1.0, "uT": 1e-6, "gauss": 1e-4, "counts": None, "normalised": None},
 }
 #: Magnetometer units that are a physical field (converted to tesla, then divided by the
@@ -213,11 +213,12 @@ def read_entry(
     reader = entry["reader"]
     if reader == "table":
         raw, labels, first_line = _read_table(entry, path, columns, where, label_column)
-    elif reader in ("matlab", "hdf5"):
+    elif reader in ("matlab", "hdf5", "netcdf"):
         raw, labels = _read_arrays(entry, path, columns, where, label_column)
         first_line = None
     else:
         raise DeclarationError(f"{where}.reader", f"{reader!r}", f"one of {READERS}")
+    netcdf = _netcdf_time_and_units(entry, path, columns, raw, where) if reader == "netcdf" else {}
     n = len(next(iter(raw.values())))
     if n < 2:
         raise io.RawDataError(path, None, f"{n} sample(s)", "at least two samples")
@@ -260,6 +261,7 @@ def read_entry(
         "rows": int(n),
         "first_line": first_line,
         "sorted_by_time": order is not None,
+        **netcdf,
     }
     return DeclaredRecording(frame, tuple(sensors), labels, t_s.copy(), info)
 
@@ -415,7 +417,7 @@ def _read_arrays(
     ``1 x N`` time vector needs no ``transpose``). Every column must have the same length.
     """
     reader = entry["reader"]
-    key = "variable" if reader == "matlab" else "dataset"
+    key = "dataset" if reader == "hdf5" else "variable"
     name = entry.get(key)
     transpose = bool(entry.get("transpose", False))
     store = _ArrayFile(path, reader)
@@ -516,6 +518,14 @@ class _ArrayFile:
         self.matlab_order = reader == "matlab" and self.hdf5
         if reader == "hdf5" and not self.hdf5:
             raise io.RawDataError(path, None, "not an HDF5 file", "an HDF5 (or MATLAB v7.3) file")
+        if reader == "netcdf" and not self.hdf5:
+            raise io.RawDataError(
+                path,
+                None,
+                "not an HDF5 file (netCDF3 classic or 64-bit offset?)",
+                "a netCDF4 file (HDF5 underneath)",
+            )
+        self.netcdf = reader == "netcdf"
         if self.hdf5:
             self.names = self._hdf5_names()
         else:
@@ -553,8 +563,126 @@ class _ArrayFile:
         import h5py
 
         with h5py.File(self.path, "r") as f:
-            array = np.asarray(f[name.strip("/")][()])
+            data = f[name.strip("/")]
+            array = np.asarray(data[()])
+            if self.netcdf:
+                array = _cf_unpacked(array, data.attrs)
         return array.T if self.matlab_order else array
+
+    def attribute(self, name: str, attribute: str) -> str | None:
+        """A text attribute of a dataset (e.g. a netCDF variable's ``units``), or None."""
+        import h5py
+
+        with h5py.File(self.path, "r") as f:
+            value = f[name.strip("/")].attrs.get(attribute)
+        if isinstance(value, np.ndarray) and value.size == 1:
+            value = value.reshape(-1)[0]
+        if isinstance(value, bytes):
+            value = value.decode("utf-8", "replace")
+        return value if isinstance(value, str) else None
+
+
+def _cf_unpacked(array: np.ndarray, attrs: Mapping[str, Any]) -> np.ndarray:
+    """A netCDF variable as numbers: ``_FillValue`` and ``missing_value`` to NaN, then
+    ``scale_factor`` and ``add_offset`` (CF packing) applied."""
+    if array.dtype.kind not in "iuf":
+        return array
+    values = array.astype(float)
+    for key in ("_FillValue", "missing_value"):
+        fill = attrs.get(key)
+        if fill is not None:
+            fill = np.asarray(fill, dtype=float).reshape(-1)
+            values[np.isin(values, fill[np.isfinite(fill)])] = np.nan
+    scale = attrs.get("scale_factor")
+    offset = attrs.get("add_offset")
+    if scale is not None:
+        values = values * float(np.asarray(scale).reshape(-1)[0])
+    if offset is not None:
+        values = values + float(np.asarray(offset).reshape(-1)[0])
+    return values
+
+
+#: Time units of a netCDF (CF) time variable, ``"<unit> since <origin>"``, in seconds.
+CF_TIME_UNITS = {
+    "days": 86400.0, "day": 86400.0, "d": 86400.0,
+    "hours": 3600.0, "hour": 3600.0, "h": 3600.0,
+    "minutes": 60.0, "minute": 60.0, "min": 60.0,
+    "seconds": 1.0, "second": 1.0, "secs": 1.0, "sec": 1.0, "s": 1.0,
+    "milliseconds": 1e-3, "millisecond": 1e-3, "ms": 1e-3,
+    "microseconds": 1e-6, "microsecond": 1e-6, "us": 1e-6,
+}  # fmt: skip
+#: Spellings of a netCDF variable's ``units`` attribute -> the declared unit they mean.
+CF_SENSOR_UNITS = {
+    "m/s2": "m/s^2", "m/s^2": "m/s^2", "m s-2": "m/s^2", "ms-2": "m/s^2", "m.s-2": "m/s^2",
+    "rad/s": "rad/s", "rad s-1": "rad/s", "mrad/s": "mrad/s", "mrad s-1": "mrad/s",
+    "deg/s": "deg/s", "degree/s": "deg/s", "degrees/s": "deg/s", "deg s-1": "deg/s",
+    "ut": "uT", "microtesla": "uT", "t": "T", "tesla": "T", "gauss": "gauss",
+}  # fmt: skip
+
+
+def _netcdf_time_and_units(
+    entry: Mapping[str, Any],
+    path: Path,
+    columns: Mapping[str, Any],
+    raw: dict[str, np.ndarray],
+    where: str,
+) -> dict:
+    """netCDF4: the time variable decoded, the declared units checked against the file's.
+
+    A ``t_s`` variable whose ``units`` attribute reads ``"<unit> since <origin>"`` (CF) becomes
+    seconds since that origin (``raw`` changed in place; ``rate_hz`` then must not be given). A
+    sensor column from a variable with a ``units`` attribute the reader knows must agree with
+    ``units.<sensor>`` of the declaration.
+
+    Returns
+    -------
+    dict
+        ``time_units`` (the attribute as found) when the time was decoded, and ``file_units``
+        (target -> the variable's ``units`` attribute) for the metadata.
+    """
+    store = _ArrayFile(path, "netcdf")
+    info: dict = {}
+    source = columns.get(TIME)
+    if isinstance(source, str):
+        found = store.attribute(source, "units")
+        match = re.match(r"^\s*(\w+)\s+since\s+(.+?)\s*$", found or "")
+        if match:
+            unit = match.group(1).lower()
+            if unit not in CF_TIME_UNITS:
+                raise DeclarationError(
+                    f"{where}.columns.{TIME}",
+                    f"time variable {source!r} of {path} in {found!r}",
+                    f"'<unit> since <origin>' with a unit of {sorted(set(CF_TIME_UNITS))}",
+                )
+            if entry.get("rate_hz") is not None:
+                raise DeclarationError(
+                    f"{where}.rate_hz",
+                    f"rate_hz beside the time variable {source!r} in {found!r}",
+                    "no rate_hz (the time variable gives the times)",
+                )
+            raw[TIME] = raw[TIME] * CF_TIME_UNITS[unit]
+            info["time_units"] = found
+    file_units = {}
+    for target, src in columns.items():
+        sensor = target.split("_", 1)[0] if target in _SENSOR_TARGETS else None
+        name = src[0] if _is_array_column(src) else src if isinstance(src, str) else None
+        if name is None:
+            continue
+        found = store.attribute(name, "units")
+        if found is None:
+            continue
+        file_units[target] = found
+        meaning = CF_SENSOR_UNITS.get(found.strip().lower()) if sensor else None
+        declared = (entry.get("units") or {}).get(sensor) if sensor else None
+        if meaning and declared not in (None, "counts") and meaning != declared:
+            raise DeclarationError(
+                f"{where}.units.{sensor}",
+                f"{declared!r}, but variable {name!r} of {path} says units {found!r}",
+                f"the file's unit ({meaning!r})",
+            )
+    if file_units:
+        info["file_units"] = file_units
+    return info
 
 
 # --------------------------------------------------------------------------------------------

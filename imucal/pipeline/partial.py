@@ -37,7 +37,7 @@ import pandas as pd
 from imucal import errormodel, uncertainty
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
-from imucal.fits import accelerometer, gyroscope
+from imucal.fits import accelerometer, gyroscope, orientations
 from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
 from imucal.pipeline.options import FitMethods
@@ -239,14 +239,28 @@ def _pose_recording(s: _Session) -> str:
         if s.with_sensor(r, "acc") and len(s.poses(r)) >= MIN_CUBE_POSITIONS:
             return r
     counts = {r: len(s.poses(r)) for r in ("cube", "poses") if r in s.tables}
+    shown = [_coverage(s, r).reason for r in ("cube", "poses") if s.with_sensor(r, "acc")]
     raise NotApplicable(
         f"needs >= {MIN_CUBE_POSITIONS} static poses in a cube or poses recording with "
         f"accelerometer data (static poses found: {counts or 'no such recording'})"
+        + "".join(f"; {reason}" for reason in shown if reason)
+    )
+
+
+def _coverage(s: _Session, recording: str) -> orientations.OrientationCoverage:
+    """The distinct gravity directions of a recording's poses (those long enough for the fit)."""
+    pieces = [v for _, v in cut_finite(s.tables[recording], s.poses(recording), ACC)]
+    pieces = [v for v in pieces if len(v) >= accelerometer.MIN_SAMPLES_PER_POSITION]
+    return orientations.cube_coverage(
+        np.array([v.mean(axis=0) for v in pieces]).reshape(-1, 3),
+        np.array([len(v) for v in pieces]),
     )
 
 
 def _acc_cube(s: _Session) -> dict:
     recording = _pose_recording(s)
+    coverage = _coverage(s, recording)
+    _need(coverage.identifiable, coverage.reason)
     rows = s.poses(recording)
     positions = [v for _, v in cut_finite(s.tables[recording], rows, ACC)]
     fit = accelerometer.fit_cube(
@@ -258,6 +272,7 @@ def _acc_cube(s: _Session) -> dict:
     )
     artifact = stages.plain(fit)
     artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
+    artifact["orientations"] = coverage.to_dict()
     if len(positions) > MIN_CUBE_POSITIONS:
         held = accelerometer.heldout_errors(positions, s.gravity_m_s2)
         artifact.update(
@@ -300,9 +315,16 @@ def _static_gyr(s: _Session) -> list[np.ndarray]:
 
 
 def _gyr_bias(s: _Session) -> dict:
-    pieces = _static_gyr(s)
-    _need(bool(pieces), "no static segment with gyroscope samples")
-    return stages.plain(gyroscope.estimate_bias(pieces))
+    found = _static_gyr(s)
+    _need(bool(found), "no static segment with gyroscope samples")
+    pieces, _, left_out = gyroscope.usable_static_segments(found)
+    _need(
+        bool(pieces),
+        f"no static segment with at least {gyroscope.MIN_STATIC_SAMPLES} gyroscope samples "
+        f"({left_out['short_left_out']} shorter ones)",
+    )
+    artifact = stages.plain(gyroscope.estimate_bias(pieces))
+    return {**artifact, **left_out} if left_out["short_left_out"] else artifact
 
 
 def _bias(s: _Session) -> np.ndarray:

@@ -299,8 +299,10 @@ def estimate_gyr_bias(
             f"no static segment found in the recordings {names}; the gyroscope bias needs a "
             "static recording or static pauses"
         )
+    pieces, keep, left_out = gyroscope.usable_static_segments(pieces)
+    times = [x for x, k in zip(times, keep) if k]
     bias = gyroscope.estimate_bias(pieces)
-    artifact = plain(bias)
+    artifact = {**plain(bias), **left_out} if left_out["short_left_out"] else plain(bias)
     artifact["source"] = names
     if not figures:
         return artifact, {}

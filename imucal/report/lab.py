@@ -34,6 +34,7 @@ from imucal import io
 from imucal.columns import AXES, SENSORS
 from imucal.constants import REFERENCE
 from imucal.report import digest
+from imucal.report.holdout import holdout_section
 from imucal.terms.comparison import gap_comparison
 
 #: Significant digits of the numbers in the report.
@@ -606,6 +607,7 @@ def build_report_context(
     noise: Sequence[str | Path] | None = None,
     terms: Sequence[str | Path] | None = None,
     report_path: str | Path | None = None,
+    temperature_holdout: str | Path | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -647,6 +649,8 @@ def build_report_context(
     report_path : path, optional
         Where the report will be written: the stage results given as paths are linked from it
         by their path relative to its folder (none linked without it).
+    temperature_holdout : path, optional
+        ``temperature_holdout.json`` (:mod:`imucal.report.holdout`), its own section.
 
     Returns
     -------
@@ -810,6 +814,7 @@ def build_report_context(
         "gap": _gap_section(gap),
         "noise": _noise_section(noise),
         "terms": _terms_section(terms, gap),
+        "holdout": holdout_section(temperature_holdout),
     }
 
 
@@ -922,7 +927,7 @@ def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
     d = _load_json(diagnosis, "gap diagnosis")
     # a partial session's diagnosis (imucal.gap.static) says what it could score, or why not
     scope = {"scope": d.get("scope", "full"), "reason": d.get("reason", ""),
-             "not_observable": d.get("not_observable", {})}  # fmt: skip
+             "not_observable": d.get("not_observable", {}), "pose": d.get("pose")}  # fmt: skip
     if scope["scope"] == "none":
         return {**observations_context(d), **scope}
     return {**report_context(d, {f.stem: embed_figure(f) for f in figures}), **scope}

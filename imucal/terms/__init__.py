@@ -2,7 +2,8 @@
 
 Temperature polynomials (:mod:`.temperature`), the gyroscope's g-sensitivity
 (:mod:`.gsensitivity`), the accelerometer's lever arm on the rate table (:mod:`.leverarm`), the
-magnetometer's delay (:mod:`.magdelay`), the switch per term
+magnetometer's delay (:mod:`.magdelay`), the temperature terms held out across static poses
+(:mod:`.poseholdout`), the switch per term
 (:mod:`.selection`) and the loop that folds them into the calibration (:mod:`.loop`). The
 terms themselves (data, units, evaluation) are :mod:`imucal.modelterms`.
 """

@@ -7,5 +7,6 @@ from .loop import (
     terms_summary,
 )
 from .magdelay import fit_mag_delay
+from .poseholdout import hold_out_poses, hold_out_recording
 from .selection import EFFECT_OF_TERM, TermSettings, decide, final_calibration
 from .temperature import fit_temperature, select_model

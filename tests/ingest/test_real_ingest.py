@@ -30,6 +30,7 @@ EXPECTED = {
     ("tomisuarez2_mag", "tumble"): (22745, 454.9, 50.0, ["mag"], False),
     ("ck_explorer", "poses"): (16000, 160.0, 100.0, ["acc"], False),
     ("ck_explorer", "tumble"): (12000, 120.0, 100.0, ["acc", "mag"], False),
+    ("spluque_cats_thermal", "poses"): (268081, 268080.0, 1.0, ["acc", "gyr", "mag"], False),
 }
 
 
@@ -128,6 +129,27 @@ def test_annotated_session_sections_from_part_column(real):
         axis = "xyz".index(s["up"][1])
         sign = 1 if s["up"][0] == "+" else -1
         assert sign * part[ACC[axis]].median() == pytest.approx(9.81, rel=0.1), s["label"]
+
+
+def test_cats_netcdf4_poses_temperature_and_units(real):
+    """The CATS tag's netCDF4 file: CF time, mrad/s gyro, the temperature kept, three poses."""
+    dataset = read_dataset(DATASETS / "spluque_cats_thermal")
+    table, meta = ingest_recording(dataset.recordings["poses"], "poses", dataset, "test")
+    assert meta["time_units"] == "seconds since 2021-09-20 08:52:00"
+    assert meta["file_units"]["gyr_x"] == "mrad/s" and meta["source_units"]["gyr"] == "mrad/s"
+    temp = table["temp_c"].to_numpy()
+    assert (temp.min(), temp.max()) == pytest.approx((4.8, 27.8), abs=0.05)  # SOURCE.md
+    t = table[TIME].to_numpy()
+    poses = [s for s in dataset.segments if s["recording"] == "poses"]
+    assert [s["label"] for s in poses] == ["pose_z", "pose_x", "pose_y"]
+    for s in poses:
+        part = table[(t >= s["start_s"]) & (t <= s["end_s"])]
+        axis, sign = "xyz".index(s["up"][1]), 1 if s["up"][0] == "+" else -1
+        # the declared up axis reads +g within the uncalibrated accelerometer's 7 % (SOURCE.md:
+        # |a| 10.47 / 10.09 / 9.66 m/s^2)
+        assert sign * part[ACC[axis]].median() == pytest.approx(9.81, rel=0.07), s["label"]
+        # at rest: the gyro's median is a bias of a few mrad/s, far below the handling's rates
+        assert np.abs(part[list(GYR)].median().to_numpy()).max() < 0.1, s["label"]
 
 
 def test_a_fresh_clone_without_shared_fails_clearly(tmp_path):

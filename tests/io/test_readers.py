@@ -119,6 +119,7 @@ def test_time_column_as_sample_counter_and_sort_by_time(tmp_path):
         ("acc", "g", 2.0, 2 * G),
         ("gyr", "rad/s", 0.3, 0.3),
         ("gyr", "deg/s", 90.0, math.pi / 2),
+        ("gyr", "mrad/s", 250.0, 0.25),
         ("mag", "T", 4e-5, 0.8),
         ("mag", "uT", 40.0, 0.8),
         ("mag", "gauss", 0.4, 0.8),
@@ -222,6 +223,67 @@ def test_hdf5_paths_in_groups_transpose_and_vectors(tmp_path):
     with pytest.raises(DeclarationError, match=r"recordings.poses.dataset: 'imu/raw/ac' not in "
                        r".*h.h5 \(datasets: imu/acc_x, .*imu/raw/acc, imu/t\)"):  # fmt: skip
         ingest(write_dataset(tmp_path, {"poses": matrix}), "poses")
+
+
+def write_netcdf4(path: Path, *, time_units: str = "minutes since 2021-09-20 08:52:00") -> None:
+    """A netCDF4-like file written by h5py: a CF time variable, (N, 3) sensor variables with
+    units attributes and fill values, a packed temperature."""
+    with h5py.File(path, "w") as f:
+        f.attrs["_NCProperties"] = np.bytes_(b"version=2,netcdf=4.7.4,hdf5=1.12.0,")
+        f["time"] = np.arange(N, dtype=np.int64)
+        f["time"].attrs["units"] = np.bytes_(time_units.encode())
+        acc = ACC_G * G
+        acc[3] = -999.0  # the fill value: a row without an accelerometer sample
+        f["acceleration"] = acc
+        f["acceleration"].attrs["units"] = np.bytes_(b"m/s2")
+        f["acceleration"].attrs["_FillValue"] = np.array([-999.0])
+        f["angular_velocity"] = np.deg2rad(GYR_DPS) * 1e3
+        f["angular_velocity"].attrs["units"] = np.bytes_(b"mrad/s")
+        f["temperature"] = np.arange(N, dtype=np.int16) * 5 + 100
+        f["temperature"].attrs["scale_factor"] = np.array([0.01])
+        f["temperature"].attrs["add_offset"] = np.array([20.0])
+
+
+def netcdf_entry() -> dict:
+    return {
+        "reader": "netcdf",
+        "file": "c.nc",
+        "columns": {"t_s": "time", **{f"acc_{a}": ["acceleration", k] for k, a in enumerate("xyz")},
+                    **{f"gyr_{a}": ["angular_velocity", k] for k, a in enumerate("xyz")},
+                    "temp_c": "temperature"},
+        "units": {"acc": "m/s^2", "gyr": "mrad/s"},
+    }  # fmt: skip
+
+
+def test_netcdf4_time_units_fill_values_and_packing(tmp_path):
+    write_netcdf4(tmp_path / "c.nc")
+    table, meta = ingest(write_dataset(tmp_path, {"poses": netcdf_entry()}), "poses")
+    # minutes since the origin -> seconds since it
+    np.testing.assert_array_equal(table[TIME].to_numpy(), 60.0 * np.arange(N))
+    expected = ACC_G * G
+    expected[3] = np.nan
+    np.testing.assert_allclose(table[list(ACC)].to_numpy(), expected, rtol=1e-15)
+    np.testing.assert_allclose(table[list(GYR)].to_numpy(), np.deg2rad(GYR_DPS), rtol=1e-14)
+    np.testing.assert_allclose(table["temp_c"].to_numpy(), 21.0 + 0.05 * np.arange(N), rtol=1e-12)
+    assert meta["time_units"] == "minutes since 2021-09-20 08:52:00"
+    assert meta["file_units"]["gyr_x"] == "mrad/s"
+
+
+def test_netcdf4_refuses_a_unit_the_file_contradicts_and_a_plain_file(tmp_path):
+    write_netcdf4(tmp_path / "c.nc")
+    entry = {**netcdf_entry(), "units": {"acc": "m/s^2", "gyr": "rad/s"}}
+    with pytest.raises(DeclarationError, match=r"recordings.poses.units.gyr: 'rad/s', but variable "
+                       r"'angular_velocity' of .*c.nc says units 'mrad/s'; expected the file's "
+                       r"unit \('mrad/s'\)"):  # fmt: skip
+        ingest(write_dataset(tmp_path, {"poses": entry}), "poses")
+    with pytest.raises(
+        DeclarationError, match=r"recordings.poses.rate_hz: rate_hz beside the time"
+    ):
+        ingest(write_dataset(tmp_path, {"poses": {**netcdf_entry(), "rate_hz": 1.0}}), "poses")
+    (tmp_path / "c.nc").unlink()
+    (tmp_path / "c.nc").write_bytes(b"CDF\x01" + bytes(60))  # netCDF3 classic
+    with pytest.raises(io.RawDataError, match=r"c.nc.*not an HDF5 file .*expected a netCDF4 file"):
+        ingest(write_dataset(tmp_path, {"poses": netcdf_entry()}), "poses")
 
 
 # --------------------------------------------------------------------------------------------

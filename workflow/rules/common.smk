@@ -15,6 +15,7 @@ from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.options import pipeline_settings
 from imucal.pipeline.registry import full_protocol_artifacts, is_full_protocol
+from imucal.terms import poseholdout
 
 DATASETS = sorted(config["datasets"])
 #: The public recordings' configs (config/real/*.yaml), each checked against the schema
@@ -184,7 +185,8 @@ def diagnosis_for_terms(wildcards):
 def gap_partial_inputs(wildcards):
     """A partial session's calibration, its static recording when it has one, and its
     recordings with an orientation reference (with the references and the segments); with
-    neither, its recordings and segments, whose longest rest stands in for a static recording."""
+    neither, its declared static poses with a temperature channel (the longest pose stands in for
+    a static recording), else its recordings and segments, whose longest rest does."""
     d = wildcards.dataset
     inputs = {"calibration": f"results/{d}/partial/calibration.json"}
     if has_recording(wildcards, "static"):
@@ -192,6 +194,10 @@ def gap_partial_inputs(wildcards):
     if dataset_info(wildcards).orientation_references:
         inputs |= {f"moving_{n}": p for n, p in orientation_recordings(wildcards).items()}
         inputs["orientation"] = orientation_references(wildcards)
+        inputs["segments"] = f"results/{d}/segments.parquet"
+    elif "static" not in inputs and holdout_recording(d) is not None:
+        # declared static poses with a temperature channel: the longest pose is its static part
+        inputs["poses"] = holdout_input(wildcards)
         inputs["segments"] = f"results/{d}/segments.parquet"
     elif "static" not in inputs:
         inputs |= {f"rest_{n}": p for n, p in ingested_imu_all(wildcards).items()}
@@ -350,6 +356,28 @@ def noise_targets(name):
     return [f"results/{name}/noise.json", *exports]
 
 
+def holdout_recording(name):
+    """The recording with declared static poses and a temperature channel, or None."""
+    return poseholdout.holdout_recording(dataset_of(name))
+
+
+def holdout_report_inputs(name):
+    """The temperature hold-out section's input when the dataset has one."""
+    if holdout_recording(name) is None:
+        return {}
+    return {"temperature_holdout": f"results/{name}/temperature_holdout.json"}
+
+
+def holdout_recording_param(wildcards):
+    """The name of the recording of the temperature hold-out (a rule param)."""
+    return holdout_recording(wildcards.dataset)
+
+
+def holdout_input(wildcards):
+    """The ingested recording of the temperature hold-out."""
+    return f"results/{wildcards.dataset}/ingest/{holdout_recording(wildcards.dataset)}.parquet"
+
+
 def dataset_targets(name):
     """Final outputs of one dataset: its report, calibration, stage listing and plots."""
     recordings = dataset_of(name).recordings
@@ -365,6 +393,7 @@ def dataset_targets(name):
             targets += [f"results/{name}/reference/validation.json"]
     targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
     targets += noise_targets(name)
+    targets += list(holdout_report_inputs(name).values())
     return targets
 
 
@@ -462,7 +491,7 @@ def report_inputs(wildcards):
                 for r in info.orientation_references
             ]
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
-        noise = noise_report_inputs(d)
+        noise = noise_report_inputs(d) | holdout_report_inputs(d)
         return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")

@@ -81,6 +81,8 @@ rule gap_diagnose_partial:
     params:
         settings=diagnosis_settings(),
         windows_s=config["reference"]["windows_s"],
+        poses_recording=holdout_recording_param,
+        settle_s=config["temperature_holdout"]["settle_s"],
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_diagnose_partial.py"

@@ -8,6 +8,7 @@ from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session, rest_as_static
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.gap.motion import reference_part
+from imucal.gap.poses import diagnose_poses
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 
@@ -35,7 +36,7 @@ if "orientation" in inputs:
         gravity_m_s2=info.gravity_m_s2,
         windows_s=snakemake.params.windows_s,
     )
-elif static is None:
+elif static is None and "poses" not in inputs:
     static, static_source = rest_as_static(
         {
             k.removeprefix("rest_"): read_recording(p)[0]
@@ -44,17 +45,22 @@ elif static is None:
         },
         read_segments(snakemake.input.segments),
     )
-result = diagnose_partial_session(
-    static,
+common = dict(
     motion=motion,
     reference_not_scored=not_scored,
-    static_source=static_source,
     dataset=snakemake.wildcards.dataset,
     calibration=calibration,
     sensitivity=info.sensitivity,
     gravity_m_s2=info.gravity_m_s2,
     settings=DiagnosisSettings.from_config(snakemake.params.settings),
 )
+if "poses" in inputs:  # static poses with a temperature channel, no static recording
+    result = diagnose_poses(
+        read_recording(inputs["poses"])[0], read_segments(snakemake.input.segments),
+        recording=snakemake.params.poses_recording, settle_s=snakemake.params.settle_s, **common,
+    )  # fmt: skip
+else:
+    result = diagnose_partial_session(static, static_source=static_source, **common)
 write_json(result, snakemake.output.diagnosis)
 plot_gap_map(result).savefig(snakemake.output.gap_map, dpi=110)
 plot_effects(result).savefig(snakemake.output.effects, dpi=110)

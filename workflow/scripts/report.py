@@ -37,5 +37,6 @@ context = build_report_context(
     terms=[snakemake.input.terms, snakemake.input.gap_after]
     if "terms" in snakemake.input.keys()  # noqa: SIM118
     else None,
+    temperature_holdout=snakemake.input.get("temperature_holdout"),
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")

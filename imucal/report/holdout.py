@@ -1,0 +1,78 @@
+"""The lab report's section on temperature terms held out across static poses.
+
+Context of ``templates/_holdout.html.j2`` from ``results/{dataset}/temperature_holdout.json``
+(:func:`imucal.terms.poseholdout.hold_out_recording`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+from imucal.io import read_json
+
+#: Display unit per sensor: (label, factor from the SI unit of the JSON).
+DISPLAY_UNITS = {
+    "gyr": ("mdeg/s", 180.0 / math.pi * 1e3),
+    "acc": ("mm/s^2", 1e3),
+    "mag": ("1e-3 field norm", 1e3),
+}
+
+
+def _number(value: float, digits: int) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
+
+
+def holdout_section(path: str | Path | None) -> dict | None:
+    """Context of the temperature hold-out partial, None without a hold-out.
+
+    Returns
+    -------
+    dict or None
+        ``reason`` (the stage did not run) or ``rows`` (per held-out pose, sensor and axis:
+        the three residual RMS in display units, their ratios to none, the order and the
+        compared fraction), ``summary`` (the same over all held-out poses), ``units``,
+        ``settings``, ``poses``.
+    """
+    if path is None:
+        return None
+    from imucal.pipeline.outcome import not_run_reason
+
+    d = read_json(path)
+    reason = not_run_reason(d)
+    if reason:
+        return {"reason": reason}
+
+    def row(c: Mapping, label: str) -> dict:
+        factor = DISPLAY_UNITS[c["sensor"]][1]
+        none = c["rms_none"]
+        return {
+            "pose": label,
+            "sensor": c["sensor"],
+            "axis": c["axis"],
+            "order": c.get("order", ", ".join(str(o) for o in c.get("orders", []))),
+            "none": _number(factor * none, 2),
+            "term": _number(factor * c["rms_term"], 2),
+            "regression": _number(factor * c["rms_regression"], 2),
+            "term_ratio": _number(c["rms_term"] / none, 3),
+            "regression_ratio": _number(c["rms_regression"] / none, 3),
+            "fraction": _number(c.get("fraction", math.nan), 2),
+        }
+
+    return {
+        "reason": None,
+        "recording": d["recording"],
+        "settings": d["settings"],
+        "poses": [
+            {
+                "label": p["label"],
+                "samples": p["samples"],
+                "span": f"{p['temp_span_c'][0]:.1f}-{p['temp_span_c'][1]:.1f}",
+            }
+            for p in d["poses"]
+        ],  # fmt: skip
+        "rows": [row(c, c["held_out"]) for c in d["cells"]],
+        "summary": [row(s, "all") for s in d["summary"]],
+        "units": {s: DISPLAY_UNITS[s][0] for s in d["sensors"]},
+    }

@@ -1,0 +1,174 @@
+"""Temperature terms held out across static poses (imucal.terms.poseholdout)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from imucal.columns import ACC, GYR, TIME
+from imucal.io.dataset import read_dataset
+from imucal.segments.table import segment_row, segments_frame
+from imucal.terms import poseholdout as ph
+
+RATE_HZ = 1.0
+POSE_S = 40_000  # about 11 h per pose at 1 Hz
+NOISE = 2e-3  # rad/s, white, per sample
+BLOCK_S = 600.0
+#: Per axis: no drift (x), linear (y), quadratic (z), rad/s per K^k about REF_C.
+LINEAR = np.array([0.0, 4e-4, -2e-4])
+QUADRATIC = np.array([0.0, 0.0, 3e-5])
+REF_C = 14.0
+
+
+def sweep(rng: np.random.Generator, lo: float, hi: float, n: int) -> np.ndarray:
+    """A temperature going down from ``hi`` to ``lo`` and back up, with sensor noise (deg C)."""
+    u = np.abs(np.linspace(-1.0, 1.0, n))
+    return lo + (hi - lo) * u + 0.02 * rng.standard_normal(n)
+
+
+def drift(temp: np.ndarray) -> np.ndarray:
+    d_t = (temp - REF_C)[:, None]
+    return LINEAR * d_t + QUADRATIC * d_t**2
+
+
+def three_poses(rng: np.random.Generator) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
+    """A gyro in three poses with per-axis drift and a constant per pose (g-sensitivity,
+    orientation) that grows with the pose's mean temperature, as a pooled regression would read
+    as a slope; 1 Hz. Returns the table, its segments and the pose constants (3, 3)."""
+    spans = [(4.8, 16.3), (5.8, 20.1), (5.4, 24.3)]
+    constants = np.array([[0.0, 0.0, 0.0], [3e-3, 1e-3, -2e-3], [6e-3, -1e-3, 1e-3]])
+    parts, rows, start = [], [], 0
+    for k, ((lo, hi), c) in enumerate(zip(spans, constants)):
+        temp = sweep(rng, lo, hi, POSE_S)
+        gyr = 0.02 + c + drift(temp) + NOISE * rng.standard_normal((POSE_S, 3))
+        acc = np.tile(9.81 * np.eye(3)[k], (POSE_S, 1)) + 0.01 * rng.standard_normal((POSE_S, 3))
+        parts.append(np.column_stack([acc, gyr, temp]))
+        rows.append((f"pose_{k}", start, start + POSE_S))
+        start += POSE_S + 100
+        parts.append(np.full((100, 7), np.nan))  # handling between poses: no rows of a pose
+    data = np.vstack(parts)
+    t = np.arange(len(data)) / RATE_HZ
+    table = pd.DataFrame({TIME: t, **dict(zip((*ACC, *GYR, "temp_c"), data.T))})
+    segments = segments_frame(
+        [segment_row("poses", label, "position", t, a, b) for label, a, b in rows]
+    )
+    return table, segments, constants
+
+
+@pytest.fixture(scope="module")
+def result():
+    rng = np.random.default_rng(32)
+    table, segments, _ = three_poses(rng)
+    return ph.hold_out_recording(
+        table, segments, recording="poses", block_s=BLOCK_S, settle_s=0.0, max_order=3,
+        margin_c=1.0,
+    )  # fmt: skip
+
+
+def cells(result, sensor, axis):
+    return [c for c in result["cells"] if c["sensor"] == sensor and c["axis"] == axis]
+
+
+def test_an_axis_without_drift_gets_no_term(result):
+    order = {(o["sensor"], o["axis"]): o["order"] for o in result["orders"]}
+    assert order[("gyr", "x")] == 0
+    for c in cells(result, "gyr", "x"):
+        assert c["rms_term"] == c["rms_none"]
+        # white noise alone: the held-out RMS is the noise (its sampling error ~ 1/sqrt(2n))
+        assert c["rms_none"] == pytest.approx(NOISE, rel=5 / np.sqrt(2 * c["samples"]))
+    # the pooled regression reads the poses' constants as a slope and makes x worse than none
+    summary = {(s["sensor"], s["axis"]): s for s in result["summary"]}
+    assert summary[("gyr", "x")]["regression_ratio"] > 1.05
+
+
+def test_drifting_axes_get_their_order_and_coefficients(result):
+    order = {(o["sensor"], o["axis"]): o["order"] for o in result["orders"]}
+    assert order[("gyr", "y")] == 1 and order[("gyr", "z")] == 2
+    for axis, truth in (("y", [LINEAR[1]]), ("z", [LINEAR[2], QUADRATIC[2]])):
+        for c in cells(result, "gyr", axis):
+            # the fit is about its own reference temperature: move the truth there
+            shift = c["reference_c"] - REF_C
+            expected = (
+                [truth[0]] if len(truth) == 1 else [truth[0] + 2 * truth[1] * shift, truth[1]]
+            )
+            # block means of 600 samples over two poses; the slope's std from the noise
+            n_blocks = 2 * POSE_S / BLOCK_S
+            slope_std = NOISE / np.sqrt(BLOCK_S) / np.sqrt(n_blocks) / 5.0  # temp std ~5 K
+            assert c["coef"][0] == pytest.approx(expected[0], abs=5 * slope_std)
+            if len(truth) == 2:
+                assert c["coef"][1] == pytest.approx(expected[1], abs=5 * slope_std / 5.0)
+            # the term leaves the white noise: its held-out RMS is the noise's
+            assert c["rms_term"] == pytest.approx(NOISE, rel=5 / np.sqrt(2 * c["samples"]))
+            assert c["rms_term"] < c["rms_none"]
+            assert c["rms_term"] <= c["rms_regression"] * (1 + 5 / np.sqrt(2 * c["samples"]))
+
+
+def test_the_held_out_pose_is_compared_within_the_fit_span(result):
+    poses = {p["label"]: p for p in result["poses"]}
+    for c in result["cells"]:
+        others = [p for label, p in poses.items() if label != c["held_out"]]
+        hi = max(p["temp_span_c"][1] for p in others) + result["settings"]["margin_c"]
+        own = poses[c["held_out"]]["temp_span_c"]
+        assert c["fraction"] == 1.0 if own[1] <= hi else c["fraction"] < 1.0
+
+
+def test_fewer_than_three_poses_are_refused():
+    rng = np.random.default_rng(1)
+    table, segments, _ = three_poses(rng)
+    with pytest.raises(ValueError, match=r"2 static pose\(s\) with samples; holding one out needs"):
+        ph.hold_out_recording(
+            table, segments.iloc[:2], recording="poses", block_s=BLOCK_S, settle_s=0.0,
+            max_order=2, margin_c=1.0,
+        )  # fmt: skip
+
+
+def test_the_recording_with_declared_poses_and_a_temperature_channel(tmp_path):
+    entry = {"reader": "table", "file": "x.csv", "rate_hz": 1.0, "units": {"gyr": "rad/s"},
+             "columns": {"gyr_x": "a", "gyr_y": "b", "gyr_z": "c", "temp_c": "t"}}  # fmt: skip
+    poses = [{"recording": "poses", "label": f"p{k}", "kind": "position", "start_s": 10.0 * k,
+              "end_s": 10.0 * k + 5} for k in range(3)]  # fmt: skip
+    cfg = {"name": "t", "gravity_m_s2": 9.81, "recordings": {"poses": entry}, "segments": poses}
+    (tmp_path / "dataset.yaml").write_text(yaml.safe_dump(cfg))
+    assert ph.holdout_recording(read_dataset(tmp_path)) == "poses"
+    cfg["segments"] = poses[:2]
+    (tmp_path / "dataset.yaml").write_text(yaml.safe_dump(cfg))
+    assert ph.holdout_recording(read_dataset(tmp_path)) is None
+
+
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
+CATS = Path(__file__).resolve().parents[2] / "data" / "real" / "spluque_cats_thermal"
+
+
+def test_cats_tag_held_out_across_its_three_poses():
+    """The project's term is never worse than no term pooled over the held-out poses, gives
+    gyro x (where no order helps) no term, is no worse than the pooled regression pooled over
+    the poses, and within 1 % of it in every gyro and accelerometer cell (the regression is
+    better only on gyro x of two poses, by 0.8 %, and 8.7 % worse on the third; it mixes the
+    poses' orientation into its slope, accelerometer ratios far above 1)."""
+    if not (REAL / "spluque__scikit-diveMove" / "cats_temperature_calib.nc").is_file():
+        pytest.skip(f"the CATS recording is not at {REAL} (../shared is absent)")
+    from imucal.ingest import ingest_recording
+    from imucal.segments.segmentation import segment_dataset
+
+    dataset = read_dataset(CATS)
+    table, _ = ingest_recording(dataset.recordings["poses"], "poses", dataset, "test")
+    segments = segment_dataset({"poses": table}, manual=dataset.segments)
+    out = ph.hold_out_recording(
+        table, segments, recording="poses", block_s=600.0, settle_s=3600.0, max_order=3,
+        margin_c=1.0,
+    )  # fmt: skip
+    summary = {(s["sensor"], s["axis"]): s for s in out["summary"]}
+    order = {(o["sensor"], o["axis"]): o["order"] for o in out["orders"]}
+    assert order[("gyr", "x")] == 0 and summary[("gyr", "x")]["regression_ratio"] > 1.0
+    assert order[("gyr", "y")] >= 1  # about +0.026 deg/s per K (SOURCE.md)
+    for (sensor, _), s in summary.items():
+        assert s["term_ratio"] <= 1.0 + 1e-12
+        if sensor in ("gyr", "acc"):
+            assert s["term_ratio"] <= s["regression_ratio"]
+    for c in out["cells"]:
+        if c["sensor"] in ("gyr", "acc"):
+            assert c["rms_term"] <= 1.01 * c["rms_regression"], c
