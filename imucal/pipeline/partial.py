@@ -41,7 +41,7 @@ from imucal.fits import accelerometer, gyroscope
 from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
 from imucal.pipeline.outcome import not_run_reason
-from imucal.pipeline.registry import FINAL, STAGES, VALIDATE
+from imucal.pipeline.registry import FINAL, STAGES, VALIDATE, split_held_out
 from imucal.segments.table import cut_finite, rows_of
 
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
@@ -121,8 +121,11 @@ class _Session:
         references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
         reference_where: Mapping[str, str] | None = None,
     ):
-        self.tables = {k: v for k, v in tables.items() if k != "reference"}
         self.references = dict(references or {})
+        # a held-out recording is validated on, never fitted on (registry.split_held_out)
+        held = split_held_out(self.references)[1]
+        self.tables = {k: v for k, v in tables.items() if k != "reference" and k not in held}
+        self.held_out_tables = {k: tables[k] for k in held if k in tables}
         self.reference_where = dict(reference_where or {})
         self.segments = segments
         self.gravity_m_s2 = gravity_m_s2
@@ -401,9 +404,9 @@ def _gyr_reference(s: _Session) -> dict:
     from imucal.pipeline.reference import fit_gyr_reference
 
     _need(bool(s.references), "needs a recording declared with an orientation reference")
-    _need("gyr_bias" in s.done, "needs the gyroscope bias (for the time alignment)")
     where = {r: s.reference_where.get(r, f"recordings.{r}.reference") for r in s.references}
-    return fit_gyr_reference(s.tables, s.references, _bias(s), where)
+    bias = _bias(s) if "gyr_bias" in s.done else None  # without rests the fit finds its own
+    return fit_gyr_reference({**s.tables, **s.held_out_tables}, s.references, bias, where)
 
 
 def _acc_reference(s: _Session) -> dict:
@@ -635,7 +638,11 @@ def run_stages(
             outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
             continue
         session.done[name] = artifact
-        outcomes.append(Outcome(name, "run", STAGES[name].what, artifact))
+        what = STAGES[name].what
+        if "fallback" in artifact:  # the fit did worse than its fallback, which is shipped
+            what += f"; fitted but not shipped ({artifact['fallback']['shipped']} is): "
+            what += artifact["fallback"]["reason"]
+        outcomes.append(Outcome(name, "run", what, artifact))
     return outcomes
 
 

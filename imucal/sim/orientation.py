@@ -88,6 +88,7 @@ def simulate_orientation_session(
     mag_matrix: np.ndarray | None = None,
     mag_bias: np.ndarray | None = None,
     reference_jitter_s: float = 0.0,
+    axis_weights: np.ndarray | None = None,
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
@@ -102,6 +103,8 @@ def simulate_orientation_session(
     ``mag_matrix`` / ``mag_bias`` give its errors (``mag_B = mag_matrix (mag - mag_bias)``).
     The reference's samples are taken at their time stamps plus white jitter of
     ``reference_jitter_s`` (its own random stream: the other draws do not change).
+    ``axis_weights`` (shape (3,)) multiplies the body rate per axis after that scaling, e.g.
+    ``(1, 1, 0.02)`` for a motion that barely turns about the body's z axis.
     """
     rng = np.random.default_rng(seed)
     dt_fine = 1e-3
@@ -121,6 +124,8 @@ def simulate_orientation_session(
         return w * env[:, None]
 
     scale = rate_rad_s / np.sqrt(np.mean(rate(t_fine) ** 2))
+    if axis_weights is not None:
+        scale = scale * np.asarray(axis_weights, dtype=float)
     w_fine = scale * rate(t_fine)
     q_fine = integrate_rates(t_fine, w_fine)  # body -> start frame
     q0 = quat_from_rotvec(rng.normal(0, 1, 3))
