@@ -40,7 +40,7 @@ from imucal.columns import ACC, GYR, MAG, SENSORS, TIME
 from imucal.fits import accelerometer, gyroscope
 from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
-from imucal.pipeline.outcome import not_run_reason
+from imucal.pipeline.outcome import NOT_SHIPPED, not_run_reason
 from imucal.pipeline.registry import FINAL, STAGES, VALIDATE, split_held_out
 from imucal.segments.table import cut_finite, rows_of
 
@@ -637,6 +637,16 @@ def run_stages(
         except ValueError as err:  # the fit's own message: too little or degenerate data
             outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
             continue
+        # a calibration outside its sensor's physical bounds is not shipped (the next stage
+        # of the sensor, simpler, is); one not determined to within them carries a warning
+        bounds = _bounds(name, {**session.done, name: artifact})
+        if bounds["implausible"]:
+            reason = f"{NOT_SHIPPED}: " + "; ".join(bounds["implausible"])
+            outcomes.append(Outcome(name, "skipped", reason))
+            continue
+        undetermined = [f"{name}: {w}; shipped with this warning" for w in bounds["undetermined"]]
+        if undetermined:
+            artifact["warnings"] = [*artifact.get("warnings", []), *undetermined]
         session.done[name] = artifact
         what = STAGES[name].what
         if "fallback" in artifact:  # the fit did worse than its fallback, which is shipped
@@ -644,6 +654,17 @@ def run_stages(
             what += artifact["fallback"]["reason"]
         outcomes.append(Outcome(name, "run", what, artifact))
     return outcomes
+
+
+def _bounds(name: str, done: Mapping[str, dict]) -> dict[str, list[str]]:
+    """The physical bounds of a stage's calibration (:mod:`imucal.validation.plausibility`);
+    empty for stages that do not calibrate a sensor."""
+    from imucal.validation.plausibility import review_calibration
+
+    sensor = STAGES[name].sensor
+    if name not in FINAL.get(sensor, ()):
+        return {"implausible": [], "undetermined": []}
+    return review_calibration(sensor, _calibration_of(name, done))
 
 
 #: Stages whose result is a sensor's final calibration, best first.
