@@ -285,7 +285,9 @@ def _static_gyr(s: _Session) -> list[np.ndarray]:
 
 def _gyr_bias(s: _Session) -> dict:
     pieces = _static_gyr(s)
-    _need(bool(pieces), "no static segment with gyroscope samples")
+    # the segmentation's word on rests too short to count names the settings that find them
+    hints = [n for r, n in s.notes.items() if r in s.tables and "still interval" in n]
+    _need(bool(pieces), "; ".join(["no static segment with gyroscope samples", *hints]))
     return stages.plain(gyroscope.estimate_bias(pieces))
 
 
