@@ -66,14 +66,17 @@ def _window_errors(
     quat: np.ndarray,
     alignment: OrientationAlignment,
     calibration: SensorCalibration,
-    mounting: np.ndarray,
+    mounting: np.ndarray | None,
 ) -> dict:
     """Orientation errors over :data:`~imucal.validation.plausibility.FALLBACK_WINDOWS_S` of a
-    gyroscope calibration with its mounting."""
-    return window_errors(
-        t, errormodel.apply(calibration.matrix, calibration.bias, gyr), t_ref, quat, alignment,
-        mounting, FALLBACK_WINDOWS_S,
-    )  # fmt: skip
+    gyroscope calibration with its mounting (None: its own on this recording, by Wahba, as the
+    validation finds it; a held-out recording may be mounted otherwise)."""
+    gyr_b = errormodel.apply(calibration.matrix, calibration.bias, gyr)
+    if mounting is None:
+        mounting = mount_orientation_reference(
+            t, gyr_b, t_ref, quat, alignment.time
+        ).mounting.matrix
+    return window_errors(t, gyr_b, t_ref, quat, alignment, mounting, FALLBACK_WINDOWS_S)
 
 
 def fit_gyr_reference(
@@ -149,7 +152,12 @@ def fit_gyr_reference(
         if not names:
             continue
         errors = {
-            key: [_window_errors(*series[n], aligned[n], f.calibration, f.mounting) for n in names]
+            key: [
+                _window_errors(
+                    *series[n], aligned[n], f.calibration, f.mounting if n in used else None
+                )
+                for n in names
+            ]
             for key, f in (("fitted", fit), ("fallback", nominal))
         }
         test = compare_with_fallback(errors["fitted"], errors["fallback"])
