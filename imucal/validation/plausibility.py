@@ -213,3 +213,20 @@ def review_calibration(sensor: str, calibration: Mapping) -> dict[str, list[str]
         np.asarray(calibration["matrix"], dtype=float),
         None if std is None else np.asarray(std, dtype=float),
     )
+
+
+def bound_warnings(stage: str, sensor: str, calibration: Mapping) -> list[str]:
+    """Warnings of a calibration that is shipped whatever its bounds say (the full protocol's
+    stages): each implausible or undetermined value, prefixed with the stage.
+
+    Parameters
+    ----------
+    stage, sensor : str
+    calibration : mapping
+        As :func:`review_calibration` takes it.
+    """
+    found = review_calibration(sensor, calibration)
+    return [f"{stage}: {w}; shipped with this warning" for w in found["undetermined"]] + [
+        f"{stage}: {w}; implausible, but shipped (the full protocol has no simpler stage)"
+        for w in found["implausible"]
+    ]

@@ -71,3 +71,15 @@ def test_fitted_worse_than_fallback():
     assert compare_with_fallback(fitted, fallback)["worse"] is True
     assert compare_with_fallback(fallback, fitted)["worse"] is False
     assert compare_with_fallback([{"10s": (starts[:0], starts[:0])}], fallback)["worse"] is None
+
+
+def test_full_protocol_stages_warn_instead_of_refusing():
+    from imucal.calibration import SensorCalibration
+    from imucal.validation.plausibility import bound_warnings
+
+    matrix = errormodel.compose([1.41, 1.19, 0.83], np.zeros(3), np.zeros(3))
+    cal = SensorCalibration("mag", np.zeros(3), matrix, "normalised").to_dict()
+    out = bound_warnings("mag_step2", "mag", cal)
+    assert len(out) == 2 and all(w.startswith("mag_step2: mag relative scale") for w in out)
+    assert all("implausible, but shipped" in w for w in out)
+    assert bound_warnings("mag_step2", "mag", {**cal, "matrix": np.eye(3).tolist()}) == []
