@@ -666,7 +666,21 @@ def _bounds(name: str, done: Mapping[str, dict]) -> dict[str, list[str]]:
     sensor = STAGES[name].sensor
     if name not in FINAL.get(sensor, ()):
         return {"implausible": [], "undetermined": []}
-    return review_calibration(sensor, _calibration_of(name, done))
+    out = review_calibration(sensor, _calibration_of(name, done))
+    # a fit with held-out errors (each position against the fit on the others) must predict
+    # them better than the nominal calibration does
+    artifact = done[name]
+    if "heldout_error_after_m_s2" in artifact:
+        before = np.asarray(artifact["heldout_error_before_m_s2"], dtype=float)
+        after = np.asarray(artifact["heldout_error_after_m_s2"], dtype=float)
+        rms_before, rms_after = np.sqrt(np.mean(before**2)), np.sqrt(np.mean(after**2))
+        if rms_after > rms_before:
+            out["implausible"].append(
+                f"on positions left out of the fit it does worse than the nominal calibration "
+                f"(RMS |a| - g {rms_after:.3g} against {rms_before:.3g} m/s^2 over "
+                f"{after.size} positions)"
+            )
+    return out
 
 
 #: Stages whose result is a sensor's final calibration, best first.
