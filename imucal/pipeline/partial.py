@@ -639,16 +639,17 @@ def run_stages(
         except ValueError as err:  # the fit's own message: too little or degenerate data
             outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
             continue
-        # a calibration outside its sensor's physical bounds is not shipped (the next stage
-        # of the sensor, simpler, is); one not determined to within them carries a warning
-        bounds = _bounds(name, {**session.done, name: artifact})
-        if bounds["implausible"]:
-            reason = f"{NOT_SHIPPED}: " + "; ".join(bounds["implausible"])
+        # a calibration that does worse than nominal on left-out data, or lies outside its
+        # sensor's physical bounds on weak data, is not shipped (the sensor's next, simpler
+        # stage is); one outside them on strong data or undetermined carries a warning
+        review = _review(name, {**session.done, name: artifact})
+        if review["refuse"]:
+            reason = f"{NOT_SHIPPED}: " + "; ".join(review["refuse"])
             outcomes.append(Outcome(name, "skipped", reason))
             continue
-        undetermined = [f"{name}: {w}; shipped with this warning" for w in bounds["undetermined"]]
-        if undetermined:
-            artifact["warnings"] = [*artifact.get("warnings", []), *undetermined]
+        if review["warn"]:
+            warn = [f"{name}: {w}" for w in review["warn"]]
+            artifact["warnings"] = [*artifact.get("warnings", []), *warn]
         session.done[name] = artifact
         what = STAGES[name].what
         if "fallback" in artifact:  # the fit did worse than its fallback, which is shipped
@@ -658,29 +659,16 @@ def run_stages(
     return outcomes
 
 
-def _bounds(name: str, done: Mapping[str, dict]) -> dict[str, list[str]]:
-    """The physical bounds of a stage's calibration (:mod:`imucal.validation.plausibility`);
-    empty for stages that do not calibrate a sensor."""
-    from imucal.validation.plausibility import review_calibration
+def _review(name: str, done: Mapping[str, dict]) -> dict[str, list[str]]:
+    """Refusals and warnings of a stage's calibration
+    (:func:`imucal.validation.plausibility.review_fit`); none for stages that do not calibrate
+    a sensor."""
+    from imucal.validation.plausibility import review_fit
 
     sensor = STAGES[name].sensor
     if name not in FINAL.get(sensor, ()):
-        return {"implausible": [], "undetermined": []}
-    out = review_calibration(sensor, _calibration_of(name, done))
-    # a fit with held-out errors (each position against the fit on the others) must predict
-    # them better than the nominal calibration does
-    artifact = done[name]
-    if "heldout_error_after_m_s2" in artifact:
-        before = np.asarray(artifact["heldout_error_before_m_s2"], dtype=float)
-        after = np.asarray(artifact["heldout_error_after_m_s2"], dtype=float)
-        rms_before, rms_after = np.sqrt(np.mean(before**2)), np.sqrt(np.mean(after**2))
-        if rms_after > rms_before:
-            out["implausible"].append(
-                f"on positions left out of the fit it does worse than the nominal calibration "
-                f"(RMS |a| - g {rms_after:.3g} against {rms_before:.3g} m/s^2 over "
-                f"{after.size} positions)"
-            )
-    return out
+        return {"refuse": [], "warn": []}
+    return review_fit(sensor, _calibration_of(name, done), done[name])
 
 
 #: Stages whose result is a sensor's final calibration, best first.

@@ -41,7 +41,7 @@ from imucal.validation.orientation import (
     summarise_windows,
     window_errors,
 )
-from imucal.validation.plausibility import FALLBACK_WINDOWS_S, check_bounds, compare_with_fallback
+from imucal.validation.plausibility import FALLBACK_WINDOWS_S, compare_with_fallback
 from imucal.validation.timing import TimeAlignment
 
 #: Format of ``results/{dataset}/reference/validation.json``.
@@ -93,10 +93,10 @@ def fit_gyr_reference(
     nominal matrix (bias and mounting only), is fitted too; both integrate the gyroscope over
     :data:`~imucal.validation.plausibility.FALLBACK_WINDOWS_S` windows on the fitted recordings
     and on the held-out ones (:func:`imucal.validation.plausibility.compare_with_fallback`).
-    The fitted matrix is shipped only if it does no worse than the fallback on either and is
-    not outside the gyroscope's physical bounds
-    (:func:`imucal.validation.plausibility.check_bounds`); otherwise the fallback is shipped,
-    with the reason under ``fallback`` and in ``warnings``.
+    The fitted matrix is shipped only if it does no worse than the fallback on either;
+    otherwise the fallback is shipped, with the reason under ``fallback`` and in ``warnings``.
+    (The physical bounds are checked after the stage, as for every stage:
+    :func:`imucal.validation.plausibility.review_fit`.)
 
     Parameters
     ----------
@@ -170,21 +170,16 @@ def fit_gyr_reference(
                 f"{test['fallback']['median_deg']:.3g} deg, RMS {test['fitted']['rms_deg']:.3g} "
                 f"against {test['fallback']['rms_deg']:.3g} deg)"
             )
-    bounds = check_bounds("gyr", fit.calibration.matrix, fit.std_matrix)
-    reasons += bounds["implausible"]
     shipped = nominal if reasons else fit
     out = {
         **shipped.to_dict(),
         "recordings": used,
         "held_out": held,
         "alignments": alignments,
-        "checks": {**checks, "bounds": bounds},
+        "checks": checks,
     }
-    warnings = [
-        f"gyr_reference: {w}; shipped anyway (not confidently outside the bound)"
-        for w in bounds["undetermined"]
-    ]
-    if fit.held_nominal:
+    warnings = []
+    if fit.held_nominal and not reasons:
         warnings.append(
             f"gyr_reference: the motion does not determine {', '.join(fit.held_nominal)} to "
             f"{MAX_ENTRY_STD:g} (std {_held_std(fit)}): held at the nominal value"

@@ -29,6 +29,10 @@ from imucal import errormodel
 FALLBACK_WINDOWS_S = (10.0,)
 #: A value farther than this many of its standard deviations outside its bound is implausible.
 CONFIDENT_SIGMA = 3.0
+#: Below this sphere coverage an ellipsoid's axes trade off against each other (an ellipsoid
+#: at 20 % gave relative scales 1.26 / 0.74 with small formal std): an implausible one is not
+#: supported by its data, and is refused rather than warned about.
+WEAK_COVERAGE_PCT = 50.0
 
 
 @dataclass(frozen=True)
@@ -230,3 +234,54 @@ def bound_warnings(stage: str, sensor: str, calibration: Mapping) -> list[str]:
         f"{stage}: {w}; implausible, but shipped (the full protocol has no simpler stage)"
         for w in found["implausible"]
     ]
+
+
+def review_fit(sensor: str, calibration: Mapping, artifact: Mapping) -> dict[str, list[str]]:
+    """Ship, warn or refuse a stage's calibration: its bounds, its support and its held-out data.
+
+    * refused: the fit predicts data left out of it (``heldout_error_before_m_s2`` /
+      ``heldout_error_after_m_s2``, e.g. the cube fit's left-out positions) worse than the
+      nominal calibration; or a value is implausible (:func:`check_bounds`) and the data support
+      the fit weakly (an ellipsoid below :data:`WEAK_COVERAGE_PCT` of the sphere);
+    * warned: a value implausible on well-supported data (a right fit of a sensor whose declared
+      sensitivity is off: the warning says to check it), or undetermined.
+
+    Parameters
+    ----------
+    sensor : str
+    calibration : mapping
+        The stage's calibration (``SensorCalibration.to_dict``).
+    artifact : mapping
+        The stage's artifact (``coverage_pct``, held-out errors when it has them).
+
+    Returns
+    -------
+    dict
+        ``refuse`` and ``warn``: lists of messages.
+    """
+    bounds = review_calibration(sensor, calibration)
+    refuse, warn = [], [f"{w}; shipped with this warning" for w in bounds["undetermined"]]
+    if "heldout_error_after_m_s2" in artifact:
+        before = np.asarray(artifact["heldout_error_before_m_s2"], dtype=float)
+        after = np.asarray(artifact["heldout_error_after_m_s2"], dtype=float)
+        rms_before, rms_after = np.sqrt(np.mean(before**2)), np.sqrt(np.mean(after**2))
+        if rms_after > rms_before:
+            refuse.append(
+                f"on data left out of the fit it does worse than the nominal calibration (RMS "
+                f"{rms_after:.3g} against {rms_before:.3g} over {after.size} left-out positions)"
+            )
+    coverage = artifact.get("coverage_pct")
+    if coverage is not None and coverage < WEAK_COVERAGE_PCT:
+        refuse += [
+            f"{w}, on {coverage:.0f} % of the sphere (below {WEAK_COVERAGE_PCT:g} % the "
+            "ellipsoid's axes trade off against each other)"
+            for w in bounds["implausible"]
+        ]
+    else:
+        warn += [
+            f"{w}, although the data determine it: shipped with this warning; check the "
+            "declared units and sensitivity (a nominal scale off by this much is more often "
+            "a declaration than a sensor) and magnetic disturbances"
+            for w in bounds["implausible"]
+        ]
+    return {"refuse": refuse, "warn": warn}

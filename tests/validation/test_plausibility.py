@@ -83,3 +83,23 @@ def test_full_protocol_stages_warn_instead_of_refusing():
     assert len(out) == 2 and all(w.startswith("mag_step2: mag relative scale") for w in out)
     assert all("implausible, but shipped" in w for w in out)
     assert bound_warnings("mag_step2", "mag", {**cal, "matrix": np.eye(3).tolist()}) == []
+
+
+def test_review_refuses_on_weak_data_and_warns_on_strong():
+    from imucal.calibration import SensorCalibration
+    from imucal.validation.plausibility import review_fit
+
+    ellipsoid = errormodel.compose([1.41, 1.19, 0.83], np.radians([-12.8, -4.1, 9.4]), [0, 0, 0])
+    cal = SensorCalibration("mag", np.zeros(3), ellipsoid, "normalised").to_dict()
+    # at 20 % of the sphere: refused, each implausible value named with the coverage
+    weak = review_fit("mag", cal, {"coverage_pct": 20.0})
+    assert len(weak["refuse"]) == 4 and weak["warn"] == []
+    assert weak["refuse"][0].endswith("on 20 % of the sphere (below 50 % the ellipsoid's axes "
+                                      "trade off against each other)")  # fmt: skip
+    # the same on 99 % of the sphere: the data determine it, shipped with warnings
+    strong = review_fit("mag", cal, {"coverage_pct": 99.0})
+    assert strong["refuse"] == [] and len(strong["warn"]) == 4
+    # a gyroscope 31 % above a nominal sensitivity that was assumed: a warning to check it
+    gyr = SensorCalibration("gyr", np.zeros(3), np.diag([1.311, 1.313, 1.308]), "rad/s").to_dict()
+    out = review_fit("gyr", gyr, {})
+    assert out["refuse"] == [] and "check the declared units and sensitivity" in out["warn"][0]
