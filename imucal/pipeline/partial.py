@@ -407,8 +407,9 @@ def _gyr_reference(s: _Session) -> dict:
 
     _need(bool(s.references), "needs a recording declared with an orientation reference")
     where = {r: s.reference_where.get(r, f"recordings.{r}.reference") for r in s.references}
-    bias = _bias(s) if "gyr_bias" in s.done else None  # without rests the fit finds its own
-    return fit_gyr_reference({**s.tables, **s.held_out_tables}, s.references, bias, where)
+    # without rests the fit finds its own bias; with them, the bias alone is its fallback
+    rests = stages.gyr_bias_value(s.done["gyr_bias"], "ls") if "gyr_bias" in s.done else None
+    return fit_gyr_reference({**s.tables, **s.held_out_tables}, s.references, rests, where)
 
 
 def _acc_reference(s: _Session) -> dict:
@@ -647,8 +648,11 @@ def run_stages(
             reason = f"{NOT_SHIPPED}: " + "; ".join(review["refuse"])
             outcomes.append(Outcome(name, "skipped", reason))
             continue
-        if review["warn"]:
-            warn = [f"{name}: {w}" for w in review["warn"]]
+        # (a stage shared with the full protocol may have warned of the same value already)
+        known = " ".join(artifact.get("warnings", []))
+        warn = [f"{name}: {w}" for w in review["warn"]]
+        warn = [w for w in warn if w.split(" against ")[0] not in known]
+        if warn:
             artifact["warnings"] = [*artifact.get("warnings", []), *warn]
         session.done[name] = artifact
         what = STAGES[name].what

@@ -10,6 +10,7 @@ only, and calibrated, so a held-out recording tests the calibration on data it h
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -82,15 +83,17 @@ def _window_errors(
 def fit_gyr_reference(
     tables: Mapping[str, pd.DataFrame],
     references: Mapping[str, tuple[pd.DataFrame, Mapping]],
-    bias_rad_s: np.ndarray | None,
+    rests: tuple[np.ndarray, np.ndarray] | None,
     where: Mapping[str, str],
 ) -> dict:
     """Stage ``gyr_reference``: the gyroscope calibrated against the orientation references.
 
     The fit (:func:`imucal.fits.reference.fit_gyro_to_reference`, integrated rotations) runs
     on the recordings whose reference is not held out
-    (:func:`imucal.pipeline.registry.split_held_out`). Its fallback, the same fit with the
-    nominal matrix (bias and mounting only), is fitted too; both integrate the gyroscope over
+    (:func:`imucal.pipeline.registry.split_held_out`). Its fallback is the nominal matrix with
+    the bias of the rests (stage ``gyr_bias``, the "bias only" of the validation), or without
+    rests the bias fitted against the reference, with the mounting of the same fit with the
+    nominal matrix; both integrate the gyroscope over
     :data:`~imucal.validation.plausibility.FALLBACK_WINDOWS_S` windows on the fitted recordings
     and on the held-out ones (:func:`imucal.validation.plausibility.compare_with_fallback`).
     The fitted matrix is shipped only if it does no worse than the fallback on either;
@@ -104,9 +107,10 @@ def fit_gyr_reference(
         Ingested recordings by name, the held-out ones included.
     references : mapping of str to (DataFrame, dict)
         Ingested orientation reference (``t_s``, ``q_w..q_z``) and its metadata per recording.
-    bias_rad_s : array_like, shape (3,), or None
-        Gyroscope bias of stage ``gyr_bias`` for the time alignment and the fit's start (None:
-        without rests, zero; the fit finds its own).
+    rests : (ndarray, ndarray) or None
+        Gyroscope bias of stage ``gyr_bias`` and its std, shape (3,) each, rad/s: the time
+        alignment's and the fit's start, and the fallback's bias (None: without rests, zero;
+        the fit finds its own).
     where : mapping of str to str
         Per recording, the key path of its reference in ``dataset.yaml`` (error messages).
 
@@ -130,7 +134,7 @@ def fit_gyr_reference(
             f"every orientation reference ({sorted(references)}) is held_out; expected one to "
             "fit on"
         )
-    start = np.zeros(3) if bias_rad_s is None else np.asarray(bias_rad_s, dtype=float)
+    start = np.zeros(3) if rests is None else np.asarray(rests[0], dtype=float)
     series, aligned, alignments = {}, {}, {}
     for name in [*used, *held]:
         t, gyr = _series(tables[name], GYR)
@@ -147,6 +151,14 @@ def fit_gyr_reference(
     mounting0 = aligned[used[0]].mounting.matrix
     fit = fit_gyro_to_reference(fit_input, mounting0, start)
     nominal = fit_gyro_to_reference(fit_input, mounting0, start, fit_matrix=False)
+    if rests is not None:
+        nominal = dataclasses.replace(
+            nominal,
+            calibration=SensorCalibration(
+                "gyr", rests[0], np.eye(3), "rad/s", {"bias": rests[1]},
+                "bias only (gyr_bias, the rests), nominal matrix; mounting against the reference",
+            ),
+        )  # fmt: skip
     checks, reasons = {}, []
     for label, names in (("own data", used), ("held-out data", held)):
         if not names:
@@ -165,8 +177,8 @@ def fit_gyr_reference(
         if test["worse"]:
             reasons.append(
                 f"on {label} ({', '.join(names)}) the fitted matrix integrates to a larger "
-                f"orientation error over {FALLBACK_WINDOWS_S[0]:g} s windows than the nominal "
-                f"matrix with its bias (median {test['fitted']['median_deg']:.3g} against "
+                f"orientation error over {FALLBACK_WINDOWS_S[0]:g} s windows than its fallback "
+                f"(median {test['fitted']['median_deg']:.3g} against "
                 f"{test['fallback']['median_deg']:.3g} deg, RMS {test['fitted']['rms_deg']:.3g} "
                 f"against {test['fallback']['rms_deg']:.3g} deg)"
             )
@@ -186,13 +198,14 @@ def fit_gyr_reference(
         )
     if reasons:
         out["fallback"] = {
-            "shipped": "nominal matrix with the bias and mounting fitted against the reference",
+            "shipped": "the nominal matrix with "
+            + ("the rests' bias" if rests is not None else "the bias fitted against the reference"),
             "reason": "; ".join(reasons),
             "fitted": fit.to_dict(),
         }
         warnings = [
-            "gyr_reference: the fitted matrix is not shipped, the nominal matrix with its bias "
-            f"is: {out['fallback']['reason']}"
+            f"gyr_reference: the fitted matrix is not shipped, {out['fallback']['shipped']} is: "
+            f"{out['fallback']['reason']}"
         ]
     if warnings:
         out["warnings"] = warnings

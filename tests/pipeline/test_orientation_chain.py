@@ -206,4 +206,7 @@ def test_fit_worse_than_its_fallback_on_held_out_data_is_not_shipped():
         np.abs(np.array(out["fallback"]["fitted"]["calibration"]["matrix"]) - MATRIX).max() < 2e-3
     )
     assert "on held-out data (poses)" in out["fallback"]["reason"]
-    assert out["warnings"][0].startswith("gyr_reference: the fitted matrix is not shipped")
+    assert out["warnings"][0].startswith(
+        "gyr_reference: the fitted matrix is not shipped, the "
+        "nominal matrix with the bias fitted against the reference is"
+    )
