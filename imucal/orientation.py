@@ -202,7 +202,12 @@ def integrate_rates(t_s: np.ndarray, rates: np.ndarray) -> np.ndarray:
 
 
 def interpolate_orientation(t_s: np.ndarray, quat: np.ndarray, tau_s: np.ndarray) -> np.ndarray:
-    """Orientations at times ``tau_s`` by normalised linear interpolation of the neighbours.
+    """Orientations at times ``tau_s`` by spherical linear interpolation (slerp) of the neighbours.
+
+    Slerp turns at a constant rate about one axis between two samples, the motion a robot
+    makes between two poses; a component-wise interpolation does not (its norm drops between
+    samples far apart, and it fails between ``q`` and ``-q``, the same rotation). Neighbours
+    of opposite sign are interpolated along the shorter arc.
 
     Parameters
     ----------
@@ -222,7 +227,9 @@ def interpolate_orientation(t_s: np.ndarray, quat: np.ndarray, tau_s: np.ndarray
     tau = np.asarray(tau_s, dtype=float)
     i = np.clip(np.searchsorted(t, tau, side="right") - 1, 0, t.size - 2)
     frac = np.clip((tau - t[i]) / (t[i + 1] - t[i]), 0.0, 1.0)[:, None]
-    out = (1.0 - frac) * q[i] + frac * q[i + 1]
+    # q_i (q_i* q_i+1)^frac; quat_to_rotvec takes the shorter of the two equivalent rotations
+    step = quat_to_rotvec(quat_multiply(quat_conjugate(q[i]), q[i + 1]))
+    out = quat_multiply(q[i], quat_from_rotvec(frac * step))
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 

@@ -334,7 +334,17 @@ def _fit(
     # eqs. 23-24: d = right singular vector of the smallest singular value
     _, sv, vt = np.linalg.svd(_design_matrix(x), full_matrices=False)
     condition = float(sv[0] / sv[-2]) if sv[-2] > 0 else float("inf")
+    # samples that move no more than their noise (a static log: consecutive samples as far
+    # apart as any two, and a spread far below the field they sit on) point everywhere about
+    # their mean, which covers nothing
+    step = np.sqrt(np.mean(np.sum(np.diff(x, axis=0) ** 2, axis=1)))
+    static = bool(step > 0.5 * np.sqrt(2.0) and np.linalg.norm(centre) > 10.0 * spread)
     quality = f"(coverage of the sphere {{cov:.1f}} %, condition number {condition:.3g})"
+    if static:
+        quality = (
+            "(the samples do not move beyond their noise, as in a static log: coverage of the "
+            f"sphere {{cov:.1f}} %, condition number {condition:.3g})"
+        )
     too_little = (
         "the magnetometer samples cover too little of the sphere for an ellipsoid fit "
         + quality
@@ -342,8 +352,8 @@ def _fit(
         f"{max_condition:.3g}: rotate the module fully about all three axes"
     )
     # directions of the centred raw samples until an ellipsoid is known
-    raw_coverage = sphere_coverage_pct(x)
-    if condition > max_condition:
+    raw_coverage = 0.0 if static else sphere_coverage_pct(x)
+    if static or condition > max_condition:
         raise ValueError(too_little.format(cov=raw_coverage))
     q, b, c = _quadric_from_d(vt[-1])
     if np.trace(q) < 0:

@@ -317,9 +317,15 @@ def _orientation_reference(reference: dict, recording: dict, folder: Path, where
             f"{where}.reference: beside parts; expected it on a recording of one file or of "
             "streams (give each part's recording its own reference)"
         )
-    out = dict(reference)
+    out = reference_with_defaults(reference)
     out["file"] = str(_resolve(folder, reference["file"]))
     return out
+
+
+def reference_with_defaults(reference: dict) -> dict:
+    """An orientation reference declaration with the schema's defaults of its absent keys
+    (``held_out``, ``unit_tolerance``): the schema is their only source."""
+    return _with_defaults(_validator().schema["$defs"]["orientation_reference"], reference)
 
 
 def _sections(sections: dict, folder: Path, recordings: dict, where: str) -> dict:

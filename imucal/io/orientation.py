@@ -5,7 +5,12 @@ A recording of ``dataset.yaml`` may declare the orientation reference recorded w
 first or last) or rotation matrices, read by any reader of :mod:`imucal.io.readers`, at their
 own rate or time base. This module reads it and converts it to one convention: unit
 quaternions, scalar first, rotating vectors from the reference's body frame to its world frame.
-Rows where tracking was lost (all components NaN) stay NaN rows: gaps are kept, never filled.
+Rows where tracking was lost stay NaN rows: gaps are kept, never filled. A row is a gap when
+any of its components is not finite or all of them are zero (a common "not tracked" value of
+motion-capture exports). A quaternion whose norm is within the declared ``unit_tolerance`` of 1
+is renormalised (the norm of a pose interpolated component by component, or of a value
+rounded in the file, is a little below 1); one beyond it is an error naming the row, as is a
+matrix whose ``R^T R`` is farther than it from the identity.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from imucal.columns import MATRIX_SOURCE, QUAT, QUAT_SOURCE, TIME
+from imucal.io.dataset import reference_with_defaults
 from imucal.io.readers import DeclarationError, read_entry
 
 #: Keys of a reference declaration that are its reader's (passed to :func:`read_entry`).
@@ -29,8 +35,6 @@ READER_KEYS = (
 ORIENTATIONS = {"quaternion": QUAT_SOURCE, "matrix": MATRIX_SOURCE}
 #: Directions of the declared rotation: it maps body vectors to world vectors, or the reverse.
 ROTATES = ("body_to_world", "world_to_body")
-#: Largest accepted deviation of a source quaternion's norm from 1 (and of R^T R from I).
-UNIT_TOLERANCE = 1e-3
 #: The convention of the ingested columns, written into the metadata.
 CONVENTION = (
     "q_w, q_x, q_y, q_z: unit quaternion, scalar first, rotating vectors from the reference's "
@@ -67,19 +71,21 @@ def read_orientation_reference(
     -------
     table : DataFrame, shape (n, 5)
         ``t_s`` (s, the reference's own clock) and ``q_w, q_x, q_y, q_z``; all four NaN on the
-        rows where the source has no orientation.
+        rows where the source has no orientation (a non-finite component, or all zeros).
     metadata : dict
         ``reader``, ``files``, ``convention``, ``orientation``, ``scalar``, ``rotates``, ``up``,
-        ``held_out``, ``rows``, ``gap_rows``, ``max_norm_error``.
+        ``held_out``, ``rows``, ``gap_rows``, ``max_norm_error``, ``unit_tolerance``.
 
     Raises
     ------
     DeclarationError
-        Columns that do not match ``orientation``, a quaternion far from unit norm, a matrix
-        that is not a rotation, a row with only some components.
+        Columns that do not match ``orientation``, a quaternion farther from unit norm than
+        ``unit_tolerance``, a matrix that is not a rotation.
     RawDataError, FileNotFoundError
         From the reader.
     """
+    declaration = reference_with_defaults(dict(declaration))
+    tolerance = float(declaration["unit_tolerance"])
     kind = declaration.get("orientation")
     if kind not in ORIENTATIONS:
         raise DeclarationError(f"{where}.orientation", f"{kind!r}", f"one of {list(ORIENTATIONS)}")
@@ -105,16 +111,8 @@ def read_orientation_reference(
     entry = {k: declaration[k] for k in READER_KEYS if k in declaration}
     rec = read_entry(entry, where=where)
     values = rec.table[list(needed)].to_numpy(dtype=float)
-    finite = np.isfinite(values)
-    partial = finite.any(axis=1) & ~finite.all(axis=1)
-    if partial.any():
-        row = int(np.flatnonzero(partial)[0])
-        raise DeclarationError(
-            f"{where}.columns",
-            f"{_place(rec, row, entry['file'])} has only some of the {kind}'s components",
-            "all of them (an orientation) or none (tracking lost) per row",
-        )
-    ok = finite.all(axis=1)
+    # a gap: tracking lost, written as NaN, inf or all zeros (or with only some components)
+    ok = np.isfinite(values).all(axis=1) & np.any(values != 0.0, axis=1)
     if not ok.any():
         raise DeclarationError(f"{where}.columns", f"no orientation in {entry['file']}", "some")
     quat = np.full((values.shape[0], 4), np.nan)
@@ -123,13 +121,14 @@ def read_orientation_reference(
         norm = np.linalg.norm(q, axis=1)
         error = np.abs(norm - 1.0)
         worst = int(np.argmax(error))
-        if error[worst] > UNIT_TOLERANCE:
+        if error[worst] > tolerance:
             row = int(np.flatnonzero(ok)[worst])
             raise DeclarationError(
                 f"{where}.columns",
                 f"{_place(rec, row, entry['file'])} has |q| = {norm[worst]:.6g}",
-                f"unit quaternions (| |q| - 1 | <= {UNIT_TOLERANCE}); check that the columns "
-                "are the four components of one quaternion",
+                f"unit quaternions (| |q| - 1 | <= {where}.unit_tolerance = {tolerance:g}); "
+                "check that the columns are the four components of one quaternion, or declare "
+                "a larger unit_tolerance",
             )
         quat[ok] = q / norm[:, None]
         max_error = float(error.max())
@@ -138,7 +137,7 @@ def read_orientation_reference(
         gram = np.einsum("nji,njk->nik", matrices, matrices) - np.eye(3)
         error = np.max(np.abs(gram), axis=(1, 2))
         det = np.linalg.det(matrices)
-        bad = (error > UNIT_TOLERANCE) | (det <= 0)
+        bad = (error > tolerance) | (det <= 0)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             row = int(np.flatnonzero(ok)[i])
@@ -146,8 +145,8 @@ def read_orientation_reference(
                 f"{where}.columns",
                 f"{_place(rec, row, entry['file'])} is not a rotation matrix (max |R^T R - I| = "
                 f"{error[i]:.3g}, det {det[i]:.6g})",
-                f"rotation matrices given row by row as r_11, r_12, ..., r_33 (tolerance "
-                f"{UNIT_TOLERANCE})",
+                f"rotation matrices given row by row as r_11, r_12, ..., r_33 "
+                f"({where}.unit_tolerance = {tolerance:g})",
             )
         xyzw = Rotation.from_matrix(matrices).as_quat()
         quat[ok] = xyzw[:, [3, 0, 1, 2]]
@@ -167,5 +166,6 @@ def read_orientation_reference(
         "rows": int(len(table)),
         "gap_rows": int(np.count_nonzero(~ok)),
         "max_norm_error": max_error,
+        "unit_tolerance": tolerance,
     }
     return table, metadata

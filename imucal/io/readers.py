@@ -719,11 +719,15 @@ def _time(
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         i = int(back[0]) + 1
+        line = _line(first_line, i)
+        row = "" if line is not None else f" (data row {i + 1}, 1-based)"
         raise io.RawDataError(
             path,
-            _line(first_line, i),
-            f"t_s {float(t[i])!r} s is earlier than {float(t[i - 1])!r} s on the row before",
-            "non-decreasing time",
+            line,
+            f"t_s {float(t[i])!r} s{row} is earlier than {float(t[i - 1])!r} s on the row before "
+            f"({back.size} such step(s))",
+            f"non-decreasing time; if the rows are out of time order on purpose (e.g. grouped by "
+            f"section), declare {where}.sort_by_time: true to sort them by t_s",
         )
     if t[-1] == t[0]:
         raise io.RawDataError(path, None, f"t_s stays at {float(t[0])!r} s", "a time that advances")

@@ -25,6 +25,10 @@ logger = logging.getLogger(__name__)
 
 #: Key of a not-run record.
 NOT_RUN = "not_run"
+#: Start of the reason of a stage that was fitted but whose result is not shipped (outside its
+#: sensor's physical bounds, :mod:`imucal.validation.plausibility`); the report lists it among
+#: its warnings.
+NOT_SHIPPED = "fitted but not shipped"
 #: Columns of the only CSV a stage writes (the paper's Tables I and II, ``tables.csv``).
 TABLE_COLUMNS = ("table", "row", "x", "y", "z")
 

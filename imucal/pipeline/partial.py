@@ -41,8 +41,8 @@ from imucal.fits import accelerometer, gyroscope, orientations
 from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
 from imucal.pipeline.options import FitMethods
-from imucal.pipeline.outcome import not_run_reason
-from imucal.pipeline.registry import FINAL, STAGES, VALIDATE
+from imucal.pipeline.outcome import NOT_SHIPPED, not_run_reason
+from imucal.pipeline.registry import FINAL, STAGES, VALIDATE, split_held_out
 from imucal.segments.table import cut_finite, rows_of
 
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
@@ -126,8 +126,11 @@ class _Session:
     ):
         self.methods = methods or FitMethods()
         self.exact = exact_rotation
-        self.tables = {k: v for k, v in tables.items() if k != "reference"}
         self.references = dict(references or {})
+        # a held-out recording is validated on, never fitted on (registry.split_held_out)
+        held = split_held_out(self.references)[1]
+        self.tables = {k: v for k, v in tables.items() if k != "reference" and k not in held}
+        self.held_out_tables = {k: tables[k] for k in held if k in tables}
         self.reference_where = dict(reference_where or {})
         self.segments = segments
         self.gravity_m_s2 = gravity_m_s2
@@ -316,7 +319,9 @@ def _static_gyr(s: _Session) -> list[np.ndarray]:
 
 def _gyr_bias(s: _Session) -> dict:
     found = _static_gyr(s)
-    _need(bool(found), "no static segment with gyroscope samples")
+    # the segmentation's word on rests too short to count names the settings that find them
+    hints = [n for r, n in s.notes.items() if r in s.tables and "still interval" in n]
+    _need(bool(found), "; ".join(["no static segment with gyroscope samples", *hints]))
     pieces, _, left_out = gyroscope.usable_static_segments(found)
     _need(
         bool(pieces),
@@ -448,9 +453,10 @@ def _gyr_reference(s: _Session) -> dict:
     from imucal.pipeline.reference import fit_gyr_reference
 
     _need(bool(s.references), "needs a recording declared with an orientation reference")
-    _need("gyr_bias" in s.done, "needs the gyroscope bias (for the time alignment)")
     where = {r: s.reference_where.get(r, f"recordings.{r}.reference") for r in s.references}
-    return fit_gyr_reference(s.tables, s.references, _bias(s), where)
+    # without rests the fit finds its own bias; with them, the bias alone is its fallback
+    rests = stages.gyr_bias_value(s.done["gyr_bias"], "ls") if "gyr_bias" in s.done else None
+    return fit_gyr_reference({**s.tables, **s.held_out_tables}, s.references, rests, where)
 
 
 def _acc_reference(s: _Session) -> dict:
@@ -690,9 +696,39 @@ def run_stages(
         except ValueError as err:  # the fit's own message: too little or degenerate data
             outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
             continue
+        # a calibration that does worse than nominal on left-out data, or lies outside its
+        # sensor's physical bounds on weak data, is not shipped (the sensor's next, simpler
+        # stage is); one outside them on strong data or undetermined carries a warning
+        review = _review(name, {**session.done, name: artifact})
+        if review["refuse"]:
+            reason = f"{NOT_SHIPPED}: " + "; ".join(review["refuse"])
+            outcomes.append(Outcome(name, "skipped", reason))
+            continue
+        # (a stage shared with the full protocol may have warned of the same value already)
+        known = " ".join(artifact.get("warnings", []))
+        warn = [f"{name}: {w}" for w in review["warn"]]
+        warn = [w for w in warn if w.split(" against ")[0] not in known]
+        if warn:
+            artifact["warnings"] = [*artifact.get("warnings", []), *warn]
         session.done[name] = artifact
-        outcomes.append(Outcome(name, "run", STAGES[name].what, artifact))
+        what = STAGES[name].what
+        if "fallback" in artifact:  # the fit did worse than its fallback, which is shipped
+            what += f"; fitted but not shipped ({artifact['fallback']['shipped']} is): "
+            what += artifact["fallback"]["reason"]
+        outcomes.append(Outcome(name, "run", what, artifact))
     return outcomes
+
+
+def _review(name: str, done: Mapping[str, dict]) -> dict[str, list[str]]:
+    """Refusals and warnings of a stage's calibration
+    (:func:`imucal.validation.plausibility.review_fit`); none for stages that do not calibrate
+    a sensor."""
+    from imucal.validation.plausibility import review_fit
+
+    sensor = STAGES[name].sensor
+    if name not in FINAL.get(sensor, ()):
+        return {"refuse": [], "warn": []}
+    return review_fit(sensor, _calibration_of(name, done), done[name])
 
 
 #: Stages whose result is a sensor's final calibration, best first.

@@ -10,6 +10,7 @@ only, and calibrated, so a held-out recording tests the calibration on data it h
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -20,8 +21,9 @@ from imucal import errormodel
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, MAG, QUAT, TIME
 from imucal.fits import magnetometer
-from imucal.fits.reference import fit_gyro_to_reference, fit_mag_to_reference
+from imucal.fits.reference import MAX_ENTRY_STD, fit_gyro_to_reference, fit_mag_to_reference
 from imucal.orientation import quat_conjugate, quat_rotate, up_vector
+from imucal.pipeline.registry import split_held_out
 from imucal.uncertainty import (
     numerical_jacobian,
     std_of,
@@ -32,7 +34,6 @@ from imucal.uncertainty import (
 from imucal.validation.orientation import (
     OrientationAlignment,
     align_orientation_reference,
-    aligned_intervals,
     compare_window_errors,
     field_direction_errors,
     gravity_errors,
@@ -41,6 +42,7 @@ from imucal.validation.orientation import (
     summarise_windows,
     window_errors,
 )
+from imucal.validation.plausibility import FALLBACK_WINDOWS_S, compare_with_fallback
 from imucal.validation.timing import TimeAlignment
 
 #: Format of ``results/{dataset}/reference/validation.json``.
@@ -58,30 +60,67 @@ def _orientation(reference: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     return reference[TIME].to_numpy(dtype=float), reference[list(QUAT)].to_numpy(dtype=float)
 
 
+def _window_errors(
+    t: np.ndarray,
+    gyr: np.ndarray,
+    t_ref: np.ndarray,
+    quat: np.ndarray,
+    alignment: OrientationAlignment,
+    calibration: SensorCalibration,
+    mounting: np.ndarray | None,
+) -> dict:
+    """Orientation errors over :data:`~imucal.validation.plausibility.FALLBACK_WINDOWS_S` of a
+    gyroscope calibration with its mounting (None: its own on this recording, by Wahba, as the
+    validation finds it; a held-out recording may be mounted otherwise)."""
+    gyr_b = errormodel.apply(calibration.matrix, calibration.bias, gyr)
+    if mounting is None:
+        mounting = mount_orientation_reference(
+            t, gyr_b, t_ref, quat, alignment.time
+        ).mounting.matrix
+    return window_errors(t, gyr_b, t_ref, quat, alignment, mounting, FALLBACK_WINDOWS_S)
+
+
 def fit_gyr_reference(
     tables: Mapping[str, pd.DataFrame],
     references: Mapping[str, tuple[pd.DataFrame, Mapping]],
-    bias_rad_s: np.ndarray,
+    rests: tuple[np.ndarray, np.ndarray] | None,
     where: Mapping[str, str],
 ) -> dict:
     """Stage ``gyr_reference``: the gyroscope calibrated against the orientation references.
 
+    The fit (:func:`imucal.fits.reference.fit_gyro_to_reference`, integrated rotations) runs
+    on the recordings whose reference is not held out
+    (:func:`imucal.pipeline.registry.split_held_out`). Its fallback is the nominal matrix with
+    the bias of the rests (stage ``gyr_bias``, the "bias only" of the validation), or without
+    rests the bias fitted against the reference, with the mounting of the same fit with the
+    nominal matrix; both integrate the gyroscope over
+    :data:`~imucal.validation.plausibility.FALLBACK_WINDOWS_S` windows on the fitted recordings
+    and on the held-out ones (:func:`imucal.validation.plausibility.compare_with_fallback`).
+    The fitted matrix is shipped only if it does no worse than the fallback on either;
+    otherwise the fallback is shipped, with the reason under ``fallback`` and in ``warnings``.
+    (The physical bounds are checked after the stage, as for every stage:
+    :func:`imucal.validation.plausibility.review_fit`.)
+
     Parameters
     ----------
     tables : mapping of str to DataFrame
-        Ingested recordings by name.
+        Ingested recordings by name, the held-out ones included.
     references : mapping of str to (DataFrame, dict)
         Ingested orientation reference (``t_s``, ``q_w..q_z``) and its metadata per recording.
-    bias_rad_s : array_like, shape (3,)
-        Gyroscope bias for the time alignment (stage ``gyr_bias``); the fit finds its own.
+    rests : (ndarray, ndarray) or None
+        Gyroscope bias of stage ``gyr_bias`` and its std, shape (3,) each, rad/s: the time
+        alignment's and the fit's start, and the fallback's bias (None: without rests, zero;
+        the fit finds its own).
     where : mapping of str to str
         Per recording, the key path of its reference in ``dataset.yaml`` (error messages).
 
     Returns
     -------
     dict
-        The fit (:meth:`imucal.fits.reference.ReferenceGyroFit.to_dict`), the recordings used
-        and the time alignment and mounting of each (``alignments``).
+        The shipped fit (:meth:`imucal.fits.reference.ReferenceGyroFit.to_dict`), the
+        recordings used, the time alignment and mounting of each (``alignments``), the
+        comparison with the fallback (``checks``), and ``fallback`` and ``warnings`` when the
+        fitted matrix is not shipped or is undetermined.
 
     Raises
     ------
@@ -89,25 +128,97 @@ def fit_gyr_reference(
         No recording with a reference that is not held out, or the alignment or fit fails (the
         message names the declaration).
     """
-    used = [r for r, (_, meta) in references.items() if not meta.get("held_out", False)]
+    used, held = split_held_out(references)
     if not used:
         raise ValueError(
             f"every orientation reference ({sorted(references)}) is held_out; expected one to "
             "fit on"
         )
-    readings, rates, alignments = [], [], {}
-    for name in used:
+    start = np.zeros(3) if rests is None else np.asarray(rests[0], dtype=float)
+    series, aligned, alignments = {}, {}, {}
+    for name in [*used, *held]:
         t, gyr = _series(tables[name], GYR)
         t_ref, quat = _orientation(references[name][0])
-        alignment = align_orientation_reference(
-            t, gyr - np.asarray(bias_rad_s, dtype=float), t_ref, quat, where=where[name]
-        )
-        m, w = aligned_intervals(t, gyr, t_ref, quat, alignment)
-        readings.append(m)
-        rates.append(w)
+        alignment = align_orientation_reference(t, gyr - start, t_ref, quat, where=where[name])
+        series[name] = (t, gyr, t_ref, quat)
+        aligned[name] = alignment
         alignments[name] = alignment.to_dict()
-    fit = fit_gyro_to_reference(readings, rates)
-    return {**fit.to_dict(), "recordings": used, "alignments": alignments}
+    fit_input = [
+        (t, gyr, aligned[n].to_module_time(t_ref), quat)
+        for n, (t, gyr, t_ref, quat) in series.items()
+        if n in used
+    ]
+    mounting0 = aligned[used[0]].mounting.matrix
+    fit = fit_gyro_to_reference(fit_input, mounting0, start)
+    nominal = fit_gyro_to_reference(fit_input, mounting0, start, fit_matrix=False)
+    if rests is not None:
+        nominal = dataclasses.replace(
+            nominal,
+            calibration=SensorCalibration(
+                "gyr", rests[0], np.eye(3), "rad/s", {"bias": rests[1]},
+                "bias only (gyr_bias, the rests), nominal matrix; mounting against the reference",
+            ),
+        )  # fmt: skip
+    checks, reasons = {}, []
+    for label, names in (("own data", used), ("held-out data", held)):
+        if not names:
+            continue
+        errors = {
+            key: [
+                _window_errors(
+                    *series[n], aligned[n], f.calibration, f.mounting if n in used else None
+                )
+                for n in names
+            ]
+            for key, f in (("fitted", fit), ("fallback", nominal))
+        }
+        test = compare_with_fallback(errors["fitted"], errors["fallback"])
+        checks[label] = test
+        if test["worse"]:
+            reasons.append(
+                f"on {label} ({', '.join(names)}) the fitted matrix integrates to a larger "
+                f"orientation error over {FALLBACK_WINDOWS_S[0]:g} s windows than its fallback "
+                f"(median {test['fitted']['median_deg']:.3g} against "
+                f"{test['fallback']['median_deg']:.3g} deg, RMS {test['fitted']['rms_deg']:.3g} "
+                f"against {test['fallback']['rms_deg']:.3g} deg)"
+            )
+    shipped = nominal if reasons else fit
+    out = {
+        **shipped.to_dict(),
+        "recordings": used,
+        "held_out": held,
+        "alignments": alignments,
+        "checks": checks,
+    }
+    warnings = []
+    if fit.held_nominal and not reasons:
+        warnings.append(
+            f"gyr_reference: the motion does not determine {', '.join(fit.held_nominal)} to "
+            f"{MAX_ENTRY_STD:g} (std {_held_std(fit)}): held at the nominal value"
+        )
+    if reasons:
+        out["fallback"] = {
+            "shipped": "the nominal matrix with "
+            + ("the rests' bias" if rests is not None else "the bias fitted against the reference"),
+            "reason": "; ".join(reasons),
+            "fitted": fit.to_dict(),
+        }
+        warnings = [
+            f"gyr_reference: the fitted matrix is not shipped, {out['fallback']['shipped']} is: "
+            f"{out['fallback']['reason']}"
+        ]
+    if warnings:
+        out["warnings"] = warnings
+    return out
+
+
+def _held_std(fit) -> str:
+    from imucal.fits.reference import ENTRY_NAMES
+
+    flat = [fit.std_matrix[i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))]
+    return ", ".join(
+        f"{name} {std:.2g}" for name, std in zip(ENTRY_NAMES, flat) if name in fit.held_nominal
+    )
 
 
 def _module_time(time: Mapping, t_reference: np.ndarray) -> np.ndarray:

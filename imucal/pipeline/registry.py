@@ -8,6 +8,7 @@ lists them in this order. Which of the two paths a dataset takes is decided here
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from imucal.columns import SENSORS
@@ -151,3 +152,24 @@ def is_full_protocol(dataset) -> bool:
     return all(
         dataset.has(r) and declared_sensors(dataset, r) == SENSORS for r in ("rotation3d", "cube")
     )
+
+
+def split_held_out(references: Mapping[str, tuple]) -> tuple[list[str], list[str]]:
+    """Which recordings may feed a fit, and which are held out for validation only.
+
+    The one place that decides it: a recording whose orientation reference is declared
+    ``held_out`` enters no fit at all (neither the fits against the reference nor the ellipsoid,
+    the gyroscope bias or any other stage); it is only validated on.
+
+    Parameters
+    ----------
+    references : mapping of str to (table, metadata)
+        Per recording with a reference, its ingested reference and metadata (``held_out``).
+
+    Returns
+    -------
+    fit, held : list of str
+        Recordings in the given order.
+    """
+    held = [name for name, (_, meta) in references.items() if meta.get("held_out", False)]
+    return [name for name in references if name not in held], held

@@ -45,6 +45,7 @@ from imucal.fits.ratetable import fit_rate_table, rate_table_crlb
 from imucal.pipeline.outcome import not_run_reason
 from imucal.segments.detector import is_clipped
 from imucal.segments.table import cut, rows_of
+from imucal.validation.plausibility import bound_warnings
 
 if TYPE_CHECKING:  # matplotlib is imported by the stages that draw, when they draw
     from matplotlib.figure import Figure
@@ -215,7 +216,10 @@ def align_acc(
         "calibration": calibration.to_dict(),
         "step1": dict(cube_fit),
         "step2": {"used": method, **{k: a.to_dict() for k, a in alignments.items()}},
-        "warnings": list(cube_fit.get("warnings", [])),
+        "warnings": [
+            *cube_fit.get("warnings", []),
+            *bound_warnings("acc_align", "acc", calibration.to_dict()),
+        ],
     }
 
 
@@ -943,7 +947,10 @@ def combine_gyr(
         "used": "ratetable" if with_table else "tool_free",
         "tool_free": tool_free.to_dict() if tool_free else None,
         "ratetable": with_table.to_dict() if with_table else None,
-        "warnings": list(table.get("warnings", [])) if table else [],
+        "warnings": [
+            *(table.get("warnings", []) if table else []),
+            *bound_warnings("gyr_table" if with_table else "gyr_scale", "gyr", final.to_dict()),
+        ],
     }
     return artifact, pd.DataFrame(rows, columns=["table", "row", "x", "y", "z"])
 
@@ -1240,5 +1247,8 @@ def align_mag(
         fit, phases, method=method, exact=exact, with_covariance=with_covariance
     )
     artifact = result.to_dict()
-    artifact["warnings"] = list(step1.get("warnings", []))
+    artifact["warnings"] = [
+        *step1.get("warnings", []),
+        *bound_warnings("mag_step2", "mag", artifact["calibration"]),
+    ]
     return artifact

@@ -33,6 +33,7 @@ import imucal
 from imucal import io
 from imucal.columns import AXES, SENSORS
 from imucal.constants import REFERENCE
+from imucal.pipeline.outcome import NOT_SHIPPED
 from imucal.report import digest
 from imucal.report.holdout import holdout_section
 from imucal.terms.comparison import gap_comparison
@@ -710,6 +711,12 @@ def build_report_context(
             warnings += collect_warnings(result, f"{sensor}.json")
     if validation is not None:
         warnings += collect_warnings(validation, "validation.json")
+    # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
+    warnings += [
+        {"source": "stages.json", "where": row["stage"], "text": row["reason"]}
+        for row in (stages or {}).get("stages", [])
+        if str(row.get("reason", "")).startswith(NOT_SHIPPED)
+    ]
 
     recordings = summary.get("recordings", {})
     sensors = []

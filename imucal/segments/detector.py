@@ -239,6 +239,47 @@ def find_quiet_intervals(
     ]
 
 
+#: Variance window of the search for rests shorter than ``min_static_s``, s: half the default
+#: window, so that a 0.5 s stillness between a robot's moves still fills two windows.
+SHORT_WINDOW_S = 0.25
+
+
+def find_short_rests(
+    t_s: np.ndarray, acc: np.ndarray, gyr: np.ndarray, settings: DetectorSettings
+) -> list[tuple[float, float]]:
+    """Still intervals (quiet gyroscope and accelerometer) too short for the static detector.
+
+    The windows are :data:`SHORT_WINDOW_S` long (or ``settings.window_s`` if shorter); an
+    interval counts when it spans at least two of them and less than ``settings.min_static_s``.
+    Used to say which settings would find the rests of a recording that has none (a robot's
+    rests between moves of about 1 s, shortened by the settling of the arm).
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+    acc, gyr : ndarray, shape (n, 3)
+        Finite rows, SI units.
+    settings : DetectorSettings
+
+    Returns
+    -------
+    list of (float, float)
+        Start and end of each interval, s.
+    """
+    t, acc, gyr = check_inputs(t_s, acc, gyr)
+    window_s = min(SHORT_WINDOW_S, settings.window_s)
+    window = window_samples(t, window_s)
+    if t.size < 2 * window:
+        return []
+    quiet_g, _ = find_quiet_windows(gyr, window, settings.p_false)
+    quiet_a, _ = find_quiet_windows(acc, window, settings.p_false)
+    return [
+        (float(t[a]), float(t[b - 1]))
+        for a, b in windows_to_intervals(quiet_g & quiet_a, window)
+        if 2 * window_s <= t[b - 1] - t[a] < settings.min_static_s
+    ]
+
+
 def check_inputs(t_s: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> tuple[np.ndarray, ...]:
     t = np.asarray(t_s, dtype=float)
     acc = np.asarray(acc, dtype=float)

@@ -23,7 +23,7 @@ import pandas as pd
 
 from imucal.columns import ACC, GYR, KINDS, TIME, column_values
 from imucal.constants import IMU_RECORDINGS, OTHER_RECORDINGS
-from imucal.segments.detector import DetectorSettings
+from imucal.segments.detector import SHORT_WINDOW_S, DetectorSettings, find_short_rests
 from imucal.segments.protocol import segment_cube, segment_poses, segment_rotation3d, segment_static
 from imucal.segments.ratetable import segment_ratetable
 from imucal.segments.table import segment_row, segments_frame, to_table_rows
@@ -238,7 +238,49 @@ def segment_dataset(
             frames.append(_segment_pose_recording(name, tables[name], settings))
         held_by_hand += frames[-1].attrs.get("held_by_hand", [])
         logger.info("%s: %d segments", name, len(frames[-1]))
+        hint = short_rest_note(name, tables[name], frames[-1], settings)
+        if hint:
+            notes[name] = f"{notes[name]}; {hint}" if name in notes else hint
+            logger.warning(hint)
     out = pd.concat(frames, ignore_index=True) if frames else segments_frame([])
     out.attrs["notes"] = notes
     out.attrs["held_by_hand"] = held_by_hand
     return out
+
+
+def short_rest_note(
+    recording: str, table: pd.DataFrame, segments: pd.DataFrame, settings: DetectorSettings
+) -> str:
+    """For a recording without a rest: the still intervals too short to count, and the
+    settings that would find them ('' when it has rests, or no such interval).
+
+    Parameters
+    ----------
+    recording : str
+    table : DataFrame
+        Ingested recording.
+    segments : DataFrame
+        Its segments as found.
+    settings : DetectorSettings
+    """
+    if segments["kind"].isin(["static", "position"]).any():
+        return ""
+    if not all(c in table.columns for c in (*ACC, *GYR)):
+        return ""
+    values = table[[*ACC, *GYR]].to_numpy(dtype=float)
+    keep = np.isfinite(values).all(axis=1)
+    t = table[TIME].to_numpy(dtype=float)[keep]
+    short = find_short_rests(t, values[keep, :3], values[keep, 3:], settings)
+    if not short:
+        return ""
+    lengths = np.array([b - a for a, b in short])
+    shortest = float(np.floor(10 * lengths.min()) / 10)
+    window = min(SHORT_WINDOW_S, settings.window_s)
+    where = ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in short[:8])
+    return (
+        f"{recording}: no rest of at least {settings.min_static_s:g} s was found, but "
+        f"{len(short)} still interval(s) of {lengths.min():.2g}-{lengths.max():.2g} s were "
+        f"({where}{', ...' if len(short) > 8 else ''}): the config's segmentation.min_static_s: "
+        f"{max(shortest, 2 * window):g} and segmentation.window_s: {window:g} would look for them, "
+        "or declare them under segments: in dataset.yaml (kind: static)"
+    )

@@ -88,11 +88,13 @@ def simulate_orientation_session(
     mag_matrix: np.ndarray | None = None,
     mag_bias: np.ndarray | None = None,
     reference_jitter_s: float = 0.0,
+    axis_weights: np.ndarray | None = None,
+    rest_s: float = 3.0,
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
     The body rate is a sum of sinusoids (0.05-1.5 Hz) per axis, scaled to ``rate_rad_s`` RMS,
-    switched off in 3 s rests every 20 s (smooth ramps). Gyroscope readings are
+    switched off in rests of ``rest_s`` every 20 s (smooth ramps). Gyroscope readings are
     ``matrix^-1 mounting omega_body + bias`` plus white noise; the reference adds a random
     rotation of ``orientation_noise_rad`` RMS per axis to each orientation. The accelerometer
     reads gravity only (``9.81`` m/s^2 along up, in B), ideal unless ``acc_matrix`` /
@@ -102,6 +104,9 @@ def simulate_orientation_session(
     ``mag_matrix`` / ``mag_bias`` give its errors (``mag_B = mag_matrix (mag - mag_bias)``).
     The reference's samples are taken at their time stamps plus white jitter of
     ``reference_jitter_s`` (its own random stream: the other draws do not change).
+    ``axis_weights`` (shape (3,)) multiplies the body rate per axis after that scaling, e.g.
+    ``(1, 1, 0.02)`` for a motion that barely turns about the body's z axis. ``rest_s`` is
+    the length of each rest (a robot's rests between moves can be about 1 s).
     """
     rng = np.random.default_rng(seed)
     dt_fine = 1e-3
@@ -115,12 +120,14 @@ def simulate_orientation_session(
             "ak,akn->na", amps, np.sin(2 * np.pi * freqs[:, :, None] * t + phases[:, :, None])
         )
         phase = np.mod(t, 20.0)
-        # rest for 3 s every 20 s (cosine ramps of 1 s)
-        env = np.clip(np.minimum(phase - 3.0, 20.0 - phase), 0.0, 1.0)
+        # rest for rest_s every 20 s (cosine ramps of 1 s)
+        env = np.clip(np.minimum(phase - rest_s, 20.0 - phase), 0.0, 1.0)
         env = 0.5 - 0.5 * np.cos(np.pi * env)
         return w * env[:, None]
 
     scale = rate_rad_s / np.sqrt(np.mean(rate(t_fine) ** 2))
+    if axis_weights is not None:
+        scale = scale * np.asarray(axis_weights, dtype=float)
     w_fine = scale * rate(t_fine)
     q_fine = integrate_rates(t_fine, w_fine)  # body -> start frame
     q0 = quat_from_rotvec(rng.normal(0, 1, 3))
@@ -162,7 +169,7 @@ def simulate_orientation_session(
     q_ref = quat_multiply(q_ref, noise)
     for start in rng.uniform(t_ref[0] + 5, t_ref[-1] - 5, gaps):
         q_ref[(t_ref >= start) & (t_ref < start + gap_s)] = np.nan
-    rests = [(s + 0.3, s + 2.7) for s in np.arange(0.0, duration_s - 3.0, 20.0)]
+    rests = [(s + 0.1 * rest_s, s + 0.9 * rest_s) for s in np.arange(0.0, duration_s - 3.0, 20.0)]
     return OrientationSession(
         t_module=t_m,
         gyr=gyr,

@@ -204,3 +204,14 @@ def test_conformance_session(conformance_dir, with_cube):
     cal = calibrate_alignment(fit, phases).calibration
     assert np.abs(cal.matrix - np.array(truth["matrix"])).max() < 5e-3
     assert np.abs(cal.bias - np.array(truth["bias"])).max() < 5e-3
+
+
+def test_static_log_is_refused_with_no_coverage():
+    # a magnetometer that does not turn: its noise points everywhere about the mean, which
+    # must not read as a covered sphere
+    m = np.array([0.3, -0.2, 0.5]) + np.random.default_rng(0).normal(0, 0.01, (2000, 3))
+    with pytest.raises(
+        ValueError, match=r"do not move beyond their noise, as in a static log: coverage of the "
+        r"sphere 0\.0 %"
+    ):  # fmt: skip
+        fit_ellipsoid(m)

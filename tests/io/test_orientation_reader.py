@@ -99,17 +99,9 @@ def test_bad_declarations_name_the_key(files):
         bad = WXYZ.copy()
         bad[7] *= 0.9
         f["quat_bad"] = bad
-        part = WXYZ.copy()
-        part[3, 2] = np.nan
-        f["quat_part"] = part
     ds = write(files, quaternion("quat_bad", "first", rate_hz=120.0))
     with pytest.raises(DeclarationError, match=r"recordings.poses.reference.columns: .*imu.h5, "
                        r"sample 8 \(counted from 1\) has \|q\| = 0.9; expected unit quaternions"):  # fmt: skip
-        ingest_orientation_reference("poses", ds, "test")
-    ds = write(files, quaternion("quat_part", "first", rate_hz=120.0))
-    with pytest.raises(
-        DeclarationError, match=r"reference.columns: .*imu.h5, sample 4 .* only some"
-    ):
         ingest_orientation_reference("poses", ds, "test")
     ds = write(files, {**quaternion("quat_wxyz", "first", rate_hz=120.0), "orientation": "matrix"})
     with pytest.raises(DeclarationError, match=r"reference.scalar: scalar with a matrix"):
@@ -142,3 +134,44 @@ def test_a_bad_row_of_a_text_reference_is_named_by_its_file_line(files):
            "columns": {"t_s": "t", "q_0": "qw", "q_1": "qx", "q_2": "qy", "q_3": "qz"}}  # fmt: skip
     with pytest.raises(DeclarationError, match=r"mocap.csv, line 11 has \|q\| = 0.9;"):
         ingest_orientation_reference("poses", write(files, ref), "test")
+
+
+def test_tolerance_renormalises_and_untracked_rows_are_gaps(files):
+    with h5py.File(files / "imu.h5", "a") as f:
+        q = WXYZ.copy()
+        q[7] *= 0.99736  # a Vicon sample rounded in the file
+        q[20] = 0.0  # "not tracked" written as zeros
+        q[21, 2] = np.nan  # one component lost
+        q[22, 0] = np.inf
+        f["quat_glitch"] = q
+    ds = write(files, quaternion("quat_glitch", "first", rate_hz=120.0))
+    table, meta = ingest_orientation_reference("poses", ds, "test")
+    out = table[list(QUAT)].to_numpy()
+    assert np.isnan(out[20:23]).all() and meta["gap_rows"] == 3
+    np.testing.assert_allclose(np.linalg.norm(out[7]), 1.0, atol=1e-15)
+    same_rotation(out[[7]], WXYZ[[7]])
+    # the default is the schema's, and it is written into the metadata
+    schema = read_dataset.__globals__["_validator"]().schema
+    default = schema["$defs"]["orientation_reference"]["properties"]["unit_tolerance"]["default"]
+    assert meta["unit_tolerance"] == default and meta["max_norm_error"] == pytest.approx(0.00264)
+    strict = quaternion("quat_glitch", "first", rate_hz=120.0, unit_tolerance=1e-3)
+    with pytest.raises(DeclarationError, match=r"imu.h5, sample 8 \(counted from 1\) has \|q\| = 0.99736; expected "
+                       r"unit quaternions \(\| \|q\| - 1 \| <= .*reference.unit_tolerance = 0.001\)"):  # fmt: skip
+        ingest_orientation_reference("poses", write(files, strict), "test")
+
+
+def test_robot_poses_interpolated_component_wise_are_accepted(files):
+    # robot poses at 10 Hz interpolated component by component to 120 Hz: norms below 1,
+    # within the default tolerance
+    poses = Rotation.from_rotvec(np.cumsum(np.full((6, 3), [0.05, -0.03, 0.04]), axis=0))
+    wxyz = poses.as_quat()[:, [3, 0, 1, 2]]
+    t = np.arange(N) / 120.0
+    lerp = np.column_stack([np.interp(t, np.arange(6) / 10.0, wxyz[:, k]) for k in range(4)])
+    assert 0.999 < np.linalg.norm(lerp, axis=1).min() < 1.0 - 1e-5
+    with h5py.File(files / "imu.h5", "a") as f:
+        f["quat_robot"] = lerp
+    table, meta = ingest_orientation_reference(
+        "poses", write(files, quaternion("quat_robot", "first", rate_hz=120.0)), "test"
+    )
+    assert meta["gap_rows"] == 0
+    np.testing.assert_allclose(np.linalg.norm(table[list(QUAT)].to_numpy(), axis=1), 1.0)

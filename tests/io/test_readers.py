@@ -103,7 +103,12 @@ def test_time_column_as_sample_counter_and_sort_by_time(tmp_path):
     entry = {"reader": "table", "file": "d.csv", "columns": {"t_s": "n", "acc_x": "acc_x",
              "acc_y": "acc_y", "acc_z": "acc_z"}, "rate_hz": 4.0, "units": {"acc": "m/s^2"}}  # fmt: skip
     folder = write_dataset(tmp_path, {"ferraris": entry})
-    with pytest.raises(io.RawDataError, match=r"d.csv, line 7: t_s 0.0 s is earlier than 2.25 s"):
+    with pytest.raises(
+        io.RawDataError,
+        match=r"d.csv, line 7: t_s 0.0 s is earlier than 2.25 s on the row before \(1 such "
+        r"step\(s\)\); expected non-decreasing time; .*declare .*recordings.ferraris"
+        r".sort_by_time: true",
+    ):
         ingest(folder, "ferraris")
     entry["sort_by_time"] = True
     table, meta = ingest(write_dataset(tmp_path, {"ferraris": entry}), "ferraris")

@@ -68,6 +68,10 @@ def test_gyr_reference_calibrates_the_gyroscope_of_a_partial_session(chain):
     assert done["gyr_reference"].status == "run", done["gyr_reference"].reason
     artifact = done["gyr_reference"].artifact
     assert artifact["recordings"] == ["tumble"]  # the held-out one is not fitted on
+    # the fitted matrix does better than the nominal one on its own data and the held-out
+    assert "fallback" not in artifact and "warnings" not in artifact
+    checks = artifact["checks"]
+    assert checks["own data"]["worse"] is False and checks["held-out data"]["worse"] is False
     final = partial.final_calibration(outcomes)
     assert final["sensors"]["gyr"]["stage"] == "gyr_reference"
     matrix = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
@@ -143,7 +147,26 @@ def test_every_reference_held_out_skips_the_stage(chain):
     outcomes = partial.run_stages(tables, segments, gravity_m_s2=9.81, references=held)
     stage = next(o for o in outcomes if o.name == "gyr_reference")
     assert stage.status == "skipped" and "is held_out; expected one to fit on" in stage.reason
-    assert partial.final_calibration(outcomes)["sensors"]["gyr"]["stage"] == "gyr_bias"
+    # nor do they feed any other fit: no gyroscope bias from their rests either
+    final = partial.final_calibration(outcomes)
+    assert final["sensors"] == {} and set(final["missing"]) == {"acc", "gyr", "mag"}
+
+
+def test_a_held_out_recording_enters_no_fit(chain):
+    # the fixture holds 'poses' out: neither the ellipsoid, nor the cube fit, nor the gyroscope
+    # bias (which took every recording's rests before) may see it
+    tables, references, segments, outcomes = chain
+    done = {o.name: o for o in outcomes}
+    assert done["mag_step1"].artifact["source"] == "tumble"
+    assert "poses" not in done["mag_step1"].artifact["offered"]
+    assert done["acc_cube"].status == "skipped" or done["acc_cube"].artifact["recording"] != "poses"
+    assert done["gyr_reference"].artifact["held_out"] == ["poses"]
+    # the same session with 'poses' fitted too: the gyroscope bias changes (more rests)
+    both = {n: (r, {**m, "held_out": False}) for n, (r, m) in references.items()}
+    bias_held = done["gyr_bias"].artifact["bias_ls_rad_s"]
+    again = partial.run_stages(tables, segments, gravity_m_s2=9.81, references=both)
+    bias_both = next(o for o in again if o.name == "gyr_bias").artifact["bias_ls_rad_s"]
+    assert bias_held != bias_both
 
 
 def test_acc_reference_in_the_gyroscope_frame(chain):
@@ -160,3 +183,30 @@ def test_acc_reference_in_the_gyroscope_frame(chain):
     assert np.all(np.abs(matrix - ACC_MATRIX) < 5 * std_m + 1e-4)
     assert np.all(np.abs(bias - ACC_BIAS) < 5 * std_b + 1e-4)
     assert np.abs(matrix - ACC_MATRIX).max() < 5e-3
+
+
+def test_fit_worse_than_its_fallback_on_held_out_data_is_not_shipped():
+    from imucal.pipeline.reference import fit_gyr_reference
+
+    # fitted where the gyroscope reads 3 % low, held out where it reads right (a scale that
+    # does not carry over): on the held-out recording the nominal matrix does better
+    fit = simulate_orientation_session(31, matrix=MATRIX, bias=BIAS, mounting=MOUNTING,
+                                       duration_s=100.0)  # fmt: skip
+    held = simulate_orientation_session(32, matrix=np.eye(3), bias=BIAS, mounting=MOUNTING,
+                                        duration_s=100.0)  # fmt: skip
+    t_fit, r_fit, _ = as_tables(fit, "tumble")
+    t_held, r_held, _ = as_tables(held, "poses")
+    references = {"tumble": (r_fit, {"held_out": False}), "poses": (r_held, {"held_out": True})}
+    out = fit_gyr_reference({"tumble": t_fit, "poses": t_held}, references, None,
+                            {"tumble": "tumble", "poses": "poses"})  # fmt: skip
+    assert out["checks"]["own data"]["worse"] is False
+    assert out["checks"]["held-out data"]["worse"] is True
+    np.testing.assert_array_equal(out["calibration"]["matrix"], np.eye(3))
+    assert (
+        np.abs(np.array(out["fallback"]["fitted"]["calibration"]["matrix"]) - MATRIX).max() < 2e-3
+    )
+    assert "on held-out data (poses)" in out["fallback"]["reason"]
+    assert out["warnings"][0].startswith(
+        "gyr_reference: the fitted matrix is not shipped, the "
+        "nominal matrix with the bias fitted against the reference is"
+    )

@@ -4,6 +4,7 @@ cube positions, rate-table runs and static recording; every refusal names what i
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -15,7 +16,9 @@ from imucal.io.dataset import read_dataset
 from imucal.segments.detector import DetectorSettings, find_quiet_windows, find_static_intervals
 from imucal.segments.protocol import segment_cube, segment_rotation3d
 from imucal.segments.ratetable import segment_ratetable
-from imucal.segments.segmentation import segment_dataset
+from imucal.segments.segmentation import segment_dataset, short_rest_note
+from imucal.segments.table import segments_frame
+from imucal.sim.orientation import simulate_orientation_session
 
 FS = 100.0
 G = 9.81
@@ -616,3 +619,34 @@ def test_a_cube_turned_by_hand_gets_its_positions_from_the_tremor_adaptive_holds
         assert s["start_s"] - 0.5 <= row.start_s and row.end_s <= s["end_s"] + 0.5
     assert "tremor-adaptive detector" in seg.attrs["notes"]["cube"]
     assert seg.attrs["held_by_hand"] == ["cube"]  # the diagnosis leaves these holds out of rest
+
+
+def _robot_table(rest_s: float) -> tuple[pd.DataFrame, object]:
+    """A robot-like session: moves with rests of ``rest_s`` every 20 s (plus the ramps)."""
+    s = simulate_orientation_session(3, matrix=np.eye(3), bias=np.array([0.01, 0.0, -0.01]),
+                                     mounting=np.eye(3), duration_s=170.0, rest_s=rest_s,
+                                     acc_noise_m_s2=0.02)  # fmt: skip
+    table = pd.DataFrame({TIME: s.t_module, **dict(zip(ACC, s.acc.T)), **dict(zip(GYR, s.gyr.T))})
+    return table, s
+
+
+@pytest.mark.parametrize("rest_s", [1.0, 1.4])
+def test_robot_rests_of_about_one_second_are_found(rest_s):
+    table, s = _robot_table(rest_s)
+    segments = segment_dataset({"tumble": table}, fallback=True)
+    static = segments[segments["kind"] == "static"]
+    assert len(static) == len(s.rests_s) and "tumble" not in segments.attrs["notes"]
+
+
+def test_rests_too_short_are_explained_with_the_settings_that_find_them():
+    table, s = _robot_table(0.4)  # 0.5-0.8 s of stillness: below min_static_s = 1 s
+    t, acc, gyr = s.t_module, s.acc, s.gyr
+    with pytest.raises(ValueError, match="no static interval of at least 1.0 s"):
+        find_static_intervals(t, acc, gyr)
+    note = short_rest_note("tumble", table, segments_frame([]), DetectorSettings())
+    assert note.startswith("tumble: no rest of at least 1 s was found, but 9 still interval")
+    assert "segments: in dataset.yaml" in note
+    found = re.search(r"segmentation.min_static_s: ([\d.]+) and segmentation.window_s: ([\d.]+)",
+                      note)  # fmt: skip
+    settings = DetectorSettings(window_s=float(found[2]), min_static_s=float(found[1]))
+    assert len(find_static_intervals(t, acc, gyr, settings).intervals) == 9
