@@ -699,7 +699,7 @@ def run_stages(
         # a calibration that does worse than nominal on left-out data, or lies outside its
         # sensor's physical bounds on weak data, is not shipped (the sensor's next, simpler
         # stage is); one outside them on strong data or undetermined carries a warning
-        review = _review(name, {**session.done, name: artifact})
+        review = _review(name, {**session.done, name: artifact}, session.methods, session.exact)
         if review["refuse"]:
             reason = f"{NOT_SHIPPED}: " + "; ".join(review["refuse"])
             outcomes.append(Outcome(name, "skipped", reason))
@@ -719,7 +719,9 @@ def run_stages(
     return outcomes
 
 
-def _review(name: str, done: Mapping[str, dict]) -> dict[str, list[str]]:
+def _review(
+    name: str, done: Mapping[str, dict], methods: FitMethods | None = None, exact: bool = True
+) -> dict[str, list[str]]:
     """Refusals and warnings of a stage's calibration
     (:func:`imucal.validation.plausibility.review_fit`); none for stages that do not calibrate
     a sensor."""
@@ -728,7 +730,8 @@ def _review(name: str, done: Mapping[str, dict]) -> dict[str, list[str]]:
     sensor = STAGES[name].sensor
     if name not in FINAL.get(sensor, ()):
         return {"refuse": [], "warn": []}
-    return review_fit(sensor, _calibration_of(name, done), done[name])
+    calibration = _calibration_of(name, done, methods or FitMethods(), exact)
+    return review_fit(sensor, calibration, done[name])
 
 
 #: Stages whose result is a sensor's final calibration, best first.
