@@ -69,8 +69,9 @@ def _estimate(tw, name, effect, seed=11, half=None):
         ("time_offset", {"offset_s": 0.2}, lambda p: p["offset_s"]),
         ("lever_arm", {"x_m": 0.05, "y_m": -0.03, "z_m": 0.02},
          lambda p: np.array([p["x_m"], p["y_m"], p["z_m"]])),
-        ("g_sensitivity", {"kx": 5e-4, "ky": -3e-4, "kz": 2e-4},
-         lambda p: np.array([p["kx"], p["ky"], p["kz"]])),
+        ("g_sensitivity",
+         {"matrix": [[5e-4, 1.5e-4, 0.0], [-1e-4, -3e-4, 8e-5], [6e-5, -1.2e-4, 2e-4]]},
+         lambda p: np.array(p["matrix"])),
         ("timing_jitter", {"std_s": 0.003}, lambda p: p["std_s"]),
     ],
 )  # fmt: skip
