@@ -8,7 +8,9 @@ the rate-table runs, each reduced to its raw mean reading and mean temperature:
   calibrated specific force as nuisance regressors (so that a g-sensitivity is not taken for a
   drift between poses at different temperatures);
 - gyroscope scale (rate table only): the raw run means, less the bias drift, against the
-  sensor-frame rate ``u = K^-1 w`` and ``u dT^k`` per axis (``K`` and the bias of eq. 33);
+  sensor-frame rate ``u = K^-1 w`` and ``u dT^k`` per axis, with a constant per mounting
+  (``K`` and the bias of eq. 33; gravity, and a g-sensitivity with it, differs between
+  mountings);
 - accelerometer bias and scale: ``|a| - g`` of the resting means (rate-table runs left out),
   linearised about the paper's calibration: with ``d`` the direction of the calibrated mean and
   ``u = reading - o``, a drift moves ``|a|`` by ``-(d^T K)_j (b_j(dT) + s_j(dT) u_j)``; a
@@ -232,7 +234,10 @@ def _gyro(
     d_t = rest.temp_c - reference_c
     n = len(d_t)
     nuisance = [np.ones((n, 1))]
-    if n > 3 * (max_order + 5):  # enough segments to take a g-sensitivity out as well
+    # enough segments to take a g-sensitivity out as well (with the order fixed, twice the
+    # columns of the fit; with the order to choose, room for the highest one on held-out data)
+    enough = n > 2 * (4 + order) if order is not None else n > 3 * (max_order + 5)
+    if enough:
         nuisance.append(rest.acc_b)
 
     def design(order):
@@ -284,11 +289,17 @@ def _gyro_scale(
     y = means - _powers(d_t, len(bias_poly)) @ bias_poly if len(bias_poly) else means
     coefs, stds = [], []
 
+    # a constant per mounting (the turning axis): gravity lies along another direction of B
+    # on each, and a g-sensitivity with it, which a constant per axis would leave in the runs
+    # of one mounting, where the temperature rises with the run order
+    axis = rows["axis"].to_numpy()
+    mount = np.column_stack([(axis == a).astype(float) for a in np.unique(axis)])
+    n_m = mount.shape[1]
+
     # one order for the three axes: stacked, each axis with its own columns
     def design(order):
         blocks = [
-            np.column_stack([np.ones(len(u)), u[:, j], u[:, [j]] * _powers(d_t, order)])
-            for j in range(3)
+            np.column_stack([mount, u[:, j], u[:, [j]] * _powers(d_t, order)]) for j in range(3)
         ]
         return blocks
 
@@ -310,8 +321,8 @@ def _gyro_scale(
     for j in range(3):
         c, s = _lstsq(designs[j](order), y[:, [j]])
         # u (1 + s(dT)): the coefficients of u dT^k over that of u
-        coefs.append(c[2:, 0] / c[1, 0])
-        stds.append(s[2:, 0] / abs(c[1, 0]))
+        coefs.append(c[n_m + 1 :, 0] / c[n_m, 0])
+        stds.append(s[n_m + 1 :, 0] / abs(c[n_m, 0]))
     return (
         np.column_stack(coefs).reshape(order, 3),
         np.column_stack(stds).reshape(order, 3),
