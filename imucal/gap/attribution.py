@@ -9,9 +9,14 @@ parameters estimated on half A of the segments and measures the gap on half B. E
 accepted forward while the gap is significant: of the detected effects whose held-out shrink
 reaches ``min_heldout_shrink``, the one with the lowest held-out deviance
 (:meth:`~imucal.gap.null.NullModel.deviance`: it charges an effect for the spread it adds to
-the null, so that a stochastic effect cannot outrank a systematic one by widening it). A
-backward pass then drops an accepted effect that no longer closes ``min_heldout_shrink`` of the
-held-out gap once the others are in the twin, and reports it as confusable with them. An effect whose estimate fails
+the null, so that a stochastic effect cannot outrank a systematic one by widening it). Once
+an effect is accepted, competing explanations are decided on the joint models: a candidate is
+evaluated by rendering it *together with* the accepted effects (each at its estimate; at its
+half-A estimate for half B) and measuring that joint model's held-out gap, not by adding its
+shift alone to theirs (effects on the same readings, such as a drift with temperature and a
+g-sensitivity, do not add in every statistic). A backward pass then drops an accepted effect
+whose joint model without it holds the held-out gap within ``min_heldout_shrink`` of the one
+with it, and reports it as confusable with the others. An effect whose estimate fails
 its physics gate (e.g. a rate the Earth cannot have) or that the exact model absorbs
 (``opens_gap`` False) is never evaluated.
 """
@@ -99,10 +104,11 @@ def statistic_shift(pairs) -> dict:
     }
 
 
-def _shift(twin: Twin | StaticTwin, effect, replicas, half, n_seeds: int) -> dict:
-    """:func:`statistic_shift` of ``effect`` on ``half`` over the first ``n_seeds`` replicas."""
+def _shift(twin: Twin | StaticTwin, effects: tuple, replicas, half, n_seeds: int) -> dict:
+    """:func:`statistic_shift` of ``effects`` rendered together on ``half`` over the first
+    ``n_seeds`` replicas."""
     return statistic_shift(
-        (twin.replica(rep.seed, (effect,), (half,)).stats[half], rep.stats[half])
+        (twin.replica(rep.seed, effects, (half,)).stats[half], rep.stats[half])
         for rep in replicas[:n_seeds]
     )
 
@@ -182,15 +188,24 @@ def attribute(
         cand.note = cand.blocked
         cands.append(cand)
 
-    def shifts_of(c: Candidate) -> tuple[dict, dict]:
-        model = models[c.name]
-        return (_shift(twin, model.simulator_effect(c.params), replicas, None, n_seeds),
-                _shift(twin, model.simulator_effect(c.params_a or c.params), replicas, "B",
-                       n_seeds))  # fmt: skip
+    def shifts_of_group(group: Sequence[Candidate]) -> tuple[dict, dict]:
+        full = tuple(models[c.name].simulator_effect(c.params) for c in group)
+        half_a = tuple(models[c.name].simulator_effect(c.params_a or c.params) for c in group)
+        return (_shift(twin, full, replicas, None, n_seeds),
+                _shift(twin, half_a, replicas, "B", n_seeds))  # fmt: skip
+
+    joint: dict = {}
+
+    def joint_shifts(group: Sequence[Candidate]) -> tuple[dict, dict]:
+        key = frozenset(c.name for c in group)
+        if key not in joint:
+            joint[key] = shifts_of_group(group)
+        return joint[key]
 
     explained, shift, shift_b, rounds = select_forward(
-        cands, stats, null_full, null_b, shifts_of,
+        cands, stats, null_full, null_b, lambda c: shifts_of_group((c,)),
         alpha=alpha, min_heldout_shrink=min_heldout_shrink, detect_z=detect_z,
+        joint_shifts=joint_shifts,
     )  # fmt: skip
     return cands, explained, shift, shift_b, rounds
 
@@ -205,6 +220,7 @@ def select_forward(
     alpha: float,
     min_heldout_shrink: float,
     detect_z: float,
+    joint_shifts: Callable[[Sequence[Candidate]], tuple[dict, dict]] | None = None,
 ) -> tuple[list[str], dict, dict, list[dict]]:
     """The forward selection of the module docstring, on candidates already scored.
 
@@ -220,6 +236,11 @@ def select_forward(
         ``candidate -> (shift, shift_b)``: the null shift of the effect at its estimate (all
         statistics) and at its half-A estimate (half B); called once per evaluated candidate.
     alpha, min_heldout_shrink, detect_z : float
+    joint_shifts : callable, optional
+        ``candidates -> (shift, shift_b)``: the null shift of several effects rendered
+        together (each at its estimate; at its half-A estimate on half B). A candidate is then
+        evaluated as the joint model of the effects already accepted and itself, and the
+        backward pass compares joint models; without it the shifts of single effects add.
 
     Returns
     -------
@@ -232,6 +253,8 @@ def select_forward(
         -> held-out shrink of the evaluated effects), then one ``{"pruned", "by",
         "heldout_shrink"}`` per effect the backward pass dropped.
     """
+    by_name = {c.name: c for c in cands}
+    combined = _combiner(joint_shifts)
     shift: dict = {}
     shift_b: dict = {}
     explained: list[str] = []
@@ -274,9 +297,13 @@ def select_forward(
                     "half B shows no gap beyond noise: the held-out check cannot confirm an effect"
                 )
             )
-            c.gap_after = null_full.gap(stats[None], add_shifts(shift, c.shift))
-            c.heldout_after = null_b.gap(stats["B"], add_shifts(shift_b, c.shift_b))
-            c.heldout_deviance = null_b.deviance(stats["B"], add_shifts(shift_b, c.shift_b))
+            try:
+                with_c, with_c_b = combined([by_name[n] for n in explained] + [c])
+            except ValueError:  # the joint replicas cannot be calibrated: the shifts add
+                with_c, with_c_b = add_shifts(shift, c.shift), add_shifts(shift_b, c.shift_b)
+            c.gap_after = null_full.gap(stats[None], with_c)
+            c.heldout_after = null_b.gap(stats["B"], with_c_b)
+            c.heldout_deviance = null_b.deviance(stats["B"], with_c_b)
             qualifies = c.heldout_shrink is not None and c.heldout_shrink >= min_heldout_shrink
             if qualifies and (best is None or c.heldout_deviance < best.heldout_deviance):
                 best = c
@@ -288,15 +315,44 @@ def select_forward(
             break
         best.accepted = True
         explained.append(best.name)
-        shift, shift_b = add_shifts(shift, best.shift), add_shifts(shift_b, best.shift_b)
-    explained, pruned = prune_backward(cands, explained, stats, null_b, min_heldout_shrink)
+        shift, shift_b = _safe(combined, [by_name[n] for n in explained])
+    explained, pruned = prune_backward(
+        cands, explained, stats, null_b, min_heldout_shrink, joint_shifts=joint_shifts
+    )
     rounds += pruned
-    accepted = {c.name: c for c in cands if c.accepted}
-    shift, shift_b = {}, {}
-    for name in explained:
-        shift = add_shifts(shift, accepted[name].shift)
-        shift_b = add_shifts(shift_b, accepted[name].shift_b)
+    shift, shift_b = _safe(combined, [by_name[n] for n in explained])
     return explained, shift, shift_b, rounds
+
+
+def _combiner(joint_shifts) -> Callable[[Sequence[Candidate]], tuple[dict, dict]]:
+    """``candidates -> (shift, shift_b)`` of their joint model: one candidate's own shifts,
+    several rendered together by ``joint_shifts`` (or added when it is None)."""
+
+    def combined(group: Sequence[Candidate]) -> tuple[dict, dict]:
+        if len(group) == 1:
+            return group[0].shift, group[0].shift_b
+        if not group or joint_shifts is None:
+            return _added(group)
+        return joint_shifts(group)
+
+    return combined
+
+
+def _added(group: Sequence[Candidate]) -> tuple[dict, dict]:
+    shift: dict = {}
+    shift_b: dict = {}
+    for c in group:
+        shift, shift_b = add_shifts(shift, c.shift), add_shifts(shift_b, c.shift_b)
+    return shift, shift_b
+
+
+def _safe(combined, group: Sequence[Candidate]) -> tuple[dict, dict]:
+    """The joint model's shifts, or the single effects' added where its replicas cannot be
+    calibrated."""
+    try:
+        return combined(group)
+    except ValueError:
+        return _added(group)
 
 
 def prune_backward(
@@ -305,6 +361,7 @@ def prune_backward(
     stats: Mapping,
     null_b: NullModel,
     min_heldout_shrink: float,
+    joint_shifts: Callable[[Sequence[Candidate]], tuple[dict, dict]] | None = None,
 ) -> tuple[list[str], list[dict]]:
     """The backward pass of the selection: an accepted effect must still close its share of
     the held-out gap once the effects accepted after it are in the twin.
@@ -313,6 +370,8 @@ def prune_backward(
     with overlapping signatures). Each accepted effect's held-out shrink given all the others,
     ``1 - gap(all) / gap(all but it)`` on half B, must reach ``min_heldout_shrink``; the one
     furthest below is dropped (its candidate un-accepted, with a note) and the pass repeats.
+    The gaps are those of the joint models (``joint_shifts``, as :func:`select_forward`), or
+    of the single effects' shifts added.
 
     Returns
     -------
@@ -325,11 +384,10 @@ def prune_backward(
     explained = list(explained)
     pruned = []
 
+    combined = _combiner(joint_shifts)
+
     def gap_b(names) -> float:
-        shift_b: dict = {}
-        for n in names:
-            shift_b = add_shifts(shift_b, by_name[n].shift_b)
-        return null_b.gap(stats["B"], shift_b)
+        return null_b.gap(stats["B"], _safe(combined, [by_name[n] for n in names])[1])
 
     while len(explained) > 1:
         with_all = gap_b(explained)

@@ -23,9 +23,53 @@ from imucal.sim.effects import CANONICAL, make_effect, stream_rng
 #: plateaus, 4 s, split runs in the automatic segmentation).
 BLIND_PROTOCOL = {"static_s": 120.0}
 
+#: Shapes of real parts, drawn per session (:func:`shape_params`): temperature drift per axis
+#: with mixed signs at half, once and twice the realistic size (effects.md #1a), and a full
+#: g-sensitivity matrix.
+SHAPES = {
+    "temperature_axes_half": ("temperature_drift", 0.5),
+    "temperature_axes": ("temperature_drift", 1.0),
+    "temperature_axes_double": ("temperature_drift", 2.0),
+    "g_sensitivity_matrix": ("g_sensitivity", 1.0),
+}
+
+
+def _mixed_signs(rng: np.random.Generator, rms: float) -> list[float]:
+    """Three per-axis coefficients, each its own size (0.2-1 of the largest) and not all of one
+    sign, scaled to the RMS ``rms``."""
+    v = rng.uniform(0.2, 1.0, 3)
+    v[rng.integers(3)] *= -1
+    v *= rng.choice([-1.0, 1.0])
+    return (v * rms / np.sqrt(np.mean(v**2))).tolist()
+
+
+def shape_params(variant: str, rng: np.random.Generator) -> tuple[str, dict]:
+    """The effect and the parameters of a real part's shape (:data:`SHAPES`) for one session.
+
+    ``temperature_axes*``: every bias and scale drift of the accelerometer and the gyroscope
+    per axis with mixed signs (:func:`_mixed_signs`), each at the RMS of the realistic default
+    times the variant's factor. ``g_sensitivity_matrix``: a diagonal of 0.1-0.2 deg/s/g per
+    axis (1.8e-4-3.6e-4 rad/s per m/s^2, effects.md #4) of either sign, cross-axis elements
+    up to 30 % of 2e-4 of either sign.
+    """
+    effect, factor = SHAPES[variant]
+    if effect == "temperature_drift":
+        real = make_effect(effect)
+        keys = ("acc_per_k", "gyr_per_k", "acc_scale_per_k", "gyr_scale_per_k")
+        rms = {k: factor * float(np.sqrt(np.mean(np.square(getattr(real, k))))) for k in keys}
+        return effect, {k: _mixed_signs(rng, rms[k]) for k in keys}
+    g = rng.uniform(-0.3, 0.3, (3, 3)) * 2e-4
+    np.fill_diagonal(g, rng.uniform(1.8e-4, 3.6e-4, 3) * rng.choice([-1.0, 1.0], 3))
+    return effect, {"matrix": (factor * g).tolist()}
+
 
 def blind_plan(
-    seed: int, seeds_per_effect: int, n_null: int, unknown: Mapping[str, int], effects=None
+    seed: int,
+    seeds_per_effect: int,
+    n_null: int,
+    unknown: Mapping[str, int],
+    effects=None,
+    shapes: int = 0,
 ) -> list[dict]:
     """The hidden assignment of effects to session names.
 
@@ -43,15 +87,24 @@ def blind_plan(
     effects : list of str, optional
         Effects to hide; default every canonical simulator effect (not the protocol
         conditions such as ``hand_tremor``, which the library does not model).
+    shapes : int
+        Sessions per real part's shape (:data:`SHAPES`), each drawn with its own shape.
 
     Returns
     -------
     list of dict
         ``name``, ``effect`` (None for no effect), ``seed``, ``exclude`` (effects left out of the
-        library when diagnosing it), in name order.
+        library when diagnosing it), in name order; a shape's session also ``effects`` (its
+        drawn parameters) and ``shape``.
     """
     effects = sorted(CANONICAL) if effects is None else list(effects)
     specs = [{"effect": e, "exclude": []} for e in effects for _ in range(seeds_per_effect)]
+    rng = stream_rng(seed, "blind/shapes")
+    for variant in SHAPES:
+        for _ in range(shapes):
+            effect, params = shape_params(variant, rng)
+            specs.append({"effect": effect, "exclude": [], "shape": variant,
+                          "effects": [{"effect": effect, "params": params}]})  # fmt: skip
     specs += [{"effect": None, "exclude": []} for _ in range(n_null)]
     specs += [{"effect": e, "exclude": [e]} for e, n in unknown.items() for _ in range(n)]
     order = stream_rng(seed, "blind/plan").permutation(len(specs))

@@ -426,6 +426,8 @@ def diagnose(
         if clipped:
             result["noted"] = ["saturation"]
             result["saturation"] = {"clip_fraction": clipped}
+            # the fallback's scope cannot replay it, but its evidence is in the readings
+            result.get("not_observable", {}).pop("saturation", None)
         return result
     t_null = time.perf_counter()
     models = library(settings.exclude)

@@ -130,16 +130,28 @@ def estimate_lever_arm(fit: SessionFit, half) -> Estimate | None:
     )
 
 
-def estimate_g_sensitivity(fit: SessionFit, half) -> Estimate:
-    w, f = st.resting_gyro(fit, half)
-    design = np.column_stack([np.ones(len(f)), f])
+def estimate_g_sensitivity(fit: SessionFit, half) -> Estimate | None:
+    """The full matrix ``G`` of ``w_B = c + G a_B`` (rad/s per m/s^2, frame B: the model
+    term's and the simulator's parameterisation) from the calibrated resting means of the
+    session (:func:`imucal.gap.statistics.resting_means`), each gyro axis regressed on the
+    three components of the specific force with a constant, as
+    :func:`imucal.terms.gsensitivity.fit_g_sensitivity`; with a temperature channel the
+    temperature is in the same regression (a per-axis drift over poses taken at different
+    temperatures is not taken for a g-sensitivity). Detection: ``|G|`` (Frobenius). None when
+    the resting segments do not span three directions of gravity."""
+    rest = st.resting_means(fit, half)
+    w, f = rest.gyr, rest.acc
+    columns = [np.ones(len(w)), *f.T]
+    if np.any(np.isfinite(rest.temp)) and np.nanmax(rest.temp) > np.nanmin(rest.temp):
+        columns.append(np.nan_to_num(rest.temp - np.nanmean(rest.temp)))
+    design = np.column_stack(columns)
+    ok = np.all(np.isfinite(w), axis=1) & np.all(np.isfinite(design), axis=1)
+    design, w = design[ok], w[ok]
+    if len(w) <= design.shape[1] + 1 or np.linalg.matrix_rank(design[:, :4]) < 4:
+        return None
     coef, *_ = np.linalg.lstsq(design, w, rcond=None)
-    g_b = coef[1:].T  # rows: gyro axis, columns: specific-force axis
-    k_mat = fit.calibration.sensor("gyr").matrix
-    k = np.diag(np.linalg.solve(k_mat, g_b))
-    return Estimate(
-        {"kx": float(k[0]), "ky": float(k[1]), "kz": float(k[2])}, float(np.linalg.norm(k))
-    )
+    g = coef[1:4].T  # rows: gyro axis, columns: specific-force axis
+    return Estimate({"matrix": g.tolist()}, float(np.linalg.norm(g)))
 
 
 def estimate_earth_rotation(fit: SessionFit, half) -> Estimate | None:
@@ -219,94 +231,31 @@ def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
     return float(temps[0]), float(np.ptp(temps) * 1e3), float(ts[-1] * 1e3)  # a slow ramp
 
 
-def _through_origin(x: np.ndarray, y: np.ndarray) -> float:
-    return float(x @ y / (x @ x)) if x @ x > 0 else 0.0
-
-
-def _gyro_scale_per_k(fit: SessionFit, half, gyr_per_k: float) -> float:
-    """Relative gyro scale change per kelvin from the rate-table run means: their residual
-    along the turning axis against ``dT * rate`` once the bias drift ``gyr_per_k dT`` is taken
-    out (dT from the runs' mean temperature; 0 without a table or a channel)."""
-    if fit.artifacts.get("table") is None:
-        return 0.0
-    rows, res, true = st.table_residuals(fit, half)
-    temp = st.mean_temperature(fit, "ratetable", rows)
-    if temp is None or len(rows) < 4:
-        return 0.0
-    along = np.array([AXES.index(a) for a in rows["axis"]])
-    # the bias drift of the raw reading, k dT on every axis, shows through K
-    drift = fit.calibration.sensor("gyr").matrix @ np.ones(3) * gyr_per_k
-    r = res[np.arange(len(rows)), along] - drift[along] * (temp - temp.mean())
-    rate = true[np.arange(len(rows)), along]
-    # the fit's scale of each axis comes from that axis's own mounting: only the temperature
-    # change within a mounting is left in its residuals
-    columns = []
-    for j in np.unique(along):
-        mine = along == j
-        d_t = np.where(mine, temp - temp[mine].mean(), 0.0)
-        columns += [mine.astype(float), rate * mine, d_t * rate]
-    design = np.column_stack(columns)
-    coef, *_ = np.linalg.lstsq(design, r, rcond=None)
-    return float(np.mean(coef[2::3]))
-
-
-def _acc_drift(design: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """(scale per K, bias per K) of the accelerometer from ``|a| - g`` at rest; when the
-    resting orientations cannot tell the bias from the scale (the bias's standard error
-    exceeds its value, e.g. every pose with gravity along +axes), all of it goes to the scale."""
-    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-    dof = len(y) - 2
-    if dof > 0:
-        sigma2 = np.sum((y - design @ coef) ** 2) / dof
-        cov = sigma2 * np.linalg.pinv(design.T @ design)
-        if np.sqrt(cov[1, 1]) > abs(coef[1]):
-            return np.array([_through_origin(design[:, 0], y), 0.0])
-    return coef
-
-
 def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
-    """Drift per kelvin from the resting segments of the whole session
-    (:func:`imucal.gap.statistics.resting_means`) against their temperature: gyro bias from the
-    resting gyro means; accelerometer bias and scale from ``|a| - g``, which moves by
-    ``g s dT`` (scale) plus ``k dT (u . K 1)`` (a bias on all raw axes seen through the
-    calibration matrix ``K``, ``u`` the direction of gravity); gyro scale from the rate-table
-    run residuals (:func:`_gyro_scale_per_k`). One value per sensor (the simulator's effect has
-    one for all axes); detection: the gyro bias drift. Segments without a temperature reading
-    are left out."""
+    """Drift per kelvin of each axis, either sign, from the resting segments of the whole
+    session against their temperature: the model term's estimators at order 1
+    (:func:`imucal.terms.temperature.linear_drift`: gyro bias from the raw resting means with
+    a constant and the calibrated specific force in the same regression, so that a
+    g-sensitivity is not taken for a drift; gyro scale from the rate-table runs; accelerometer
+    bias and scale from ``|a| - g``), with the warm-up curve of the temperature channel.
+    Detection: the norm of the gyro bias drift over the axes (rad/s/K). None without a
+    temperature channel or with fewer than 6 resting segments that have a reading."""
+    from imucal.terms.temperature import linear_drift
+
     if not any(st.temperature_column(t) for t in fit.imu.values()):
         return None
-    rest = st.resting_means(fit, half)
-    ok = np.isfinite(rest.temp)
-    if ok.sum() < 4 or np.ptp(rest.temp[ok]) <= 0:
+    drift = linear_drift(fit, half)
+    if drift is None:
         return None
-    temp, gyr, acc = rest.temp[ok], rest.gyr[ok], rest.acc[ok]
-    d_t = temp - temp.mean()
-    # a drift k dT of the raw reading shows through the calibration matrix: K (k dT)
-    slopes = np.array([_through_origin(d_t, w - w.mean()) for w in gyr.T])
-    gyr_per_k = float(np.mean(np.linalg.solve(fit.calibration.sensor("gyr").matrix, slopes)))
-    g = fit.extra["options"].gravity_m_s2
-    norm = np.linalg.norm(acc, axis=1)
-    along_ones = (acc / norm[:, None]) @ (fit.calibration.sensor("acc").matrix @ np.ones(3))
-    # the accelerometer is calibrated on the cube: exact at the cube's mean temperature
-    t_cal = temp.mean()
-    t_cube = (
-        st.mean_temperature(fit, "cube", st._rows(fit, "cube", "position"))
-        if "cube" in fit.imu
-        else None
-    )
-    if t_cube is not None and np.any(np.isfinite(t_cube)):
-        t_cal = float(np.nanmean(t_cube))
-    d_cal = temp - t_cal
-    coef = _acc_drift(np.column_stack([g * d_cal, d_cal * along_ones]), norm - g)
     start, rise, tau = _warm_up(fit)
+    vec = lambda s, k: [float(v) for v in drift[s][k]]  # noqa: E731
     params = {
         "start_c": start, "rise_c": rise, "tau_s": tau,
-        "acc_per_k": float(coef[1]), "gyr_per_k": gyr_per_k, "mag_per_k": 0.0,
-        "acc_scale_per_k": float(coef[0]),
-        "gyr_scale_per_k": _gyro_scale_per_k(fit, half, gyr_per_k),
-        "mag_scale_per_k": 0.0,
+        "acc_per_k": vec("acc", "bias"), "gyr_per_k": vec("gyr", "bias"),
+        "mag_per_k": [0.0] * 3, "acc_scale_per_k": vec("acc", "scale"),
+        "gyr_scale_per_k": vec("gyr", "scale"), "mag_scale_per_k": [0.0] * 3,
     }  # fmt: skip
-    return Estimate(params, abs(gyr_per_k))
+    return Estimate(params, float(np.linalg.norm(drift["gyr"]["bias"])))
 
 
 #: Correlation time (s) assumed for the Gauss-Markov part when converting the variance seen

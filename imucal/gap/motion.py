@@ -631,19 +631,19 @@ def _pooled(session: Mapping[str, MotionRecording], half, gravity_m_s2: float = 
 
 
 def estimate_g_sensitivity(session: Mapping[str, MotionRecording], half) -> Estimate | None:
-    """Gyroscope output per specific force, per axis: the residual against the reference
-    regressed on gravity along the axis (with an offset per axis)."""
+    """Gyroscope output per specific force, the full matrix ``G`` (rad/s per m/s^2, frame B:
+    the model term's parameterisation): the residual against the reference, each axis
+    regressed on the three components of the specific force with an offset."""
     found = _pooled(session, half)
     if found is None:
         return None
     gyro, rate, force, _ = found
     res = gyro - rate
-    k = np.zeros(3)
-    for j in range(3):
-        design = np.column_stack([np.ones(len(res)), force[:, j]])
-        k[j] = np.linalg.lstsq(design, res[:, j], rcond=None)[0][1]
-    params = {"kx": float(k[0]), "ky": float(k[1]), "kz": float(k[2])}
-    return Estimate(params, float(np.linalg.norm(k)))
+    design = np.column_stack([np.ones(len(res)), force])
+    if np.linalg.matrix_rank(design) < 4:
+        return None
+    g = np.linalg.lstsq(design, res, rcond=None)[0][1:].T
+    return Estimate({"matrix": g.tolist()}, float(np.linalg.norm(g)))
 
 
 def estimate_scale_nonlinearity(

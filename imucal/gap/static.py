@@ -120,11 +120,13 @@ def estimate_bias_instability(streams: Mapping[str, Stream], half: str | None) -
 
 
 def estimate_temperature_drift(streams: Mapping[str, Stream], half: str | None) -> Estimate | None:
-    """Warm-up curve of the temperature channel and the bias per kelvin per sensor.
+    """Warm-up curve of the temperature channel and the bias per kelvin of each axis.
 
-    The simulator's effect drifts all three axes of a sensor by the same ``per_k``; the
-    least-squares value is the mean of the per-axis slopes. Detect: the largest |gyro slope|
-    over the axes (rad/s/K).
+    The per-axis slopes of the block means on the temperature
+    (:func:`~imucal.gap.streams.temperature_slopes`) are the simulator's per-axis bias drift
+    (either sign; the parameterisation of the model term's polynomial at order 1); one
+    orientation shows no scale drift (its input does not change), so the scales are 0.
+    Detect: the largest |gyro slope| over the axes (rad/s/K).
     """
     imu = streams.get("imu")
     if imu is None:
@@ -152,9 +154,10 @@ def estimate_temperature_drift(streams: Mapping[str, Stream], half: str | None) 
         start, rise = slope[1], slope[0] * tau
     params = {
         "start_c": float(start), "rise_c": float(rise), "tau_s": float(tau),
-        "acc_per_k": float(np.mean(slopes.get("acc", np.zeros(3)))),
-        "gyr_per_k": float(np.mean(slopes.get("gyr", np.zeros(3)))),
-        "mag_per_k": 0.0, "acc_scale_per_k": 0.0, "gyr_scale_per_k": 0.0, "mag_scale_per_k": 0.0,
+        "acc_per_k": [float(v) for v in slopes.get("acc", np.zeros(3))],
+        "gyr_per_k": [float(v) for v in slopes.get("gyr", np.zeros(3))],
+        "mag_per_k": [0.0] * 3, "acc_scale_per_k": [0.0] * 3, "gyr_scale_per_k": [0.0] * 3,
+        "mag_scale_per_k": [0.0] * 3,
     }  # fmt: skip
     return Estimate(params, float(np.max(np.abs(slopes.get("gyr", np.zeros(3))))))
 

@@ -20,6 +20,7 @@ from itertools import combinations
 import numpy as np
 
 from imucal.columns import SENSORS
+from imucal.gap.blind import SHAPES, shape_params
 from imucal.sim.effects import CANONICAL, stream_rng
 
 #: Conditions: truth preset, protocol settings and protocol effects the diagnosis does not model.
@@ -82,6 +83,10 @@ def _spec(items: tuple, seed: int) -> dict:
             params = _draw(ranges, stream_rng(seed, f"stress/{item}"))
             effects.append({"effect": effect, "params": params})
             diagnosable.append(effect)
+        elif item in SHAPES:
+            effect, params = shape_params(item, stream_rng(seed, f"stress/{item}"))
+            effects.append({"effect": effect, "params": params})
+            diagnosable.append(effect)
         else:
             effects.append({"effect": item, "params": {}})
             diagnosable.append(item)
@@ -112,7 +117,10 @@ def stress_plan(seed: int, seeds_alone: int, n_clean: int) -> list[dict]:
         (library effects injected), ``preset``, ``protocol``, ``effects`` (simulator effects
         with parameters), ``exclude`` (empty), ``description``. Besides the clean sessions and
         the items alone: every pair of conditions and harsh variants (not two variants of one
-        effect), and each realistic library effect alone and paired with one condition.
+        effect), and each realistic library effect alone and paired with one condition. The
+        real parts' shapes (:data:`imucal.gap.blind.SHAPES`) alone, each temperature drift
+        shape paired with the realistic g-sensitivity and with the lever arm, and the
+        single-size drift with the full g-sensitivity matrix.
     """
     stress = list(CONDITIONS) + list(HARSH)
     effect_of = {k: v[0] for k, v in HARSH.items()}
@@ -124,6 +132,10 @@ def stress_plan(seed: int, seeds_alone: int, n_clean: int) -> list[dict]:
     conditions = list(CONDITIONS)
     sets += [(e,) for e in REALISTIC_EFFECTS]
     sets += [(conditions[i % len(conditions)], e) for i, e in enumerate(REALISTIC_EFFECTS)]
+    drifts = [v for v in SHAPES if SHAPES[v][0] == "temperature_drift"]
+    sets += [(v,) for v in SHAPES for _ in range(seeds_alone)]
+    sets += [(v, e) for v in drifts for e in ("g_sensitivity", "lever_arm")]
+    sets += [("temperature_axes", "g_sensitivity_matrix")]
     order = stream_rng(seed, "stress/plan").permutation(len(sets))
     width = max(2, len(str(len(sets) - 1)))
     out = []

@@ -8,7 +8,9 @@ the rate-table runs, each reduced to its raw mean reading and mean temperature:
   calibrated specific force as nuisance regressors (so that a g-sensitivity is not taken for a
   drift between poses at different temperatures);
 - gyroscope scale (rate table only): the raw run means, less the bias drift, against the
-  sensor-frame rate ``u = K^-1 w`` and ``u dT^k`` per axis (``K`` and the bias of eq. 33);
+  sensor-frame rate ``u = K^-1 w`` and ``u dT^k`` per axis, with a constant per mounting
+  (``K`` and the bias of eq. 33; gravity, and a g-sensitivity with it, differs between
+  mountings);
 - accelerometer bias and scale: ``|a| - g`` of the resting means (rate-table runs left out),
   linearised about the paper's calibration: with ``d`` the direction of the calibrated mean and
   ``u = reading - o``, a drift moves ``|a|`` by ``-(d^T K)_j (b_j(dT) + s_j(dT) u_j)``; a
@@ -119,10 +121,11 @@ def _white_variance(x: np.ndarray, quantum: float) -> np.ndarray:
     return st._white_variance(x, quantum**2 / 12) if len(x) >= 3 else np.full(3, np.nan)
 
 
-def resting_means(fit: SessionFit, *, table: bool = True) -> Means:
+def resting_means(fit: SessionFit, *, table: bool = True, half: str | None = None) -> Means:
     """Raw means of the session's resting segments with a temperature reading (rate-table rest
-    runs left out when ``table`` is False)."""
-    segments = [(r, rows) for r, rows in st.resting_rows(fit, None) if table or r != "ratetable"]
+    runs left out when ``table`` is False; every other segment for ``half`` 'A' or 'B', as
+    :func:`imucal.gap.statistics.resting_rows`)."""
+    segments = [(r, rows) for r, rows in st.resting_rows(fit, half) if table or r != "ratetable"]
     return _segment_means(fit, segments)
 
 
@@ -223,20 +226,28 @@ def _refusal(temp: np.ndarray, min_span_c: float, what: str) -> str:
     return ""
 
 
-def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tuple:
+def _gyro(
+    fit: SessionFit, rest: Means, reference_c: float, max_order: int, order: int | None = None
+) -> tuple:
     """Bias polynomial of the gyroscope: coefficients (p, 3), std (p, 3), each axis's
-    covariance (3, p, p), held-out evidence."""
+    covariance (3, p, p), held-out evidence. ``order`` fixes the order (no selection)."""
     d_t = rest.temp_c - reference_c
     n = len(d_t)
     nuisance = [np.ones((n, 1))]
-    if n > 3 * (max_order + 5):  # enough segments to take a g-sensitivity out as well
+    # enough segments to take a g-sensitivity out as well (with the order fixed, twice the
+    # columns of the fit; with the order to choose, room for the highest one on held-out data)
+    enough = n > 2 * (4 + order) if order is not None else n > 3 * (max_order + 5)
+    if enough:
         nuisance.append(rest.acc_b)
 
     def design(order):
         return np.column_stack([*nuisance, _powers(d_t, order)])
 
     y = rest.raw["gyr"]
-    order, heldout = select_model({k: design(k) for k in range(max_order + 1)}, y)
+    if order is None:
+        order, heldout = select_model({k: design(k) for k in range(max_order + 1)}, y)
+    else:
+        heldout = {}
     fits = [fit_with_wander(design(order), y[:, j], rest.gyr_white[:, j], rest.t_s)
             for j in range(3)]  # fmt: skip
     coef = np.column_stack([f.coef for f in fits])
@@ -253,12 +264,20 @@ def _gyro(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> t
     return coef[p:], std[p:], covariance, evidence
 
 
-def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_order: int):
-    """Scale polynomial of the gyroscope from the rate-table runs (None without a table)."""
+def _gyro_scale(
+    fit: SessionFit,
+    bias_poly: np.ndarray,
+    reference_c: float,
+    max_order: int,
+    order: int | None = None,
+    half: str | None = None,
+):
+    """Scale polynomial of the gyroscope from the rate-table runs (None without a table);
+    ``order`` fixes the order (no selection), ``half`` takes every other run."""
     table = fit.artifacts.get("table")
     if table is None or "ratetable" not in fit.imu:
         return None
-    rows, _, true = st.table_residuals(fit, None)
+    rows, _, true = st.table_residuals(fit, half)
     col = temperature_column(fit.imu["ratetable"])
     if col is None or len(rows) < 8:
         return None
@@ -270,11 +289,17 @@ def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_
     y = means - _powers(d_t, len(bias_poly)) @ bias_poly if len(bias_poly) else means
     coefs, stds = [], []
 
+    # a constant per mounting (the turning axis): gravity lies along another direction of B
+    # on each, and a g-sensitivity with it, which a constant per axis would leave in the runs
+    # of one mounting, where the temperature rises with the run order
+    axis = rows["axis"].to_numpy()
+    mount = np.column_stack([(axis == a).astype(float) for a in np.unique(axis)])
+    n_m = mount.shape[1]
+
     # one order for the three axes: stacked, each axis with its own columns
     def design(order):
         blocks = [
-            np.column_stack([np.ones(len(u)), u[:, j], u[:, [j]] * _powers(d_t, order)])
-            for j in range(3)
+            np.column_stack([mount, u[:, j], u[:, [j]] * _powers(d_t, order)]) for j in range(3)
         ]
         return blocks
 
@@ -286,13 +311,18 @@ def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_
             out[j * len(u) : (j + 1) * len(u), j * m : (j + 1) * m] = b
         return out
 
-    order, heldout = select_model({k: stacked(k) for k in range(SCALE_MAX_ORDER + 1)}, y.T.ravel())
+    if order is None:
+        order, heldout = select_model(
+            {k: stacked(k) for k in range(SCALE_MAX_ORDER + 1)}, y.T.ravel()
+        )
+    else:
+        heldout = {}
     designs = [lambda o, j=j: design(o)[j] for j in range(3)]
     for j in range(3):
         c, s = _lstsq(designs[j](order), y[:, [j]])
         # u (1 + s(dT)): the coefficients of u dT^k over that of u
-        coefs.append(c[2:, 0] / c[1, 0])
-        stds.append(s[2:, 0] / abs(c[1, 0]))
+        coefs.append(c[n_m + 1 :, 0] / c[n_m, 0])
+        stds.append(s[n_m + 1 :, 0] / abs(c[n_m, 0]))
     return (
         np.column_stack(coefs).reshape(order, 3),
         np.column_stack(stds).reshape(order, 3),
@@ -300,10 +330,12 @@ def _gyro_scale(fit: SessionFit, bias_poly: np.ndarray, reference_c: float, max_
     )
 
 
-def _acc(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tuple:
+def _acc(
+    fit: SessionFit, rest: Means, reference_c: float, max_order: int, min_order: int = 0
+) -> tuple:
     """Bias and scale polynomials of the accelerometer from ``|a| - g`` of resting means.
 
-    Candidates: bias orders 0 .. ``max_order`` per axis, each with no scale drift, a common
+    Candidates: bias orders ``min_order`` .. ``max_order`` per axis, each with no scale drift, a common
     scale drift of order 1 or one per axis of order 1 (resting poses see the scale of an axis
     only through the gravity along it, so a scale per axis needs poses along every axis at
     several temperatures)."""
@@ -322,7 +354,7 @@ def _acc(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tu
         # the cube fit holds at the cube's temperatures: a constant bias change and scale
         # change move it to reference_c
         nuisance = [dk] + {"none": [], "common": [common], "per_axis": [dk * u]}[scale]
-        for order in range(max_order + 1):
+        for order in range(min_order, max_order + 1):
             cols = nuisance + [dk * d_t[:, None] ** kk for kk in range(1, order + 1)]
             if scale != "none":
                 cols.append({"common": common, "per_axis": dk * u}[scale] * d_t[:, None])
@@ -346,6 +378,56 @@ def _acc(fit: SessionFit, rest: Means, reference_c: float, max_order: int) -> tu
         "with": f"bias {order}, scale {scale}",
     }
     return bias, bias_std, rest_c.reshape(q, 3), rest_s.reshape(q, 3), evidence
+
+
+def linear_drift(fit: SessionFit, half: str | None = None) -> dict | None:
+    """First-order drift per axis of the gyroscope and the accelerometer.
+
+    The estimators of :func:`fit_temperature` at bias order 1 without the order selection: the
+    parameterisation of the simulator's ``temperature_drift`` (bias and relative scale per
+    kelvin of each raw axis, either sign). The gyroscope's bias comes with a constant and the
+    calibrated specific force as nuisance (a g-sensitivity is not taken for a drift; both are
+    one regression), its scale from the rate-table runs (0 without a table); the
+    accelerometer's scale model (none, common, per axis) is still chosen on held-out segments,
+    since resting poses see an axis's scale only through the gravity along it.
+
+    Parameters
+    ----------
+    fit : SessionFit
+    half : str, optional
+        'A' or 'B': every other resting segment and rate-table run (the diagnosis's halves).
+
+    Returns
+    -------
+    dict or None
+        ``'gyr'``, ``'acc'`` -> ``bias``, ``scale``, ``bias_std``, ``scale_std`` (each shape
+        (3,), SI/K and 1/K), and ``reference_c``; None when fewer than 6 resting segments
+        have a temperature reading or their temperature does not change.
+    """
+    rest = resting_means(fit, half=half)
+    if len(rest.temp_c) < 6 or not np.ptp(rest.temp_c) > 0:
+        return None
+    reference_c = 0.5 * float(rest.temp_c.min() + rest.temp_c.max())
+    zero = np.zeros(3)
+    bias, bias_std, _, _ = _gyro(fit, rest, reference_c, 1, order=1)
+    scale = _gyro_scale(fit, bias, reference_c, 1, order=1, half=half)
+    out = {
+        "reference_c": reference_c,
+        "gyr": {
+            "bias": bias[0], "bias_std": bias_std[0],
+            "scale": scale[0][0] if scale is not None else zero,
+            "scale_std": scale[1][0] if scale is not None else zero,
+        },
+        "acc": {"bias": zero, "scale": zero, "bias_std": zero, "scale_std": zero},
+    }  # fmt: skip
+    acc_rest = resting_means(fit, table=False, half=half)
+    if len(acc_rest.temp_c) >= 8 and np.ptp(acc_rest.temp_c) > 0:
+        b, b_std, s, s_std, _ = _acc(fit, acc_rest, reference_c, 1, min_order=1)
+        out["acc"] = {
+            "bias": b[0], "bias_std": b_std[0],
+            "scale": s[0] if len(s) else zero, "scale_std": s_std[0] if len(s) else zero,
+        }  # fmt: skip
+    return out
 
 
 def fit_temperature(

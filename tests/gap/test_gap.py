@@ -70,8 +70,9 @@ def _estimate(tw, name, effect, seed=11, half=None):
         ("time_offset", {"offset_s": 0.2}, lambda p: p["offset_s"]),
         ("lever_arm", {"x_m": 0.05, "y_m": -0.03, "z_m": 0.02},
          lambda p: np.array([p["x_m"], p["y_m"], p["z_m"]])),
-        ("g_sensitivity", {"kx": 5e-4, "ky": -3e-4, "kz": 2e-4},
-         lambda p: np.array([p["kx"], p["ky"], p["kz"]])),
+        ("g_sensitivity",
+         {"matrix": [[5e-4, 1.5e-4, 0.0], [-1e-4, -3e-4, 8e-5], [6e-5, -1.2e-4, 2e-4]]},
+         lambda p: np.array(p["matrix"])),
         ("timing_jitter", {"std_s": 0.003}, lambda p: p["std_s"]),
     ],
 )  # fmt: skip
@@ -83,6 +84,38 @@ def test_effect_estimator_recovers_its_parameters(twin, name, params, check):
     # the effect's estimate is near the truth and far from the same estimator without it
     assert np.allclose(got, true, rtol=0.25, atol=0.1 * np.max(np.abs(true))), (got, true)
     assert np.max(np.abs(np.subtract(got, zero))) > 0.5 * np.max(np.abs(true))
+
+
+def test_a_candidate_is_evaluated_as_the_joint_model_with_the_accepted_ones():
+    """'a' closes location 0, 'b' location 1, each alone. Their shifts added close both, so
+    both are accepted; rendered together (joint_shifts) they close only location 0 (the
+    second does not add where the first already acts): 'b' is then not accepted, and the
+    joint model is what the remaining shift is."""
+    from imucal.gap.attribution import Candidate, select_forward
+
+    keys = [("s", "gyr", ax, "all", "resid_rms") for ax in "xyz"]
+    rng = np.random.default_rng(2)
+    null = NullModel.from_values(keys, rng.normal(0, 0.01, (20, 3)))
+    values = dict(zip(keys, np.exp([0.5, 0.5, 0.0]), strict=True))
+    stats = {h: dict(values) for h in (None, "A", "B")}
+    closes = {"a": [0], "b": [1]}
+
+    def shifts_of(c):
+        shift = {keys[i]: (0.5, 0.0) for i in closes[c.name]}
+        return shift, shift
+
+    def run(joint_shifts):
+        cands = [Candidate(n, {"p": 1}, {"p": 1}, 1.0, 10.0) for n in closes]
+        return select_forward(
+            cands, stats, null, null, shifts_of, alpha=0.05, min_heldout_shrink=0.3,
+            detect_z=4.0, joint_shifts=joint_shifts,
+        )  # fmt: skip
+
+    explained, shift, *_ = run(None)
+    assert sorted(explained) == ["a", "b"] and set(shift) == {keys[0], keys[1]}
+    together = {keys[0]: (0.5, 0.0)}
+    explained, shift, *_ = run(lambda group: (together, together))
+    assert len(explained) == 1 and shift == together
 
 
 def test_lever_arm_signature_is_centripetal_only(twin):

@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from imucal.gap.blind import blind_plan, failed_diagnosis, public_plan, score_blind
+from imucal.gap.blind import (
+    SHAPES,
+    blind_plan,
+    failed_diagnosis,
+    public_plan,
+    score_blind,
+    spec_effects,
+)
+from imucal.sim import make_effect
 
 
 def _diag(explained=(), noted=(), significant=False, remaining=False, effects=()):
@@ -76,3 +85,29 @@ def test_score_check_refuses_an_unknown_check():
 
     with pytest.raises(ValueError, match="expected one of"):
         score_check("blindfold", [], [], [])
+
+
+def test_plan_draws_the_shapes_of_real_parts():
+    """Each shape's sessions carry their own draw: a temperature drift per axis with mixed
+    signs at the variant's size (RMS over the axes that of the realistic default times 0.5, 1
+    or 2), a g-sensitivity with every element of G set; the draws are reproducible."""
+    plan = blind_plan(6, 1, 0, {}, effects=["lever_arm"], shapes=2)
+    assert plan == blind_plan(6, 1, 0, {}, effects=["lever_arm"], shapes=2)
+    shaped = [s for s in plan if "shape" in s]
+    assert sorted(s["shape"] for s in shaped) == sorted(list(SHAPES) * 2)
+    real = make_effect("temperature_drift")
+    rms = lambda v: float(np.sqrt(np.mean(np.square(v))))  # noqa: E731
+    for spec in shaped:
+        (effect,) = spec_effects(spec)
+        assert effect.name == spec["effect"] == SHAPES[spec["shape"]][0]
+        factor = SHAPES[spec["shape"]][1]
+        if effect.name == "temperature_drift":
+            for key in ("acc_per_k", "gyr_per_k", "acc_scale_per_k", "gyr_scale_per_k"):
+                v = np.array(getattr(effect, key))
+                assert np.any(v < 0) and np.any(v > 0), (key, v)
+                assert rms(v) == pytest.approx(factor * rms(getattr(real, key)), rel=1e-9)
+        else:
+            g = np.array(effect.matrix)
+            assert np.all(g != 0) and np.all(np.abs(np.diag(g)) >= 1.8e-4), g
+    first = [s for s in shaped if s["shape"] == "temperature_axes"]
+    assert first[0]["effects"] != first[1]["effects"]

@@ -24,8 +24,10 @@ from imucal.sim.session import SENSITIVITY
 MATRIX = errormodel.compose([1.02, 0.98, 1.01], [0.004, -0.003, 0.005], [0.0, 0.0, 0.0])
 BIAS = np.array([0.01, -0.02, 0.015])
 MOUNTING = Rotation.from_rotvec([0.3, -0.2, 0.8]).as_matrix()
-#: Planted g-sensitivity, rad/s per m/s^2 (about 0.5 deg/s per g: a poor MEMS gyroscope).
-G_SENSITIVITY = np.array([1.0e-3, -8.0e-4, 6.0e-4])
+#: Planted g-sensitivity of the raw reading, rad/s per m/s^2 (about 0.5 deg/s per g on the
+#: diagonal: a poor MEMS gyroscope; cross-axis terms of either sign).
+G_SENSITIVITY = np.array([[1.0e-3, 2.0e-4, -1.5e-4], [-2.5e-4, -8.0e-4, 1.0e-4],
+                          [1.2e-4, -2.0e-4, 6.0e-4]])  # fmt: skip
 SETTINGS = DiagnosisSettings(replicas=12, seed=0, crn_seeds=3)
 
 
@@ -36,7 +38,7 @@ def session_inputs(seed: int, g_sensitivity: np.ndarray | None = None, jitter_s:
     )  # fmt: skip
     gyr = s.gyr.copy()
     if g_sensitivity is not None:
-        gyr += s.acc * g_sensitivity  # the accelerometer reads the true specific force in B
+        gyr += s.acc @ g_sensitivity.T  # the accelerometer reads the true specific force in B
     table = pd.DataFrame({TIME: s.t_module, **dict(zip(GYR, gyr.T))})
     reference = pd.DataFrame({TIME: s.t_reference, **dict(zip(QUAT, s.quat_reference.T))})
     rests = [
@@ -96,13 +98,15 @@ def test_a_planted_g_sensitivity_is_found_and_explains_the_gap():
     assert any(loc["statistic"] == "ref_g_slope" for loc in result["locations"])
     assert result["explained"][:1] == ["g_sensitivity"]
     found = next(e for e in result["effects"] if e["name"] == "g_sensitivity")
-    estimate = np.array([found["params"][k] for k in ("kx", "ky", "kz")])
-    # per-axis standard error: the gyroscope's noise over a reference interval, 0.01 rad/s /
+    estimate = np.array(found["params"]["matrix"])
+    # G in frame B (the calibrated gyroscope's): the planted raw matrix seen through K
+    true = MATRIX @ G_SENSITIVITY
+    # per-element standard error: the gyroscope's noise over a reference interval, 0.01 rad/s /
     # sqrt(200 / 120) = 0.0077 rad/s, over 14,000 intervals and a specific force of about
     # 5.7 m/s^2 RMS per axis: 0.0077 / (sqrt(14000) 5.7) = 1.1e-5 (the reference's noise
     # enters its rates differenced, and a difference averages out against slowly turning
     # gravity); five of them bound the error
-    assert np.abs(estimate - G_SENSITIVITY).max() < 5.5e-5
+    assert np.abs(estimate - true).max() < 5.5e-5
     assert found["heldout_shrink"] > 0.5
     assert not result["remaining"]["significant"]
 

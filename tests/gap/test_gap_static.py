@@ -104,10 +104,12 @@ def test_timing_jitter_is_found_estimated_and_explained():
 
 
 def test_temperature_drift_is_found_on_the_temperature_channel():
-    # a 4 K warm-up with 3e-4 rad/s/K (0.017 deg/s/K) of gyro bias drift on every axis
+    # a 4 K warm-up with a gyro bias drift of its own on each axis, of either sign, up to
+    # 3e-4 rad/s/K (0.017 deg/s/K)
+    k = np.array([3e-4, -2e-4, 1e-4])
     effect = make_effect(
         "temperature_drift", start_c=25.0, rise_c=4.0, tau_s=100.0, acc_per_k=0.0,
-        gyr_per_k=3e-4, acc_scale_per_k=0.0, gyr_scale_per_k=0.0,
+        gyr_per_k=k, acc_scale_per_k=0.0, gyr_scale_per_k=0.0,
     )  # fmt: skip
     d = _diagnose(_session(6, (effect,)))
     assert d["gap"]["significant"]
@@ -116,7 +118,7 @@ def test_temperature_drift_is_found_on_the_temperature_channel():
     )
     assert d["explained"][:1] == ["temperature_drift"]
     drift = next(e for e in d["effects"] if e["name"] == "temperature_drift")
-    assert drift["params"]["gyr_per_k"] == pytest.approx(3e-4, rel=0.2)
+    np.testing.assert_allclose(drift["params"]["gyr_per_k"], k, atol=0.2 * 3e-4)
     assert drift["heldout_shrink"] > 0.7
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from imucal.gap import DiagnosisSettings
-from imucal.gap.blind import failed_diagnosis, render_blind_session, spec_effects
+from imucal.gap.blind import SHAPES, failed_diagnosis, render_blind_session, spec_effects
 from imucal.gap.checks import diagnose_folder
 from imucal.gap.stress import (
     CONDITIONS,
@@ -36,8 +36,17 @@ def test_plan_is_deterministic_and_covers_every_item_alone_and_in_a_pair(plan):
     paired = [i for s in plan if len(s["items"]) == 2 for i in s["items"]]
     for item in ITEMS:
         assert alone.count(item) == 2 and paired.count(item) >= 2, item
+    with_condition = [i for s in plan if len(s["items"]) == 2 and s["conditions"]
+                      for i in s["items"]]  # fmt: skip
     for effect in REALISTIC_EFFECTS:
-        assert alone.count(effect) == 1 and paired.count(effect) == 1, effect
+        assert alone.count(effect) == 1 and with_condition.count(effect) == 1, effect
+    # real parts' shapes: each alone, each drift paired with g-sensitivity and lever arm
+    pairs = [set(s["items"]) for s in plan if len(s["items"]) == 2]
+    for variant, (effect, _) in SHAPES.items():
+        assert alone.count(variant) == 2, variant
+        if effect == "temperature_drift":
+            assert {variant, "g_sensitivity"} in pairs and {variant, "lever_arm"} in pairs
+    assert {"temperature_axes", "g_sensitivity_matrix"} in pairs
     assert sum(not s["items"] for s in plan) == 2
     # two variants of one simulator effect never share a session
     for s in plan:
@@ -49,9 +58,8 @@ def test_plan_seals_the_diagnosable_effects_and_the_conditions_apart(plan):
     for s in plan:
         conditions = [i for i in s["items"] if i in CONDITIONS]
         assert s["conditions"] == conditions
-        expected = sorted(
-            HARSH[i][0] if i in HARSH else i for i in s["items"] if i not in CONDITIONS
-        )
+        variant_of = {k: v[0] for k, v in {**HARSH, **SHAPES}.items()}
+        expected = sorted(variant_of.get(i, i) for i in s["items"] if i not in CONDITIONS)
         assert s["diagnosable"] == expected
         assert "hand_tremor" not in s["diagnosable"]
         assert ("hand_tremor" in [e["effect"] for e in s["effects"]]) == ("hand_held" in conditions)

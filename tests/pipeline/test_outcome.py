@@ -148,6 +148,8 @@ def test_a_session_clipped_in_every_gyro_motion_is_diagnosed_and_noted_as_satura
     assert "the calibration chain stopped" in result["fallback"]
     assert result["noted"] == ["saturation"]
     assert set(result["saturation"]["clip_fraction"]) == {"gyr"}
+    # named from the clipped readings, so not listed as unobservable by the fallback's scope
+    assert "saturation" not in result["not_observable"]
 
 
 def test_backward_pass_drops_an_effect_a_later_one_explains():

@@ -363,10 +363,22 @@ def test_lever_arm_adds_centripetal_acceleration_on_the_plateau():
 
 
 def test_g_sensitivity_adds_k_times_specific_force_to_the_gyro():
+    """``G`` acts in frame B: the raw gyro reading moves by ``K^-1 G a_B``; one number is a
+    diagonal ``G``, a spec string gives the matrix row by row."""
     state, true = _render_parts()
-    effect = make_effect("g_sensitivity", kx=1e-3, ky=0.0, kz=-2e-3)
-    out = effect.on_readings(true, true, state, _context())
-    np.testing.assert_allclose(out.gyr - true.gyr, true.acc * [1e-3, 0.0, -2e-3], atol=1e-15)
+    cal = make_truth("paper", stream_rng(1, "truth")).calibration
+    ctx = dataclasses.replace(_context(), calibration=cal)
+    g = np.array([[1e-3, 2e-4, 0.0], [0.0, 0.0, -3e-4], [5e-5, 0.0, -2e-3]])
+    effect = parse_effect("g_sensitivity:matrix=" + ";".join(map(str, g.ravel())))
+    np.testing.assert_array_equal(effect.matrix, g)
+    out = effect.on_readings(true, true, state, ctx)
+    want = true.acc @ np.linalg.solve(cal.gyr.matrix, g).T
+    np.testing.assert_allclose(out.gyr - true.gyr, want, atol=1e-15)
+    assert make_effect("g_sensitivity", matrix=2e-4).matrix == tuple(
+        tuple(2e-4 * (i == j) for j in range(3)) for i in range(3)
+    )
+    with pytest.raises(ValueError, match="parameter matrix has 4 values, expected 1 or 9"):
+        make_effect("g_sensitivity", matrix=[1, 2, 3, 4])
 
 
 def test_saturation_and_temperature_drift_in_a_written_session(tmp_path):

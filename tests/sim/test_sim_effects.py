@@ -147,15 +147,18 @@ def test_temperature_drift_follows_the_temperature_column(truth, base):
     on = render(truth, effect)
     temps = [on.logs[r].extra["temp_c"] for r in on.logs]
     assert all(np.all(np.diff(t) >= 0) for t in temps) and temps[-1][-1] > temps[0][0] + 5
+    # each axis drifts by its own coefficient, of either sign (a real part's shape)
+    k_gyr, s_gyr = effect.coefficients("gyr")
+    assert np.any(k_gyr < 0) and np.any(k_gyr > 0) and np.any(s_gyr < 0)
     for rec in on.logs:
         dT = on.logs[rec].extra["temp_c"] - effect.start_c
         # static: the gyro reads ~0, so only the bias drift gyr_per_k * dT shows
         d = reading(on, rec, "gyr") - reading(base, rec, "gyr")
         for seg in segs(on, rec, "static") + segs(on, rec, "position"):
             m = mask(on, rec, seg)
-            expected = effect.gyr_per_k * dT[m].mean()  # temp_c is rounded to 0.01 K
-            tol = count_tol(on, "gyr", m.sum()) + effect.gyr_per_k * 0.005
-            np.testing.assert_allclose(d[m].mean(axis=0), expected, atol=tol)
+            expected = k_gyr * dT[m].mean()  # temp_c is rounded to 0.01 K
+            tol = count_tol(on, "gyr", m.sum()) + np.abs(k_gyr) * 0.005
+            assert np.all(np.abs(d[m].mean(axis=0) - expected) <= tol), (seg.label, expected)
     # rate table: the scale drift multiplies the input, u (1 + gyr_scale_per_k dT)
     cal = truth.calibration.gyr
     d = reading(on, "ratetable", "gyr") - reading(base, "ratetable", "gyr")
@@ -165,9 +168,9 @@ def test_temperature_drift_follows_the_temperature_column(truth, base):
         u = errormodel.invert(
             cal.matrix, np.zeros(3), np.radians(seg.rate_dps) * np.eye(3)[AXES.index(seg.axis)]
         )
-        expected = (effect.gyr_per_k + effect.gyr_scale_per_k * u) * dT[m].mean()
-        tol = count_tol(on, "gyr", m.sum()) + (effect.gyr_per_k + 1e-4 * 8) * 0.005
-        np.testing.assert_allclose(d[m].mean(axis=0), expected, atol=tol, err_msg=seg.label)
+        expected = (k_gyr + s_gyr * u) * dT[m].mean()
+        tol = count_tol(on, "gyr", m.sum()) + (np.abs(k_gyr) + 1e-4 * 8) * 0.005
+        assert np.all(np.abs(d[m].mean(axis=0) - expected) <= tol), (seg.label, expected)
     assert same_counts(on, base, sensors=("mag",))  # mag coefficients are 0 by default
 
 
@@ -216,9 +219,12 @@ def test_bias_instability_gauss_markov_has_its_std_and_correlation_time():
 
 
 def test_g_sensitivity_shifts_static_gyro_means_by_k_times_acc(truth, base):
+    """``w_B += G a_B`` with a full matrix: the raw reading moves by ``K^-1 G a_B``."""
     effect = make_effect("g_sensitivity")
     on = render(truth, effect)
-    k = np.array([effect.kx, effect.ky, effect.kz])
+    g = np.asarray(effect.matrix)
+    assert np.all(g != 0)  # cross-axis terms too
+    k = np.linalg.solve(truth.calibration.gyr.matrix, g)
     for rec in ("cube", "static"):
         d = reading(on, rec, "gyr") - reading(base, rec, "gyr")
         acc = calibrated(base, rec, "acc")
@@ -226,7 +232,7 @@ def test_g_sensitivity_shifts_static_gyro_means_by_k_times_acc(truth, base):
             m = mask(on, rec, seg)
             # acc noise enters through k: k * sigma_acc / sqrt(n) is ~1e-8, negligible
             tol = count_tol(on, "gyr", m.sum())
-            np.testing.assert_allclose(d[m].mean(axis=0), k * acc[m].mean(axis=0), atol=tol)
+            np.testing.assert_allclose(d[m].mean(axis=0), k @ acc[m].mean(axis=0), atol=tol)
     assert same_counts(on, base, sensors=("acc", "mag"))
 
 
@@ -582,16 +588,16 @@ def test_temperature_drift_at_the_harsh_end_of_a_consumer_part(truth, base):
     assert dT.max() > 10.0
     for sensor in ("gyr", "acc"):
         d = reading(on, "static", sensor) - reading(base, "static", sensor)
-        k = getattr(effect, f"{sensor}_per_k")
+        k, scale = effect.coefficients(sensor)
         n = len(d)
         tol = count_tol(on, sensor, n) + k * 0.005
         if sensor == "acc":  # the scale drift multiplies g on the up axis
             u = errormodel.invert(truth.calibration.acc.matrix, np.zeros(3),
                                   np.array([[0.0, 0.0, truth.world.gravity_m_s2]]))[0]  # fmt: skip
-            expected = (k + effect.acc_scale_per_k * u) * dT.mean()
+            expected = (k + scale * u) * dT.mean()
         else:  # at rest the gyro's input is zero: the scale drift does not show
             expected = k * dT.mean()
-        np.testing.assert_allclose(d.mean(axis=0), expected, atol=tol)
+        assert np.all(np.abs(d.mean(axis=0) - expected) <= tol), (sensor, expected)
     assert all(c == 0 for rec in on.clipped.values() for c in rec.values())
 
 

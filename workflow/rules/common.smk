@@ -535,6 +535,7 @@ def check_plan(check):
             settings["seeds_per_effect"],
             settings["n_null"],
             settings["unknown"],
+            shapes=settings["shapes"],
         )
     if check == "stress":
         from imucal.gap.stress import stress_plan

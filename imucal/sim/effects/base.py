@@ -194,7 +194,42 @@ class Effect:
                 f"effect {self.name!r} has no parameter that scales its magnitude; "
                 f"set its parameters {sorted(self.params())} instead"
             )
-        return dataclasses.replace(self, **{k: getattr(self, k) * factor for k in self.scalable})
+        return dataclasses.replace(
+            self, **{k: _times(getattr(self, k), factor) for k in self.scalable}
+        )
+
+
+def _times(value, factor: float):
+    """``value`` times ``factor``; a parameter of several values (per axis, a matrix's rows)
+    element by element, keeping its nesting."""
+    if isinstance(value, tuple):
+        return tuple(_times(v, factor) for v in value)
+    return value * factor
+
+
+def axis_values(effect: str, key: str, value, shape: tuple = (3,)) -> tuple:
+    """A per-axis (``shape`` (3,)) or per-element (``shape`` (3, 3)) parameter as nested tuples
+    of floats; one number stands for the same value on every axis (or every diagonal element
+    of a matrix, the others 0).
+
+    Raises
+    ------
+    ValueError
+        If ``value`` is not finite or has neither one element nor ``shape``.
+    """
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        a = np.full(shape, float(a)) if len(shape) == 1 else float(a) * np.eye(shape[0])
+    elif a.size == int(np.prod(shape)):
+        a = a.reshape(shape)
+    else:
+        raise ValueError(
+            f"effect {effect!r}: parameter {key} has {a.size} values, expected 1 or "
+            f"{int(np.prod(shape))} (shape {shape})"
+        )
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"effect {effect!r}: parameter {key}={value!r} is not finite")
+    return tuple(map(tuple, a.tolist())) if a.ndim == 2 else tuple(a.tolist())
 
 
 def register(cls: type[Effect]) -> type[Effect]:
@@ -206,6 +241,19 @@ def register(cls: type[Effect]) -> type[Effect]:
 
 
 def _coerce(effect: str, key: str, value, kind):
+    if (kind if isinstance(kind, str) else kind.__name__) == "tuple":
+        # several values (per axis, a matrix row by row): a list, a number for all, or in a
+        # spec string separated by ';' (',' separates the parameters)
+        if isinstance(value, str):
+            parts = [v for v in value.replace(";", " ").split() if v]
+            try:
+                value = [float(v) for v in parts]
+            except ValueError:
+                raise ValueError(
+                    f"effect {effect!r}: parameter {key}={value!r} is not numbers separated by ';'"
+                ) from None
+            return value[0] if len(value) == 1 else tuple(value)
+        return value
     target = {"float": float, "int": int, "str": str}.get(
         kind if isinstance(kind, str) else kind.__name__
     )

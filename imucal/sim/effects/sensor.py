@@ -10,7 +10,7 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.columns import SENSORS
-from imucal.sim.effects.base import Effect, Magnitude, RecordingContext, register
+from imucal.sim.effects.base import Effect, Magnitude, RecordingContext, axis_values, register
 from imucal.sim.motion import KinematicState
 from imucal.sim.packets import PacketLog
 from imucal.sim.sensors import INT16_MAX, Signals
@@ -22,30 +22,43 @@ TEMPERATURE_COLUMN = "temp_c"
 @register
 @dataclass(frozen=True)
 class GSensitivity(Effect):
-    """Gyroscope output proportional to specific force: ``gyr += k * acc`` per axis.
+    """Gyroscope output proportional to specific force: ``w_B += G a_B``, a full 3x3 matrix.
+
+    The parameterisation of the model term :class:`imucal.modelterms.GSensitivity`: ``G`` acts
+    in frame B (calibrated rate from calibrated specific force), so the raw reading moves by
+    ``K^-1 G a_B`` (``K`` the true gyro matrix); the diagonal is the g-sensitivity of each axis
+    along its own direction, the off-diagonal elements the cross-axis part.
 
     Parameters
     ----------
-    kx, ky, kz : float
-        rad/s per m/s^2. Realistic: |k| about 0.1-0.2 deg/s/g = 1.8e-4-3.6e-4 (MPU-6050
-        datasheet 0.1 deg/s/g, ADXRS300 0.2 deg/s/g; effects.md #4).
+    matrix : tuple, shape (3, 3)
+        ``G`` in rad/s per m/s^2, rows the gyro axes and columns the specific force's. One
+        number is the same value on the diagonal (0 elsewhere). Realistic: diagonal |G_jj|
+        about 0.1-0.2 deg/s/g = 1.8e-4-3.6e-4 (MPU-6050 datasheet 0.1 deg/s/g, ADXRS300
+        0.2 deg/s/g; effects.md #4), cross-axis terms a fraction of that, either sign.
     """
 
     name = "g_sensitivity"
-    scalable = ("kx", "ky", "kz")
-    kx: float = 2e-4
-    ky: float = -1.5e-4
-    kz: float = 1e-4
+    scalable = ("matrix",)
+    matrix: tuple = (
+        (2e-4, 5e-5, -3e-5),
+        (-4e-5, -1.5e-4, 6e-5),
+        (3e-5, -5e-5, 1e-4),
+    )
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "matrix", axis_values(self.name, "matrix", self.matrix, (3, 3)))
 
     def on_readings(
         self, readings: Signals, true: Signals, state: KinematicState, ctx: RecordingContext
     ) -> Signals:
-        k = np.array([self.kx, self.ky, self.kz])
-        return readings.with_sensor("gyr", readings.gyr + true.acc * k)
+        cal = ctx.require(self.name, "calibration").sensor("gyr")
+        raw = np.linalg.solve(cal.matrix, np.asarray(self.matrix))  # K^-1 G
+        return readings.with_sensor("gyr", readings.gyr + true.acc @ raw.T)
 
     def magnitude(self) -> Magnitude:
-        k = float(np.linalg.norm([self.kx, self.ky, self.kz]))
-        return Magnitude(k, "rad/s per m/s^2", "|k|, gyro output per specific force")
+        k = float(np.linalg.norm(self.matrix))
+        return Magnitude(k, "rad/s per m/s^2", "|G| (Frobenius), gyro output per specific force")
 
 
 @register
@@ -99,13 +112,15 @@ class Saturation(Effect):
 @register
 @dataclass(frozen=True)
 class TemperatureDrift(Effect):
-    """The module warms up over the session; biases and scales drift; adds ``temp_c``.
+    """The module warms up over the session; biases and scales drift per axis; adds ``temp_c``.
 
     ``T(t) = start_c + rise_c (1 - exp(-t / tau_s))`` on the session clock (recordings follow one
     another, see :func:`imucal.sim.session.simulate_session`). With ``dT = T - start_c`` and the
-    sensor-frame input ``u = matrix^-1 true`` (what the sensing element sees), a reading becomes
-    ``(1 + scale_per_k dT) u + bias + bias_per_k dT + noise`` on all three axes; the truth
-    holds at ``start_c``.
+    sensor-frame input ``u = matrix^-1 true`` (what the sensing element sees), axis ``j`` of a
+    reading becomes ``(1 + s_j dT) u_j + bias_j + b_j dT + noise``; the truth holds at
+    ``start_c``. This is the model term's parameterisation
+    (:class:`imucal.modelterms.TemperaturePolynomial` at order 1, ``reference_c = start_c``,
+    ``bias[0] = b``, ``scale[0] = s``): per axis of the raw reading, either sign.
 
     Parameters
     ----------
@@ -114,12 +129,21 @@ class TemperatureDrift(Effect):
         a few K over 5-15 min (effects.md #1).
     tau_s : float
         Warm-up time constant (s), > 0.
-    acc_per_k, gyr_per_k, mag_per_k : float
-        Bias drift per kelvin (m/s^2/K, rad/s/K, normalised/K). Realistic (typical, below the
-        MPU-9250 datasheet's +-1.5 mg/K and +-0.24 deg/s/K spreads): 0.3 mg/K, 0.03 deg/s/K.
-    acc_scale_per_k, gyr_scale_per_k, mag_scale_per_k : float
-        Relative scale drift per kelvin (1/K). Realistic: acc 0.026 %/K (MPU-9250 datasheet),
-        gyro 0.01 %/K (+-4 % over -40..85 deg C is the worst case), magnetometer 0.
+    acc_per_k, gyr_per_k, mag_per_k : tuple of 3 float
+        Bias drift per kelvin of the x, y, z axes (m/s^2/K, rad/s/K, normalised/K); one number
+        is the same drift on all three axes. Realistic: the shape a real part has, each axis
+        its own coefficient and sign (effects.md #1a, a CATS tag: gyro -0.001 / +0.026 /
+        +0.008 deg/s/K), within the MPU-9250 datasheet's +-1.5 mg/K and +-0.24 deg/s/K
+        spreads.
+    acc_scale_per_k, gyr_scale_per_k, mag_scale_per_k : tuple of 3 float
+        Relative scale drift per kelvin of each axis (1/K). Realistic: acc 0.026 %/K (MPU-9250
+        datasheet), gyro about 0.01 %/K of either sign (+-4 % over -40..85 deg C is the worst
+        case), magnetometer 0.
+
+    Notes
+    -----
+    :meth:`magnitude` is the RMS over the axes of the gyro bias drift; :meth:`scaled` multiplies
+    every coefficient, keeping the shape across the axes.
     """
 
     name = "temperature_drift"
@@ -130,16 +154,24 @@ class TemperatureDrift(Effect):
     start_c: float = 22.0
     rise_c: float = 8.0
     tau_s: float = 600.0
-    acc_per_k: float = 0.003
-    gyr_per_k: float = 0.0005
-    mag_per_k: float = 0.0
-    acc_scale_per_k: float = 2.6e-4
-    gyr_scale_per_k: float = 1e-4
-    mag_scale_per_k: float = 0.0
+    acc_per_k: tuple = (0.003, -0.002, 0.004)
+    gyr_per_k: tuple = (-1.75e-5, 4.54e-4, 1.4e-4)
+    mag_per_k: tuple = (0.0, 0.0, 0.0)
+    acc_scale_per_k: tuple = (2.6e-4, 2.6e-4, 2.6e-4)
+    gyr_scale_per_k: tuple = (1e-4, -6e-5, 8e-5)
+    mag_scale_per_k: tuple = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if not self.tau_s > 0:
             raise ValueError(f"temperature_drift tau_s must be > 0 s, got {self.tau_s}")
+        for key in self.scalable:
+            object.__setattr__(self, key, axis_values(self.name, key, getattr(self, key)))
+
+    def coefficients(self, sensor: str) -> tuple[np.ndarray, np.ndarray]:
+        """Bias drift (sensor unit/K) and relative scale drift (1/K) of ``sensor``'s axes,
+        each shape (3,): the rows ``bias[0]`` and ``scale[0]`` of the model term's polynomial."""
+        return (np.array(getattr(self, f"{sensor}_per_k")),
+                np.array(getattr(self, f"{sensor}_scale_per_k")))  # fmt: skip
 
     def temperature_c(self, sample: np.ndarray, ctx: RecordingContext) -> np.ndarray:
         """Temperature (deg C) at module samples ``sample`` of the recording, shape (n,)."""
@@ -152,12 +184,12 @@ class TemperatureDrift(Effect):
         dt = self.temperature_c(np.arange(len(true.acc)), ctx) - self.start_c
         out = readings
         for s in SENSORS:
-            drift = getattr(self, f"{s}_per_k") * dt[:, None]
-            k_scale = getattr(self, f"{s}_scale_per_k")
-            if k_scale != 0:
+            bias, scale = self.coefficients(s)
+            drift = dt[:, None] * bias
+            if np.any(scale != 0):
                 cal = ctx.require(self.name, "calibration").sensor(s)
                 u = errormodel.invert(cal.matrix, np.zeros(3), true.sensor(s))
-                drift = drift + k_scale * dt[:, None] * u
+                drift = drift + dt[:, None] * scale * u
             out = out.with_sensor(s, out.sensor(s) + drift)
         return out
 
@@ -165,7 +197,8 @@ class TemperatureDrift(Effect):
         return log.with_column(TEMPERATURE_COLUMN, np.round(self.temperature_c(log.sample, ctx), 2))
 
     def magnitude(self) -> Magnitude:
-        return Magnitude(abs(self.gyr_per_k), "rad/s/K", "|gyro bias drift per kelvin|")
+        rms = float(np.sqrt(np.mean(np.square(self.gyr_per_k))))
+        return Magnitude(rms, "rad/s/K", "gyro bias drift per kelvin, RMS over the axes")
 
 
 @register
