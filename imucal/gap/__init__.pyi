@@ -1,1 +1,2 @@
-from .diagnosis import FORMAT_VERSION, DiagnosisSettings, diagnose
+from .diagnosis import diagnose
+from .scoring import FORMAT_VERSION, DiagnosisSettings, scored_diagnosis, verdict_of

@@ -16,8 +16,9 @@ from pathlib import Path
 from imucal.constants import IMU_RECORDINGS
 from imucal.gap.blind import failed_diagnosis, score_blind
 from imucal.gap.detection import score_detection
-from imucal.gap.diagnosis import DiagnosisSettings, diagnose
+from imucal.gap.diagnosis import diagnose
 from imucal.gap.figures import render_blind_page, render_detection_page
+from imucal.gap.scoring import DiagnosisSettings
 from imucal.gap.stress import render_stress_page, score_stress
 from imucal.ingest import ingest_recording
 from imucal.io import read_benchmark_seconds, read_json

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from imucal.gap.diagnosis import DiagnosisSettings, scored_diagnosis
 from imucal.gap.effects import EffectModel
 from imucal.gap.motion import (
     MOTION_NOT_OBSERVABLE,
@@ -32,6 +31,7 @@ from imucal.gap.motion import (
     motion_statistics,
 )
 from imucal.gap.null import run_replicas
+from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
 from imucal.gap.static import (
     NOT_OBSERVABLE,
     STATIC_LIBRARY,
@@ -174,7 +174,7 @@ def diagnose_partial_session(
     Returns
     -------
     dict
-        diagnosis.json (:func:`~imucal.gap.diagnosis.scored_diagnosis`) plus ``scope``
+        diagnosis.json (:func:`~imucal.gap.scoring.scored_diagnosis`) plus ``scope``
         (``static``, ``reference``, ``static+reference``), ``not_observable``, ``twin``,
         ``settings``, ``timing_s``; or :func:`~imucal.gap.static.unscored_diagnosis` with the
         reason.

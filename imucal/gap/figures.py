@@ -81,7 +81,7 @@ def plot_effects(diagnosis: Mapping) -> Figure:
 
 
 def verdict(diagnosis: Mapping) -> str:
-    """The diagnosis's verdict in one sentence (:func:`imucal.gap.diagnosis.verdict_of`), or
+    """The diagnosis's verdict in one sentence (:func:`imucal.gap.scoring.verdict_of`), or
     the summary for a diagnosis.json written before verdicts were."""
     found = diagnosis.get("verdict")
     return found["sentence"] if found else summary(diagnosis)

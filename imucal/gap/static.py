@@ -5,7 +5,7 @@ full-protocol diagnosis (:func:`imucal.gap.diagnosis.diagnose`) cannot refit it.
 session usually does have is a long ``static`` recording, and that is where this diagnosis
 looks, with the definitions of :mod:`imucal.gap`: the twin is
 :class:`~imucal.gap.twin.StaticTwin`, the locations are those of :mod:`imucal.gap.streams`, the
-null, scores, attribution and ``diagnosis.json`` are :func:`imucal.gap.diagnosis.scored_diagnosis`
+null, scores, attribution and ``diagnosis.json`` are :func:`imucal.gap.scoring.scored_diagnosis`
 as for a full session.
 
 This module holds what is particular to a static recording: the effects it can show
@@ -26,9 +26,9 @@ from scipy.optimize import brentq, curve_fit
 
 from imucal.columns import SENSORS
 from imucal.constants import STANDARD_GRAVITY_M_S2
-from imucal.gap.diagnosis import FORMAT_VERSION, DiagnosisSettings, scored_diagnosis
 from imucal.gap.effects import EffectModel, Estimate
 from imucal.gap.null import run_replicas
+from imucal.gap.scoring import FORMAT_VERSION, DiagnosisSettings, scored_diagnosis
 from imucal.gap.statistics import HALVES, allan_deviation
 from imucal.gap.streams import (
     Stream,
@@ -227,7 +227,7 @@ def diagnose_static(
     Returns
     -------
     dict
-        diagnosis.json (:func:`~imucal.gap.diagnosis.scored_diagnosis`) plus ``scope``,
+        diagnosis.json (:func:`~imucal.gap.scoring.scored_diagnosis`) plus ``scope``,
         ``not_observable``, ``twin``, ``settings``, ``timing_s``.
 
     Raises

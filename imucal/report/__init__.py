@@ -2,9 +2,7 @@
 
 from imucal.report.lab import (
     DEFAULT_CAPTIONS,
-    DIGITS,
     FIGURE_SECTION_BY_PREFIX,
-    MAX_LISTED_VALUES,
     PARAMETER_NAMES,
     PARAMETER_UNITS,
     RATE_TABLE,
@@ -16,11 +14,10 @@ from imucal.report.lab import (
     embed_figure,
     figure_section,
     flatten_fields,
-    format_number,
-    format_value,
     read_benchmarks,
     render_report,
 )
+from imucal.report.numbers import DIGITS, MAX_LISTED_VALUES, format_number, format_value
 
 __all__ = [
     "DEFAULT_CAPTIONS",

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from imucal.columns import AXES
+from imucal.report.numbers import format_number
 
 #: Unit of each sensor's calibrated output.
 SENSOR_UNITS = {"acc": "m/s²", "gyr": "rad/s", "mag": "normalised"}
@@ -24,8 +25,6 @@ ORIENTATION_WINDOWS = ("1s", "10s", "30s")
 
 
 def _fmt(value: Any, digits: int = 4) -> str:
-    from imucal.report.lab import format_number
-
     return format_number(value, digits)
 
 

@@ -7,8 +7,8 @@ import pytest
 from scipy import stats as sps
 
 from imucal.gap import effects as gap_effects
-from imucal.gap.diagnosis import verdict_of
 from imucal.gap.null import NullModel, build_null, holm, run_replicas, total_gap
+from imucal.gap.scoring import verdict_of
 from imucal.gap.statistics import compute_statistics
 from imucal.gap.twin import build_twin, render_replica
 from imucal.pipeline.full import PipelineOptions, calibrate_session

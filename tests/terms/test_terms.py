@@ -318,7 +318,8 @@ def test_the_sessions_own_samples_are_inside_the_calibrated_span(drift):
 
 @pytest.mark.slow  # a diagnosis with 8 replicas: about 35 s
 def test_lever_arm_heldout_improvement_reaches_the_diagnosis_prediction(twin):
-    from imucal.gap.diagnosis import DiagnosisSettings, diagnose
+    from imucal.gap.diagnosis import diagnose
+    from imucal.gap.scoring import DiagnosisSettings
 
     imu, ref = render_replica(twin, 11, (make_effect("lever_arm"),))
     diagnosis = diagnose(imu, ref, twin.options, dataset="lever_arm",
@@ -407,7 +408,8 @@ def test_competing_explanations_get_the_right_terms_with_their_coefficients(twin
     on ``auto`` writes exactly their terms; each term recovers the simulated coefficients
     within 3 of its reported standard deviations (the gyro drift per axis; the accelerometer
     along +z, the axis the poses away from the cube's temperature see; every entry of G)."""
-    from imucal.gap.diagnosis import DiagnosisSettings, diagnose
+    from imucal.gap.diagnosis import diagnose
+    from imucal.gap.scoring import DiagnosisSettings
 
     effects = tuple(make_effect(name) for name in COMPETING[case])
     imu, ref = render_replica(twin, 21, effects)

@@ -1,0 +1,350 @@
+"""The one assembly of diagnosis.json from a twin's null: scores, attribution, verdict.
+
+Every scope of the diagnosis (the full protocol, :mod:`imucal.gap.diagnosis`; a static
+recording, :mod:`imucal.gap.static`; a partial session's parts, :mod:`imucal.gap.composite`;
+static poses, :mod:`imucal.gap.poses`) renders its twin's replicas and hands them here:
+:func:`scored_diagnosis` scores every location against the null, attributes the gap to effects
+held out and writes ``diagnosis.json`` (``format_version``, ``dataset``, ``gap``,
+``locations``, ``effects``, ``explained``, ``remaining``) with its ``verdict``
+(:func:`verdict_of`), the outcome a user can act on in one sentence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from imucal.gap.attribution import Candidate, attribute, confusable
+from imucal.gap.effects import EffectModel
+from imucal.gap.null import build_null, holm
+from imucal.gap.twin import Replica, StaticTwin, Twin
+
+FORMAT_VERSION = 1
+LOCATION_FIELDS = ("stage", "sensor", "axis", "segment", "statistic")
+#: What the twin does not replay, by the statistics that show it: (stage, statistics, what).
+#: The twin renders regular sample times without loss, the session's noise as white noise,
+#: bias instability and bias random walk (partial sessions) and its reference with white
+#: orientation noise through the measured clock and mounting, in a uniform field; a gap left in
+#: these statistics is a shortfall of that model, not a physical effect (``ref_scale`` is
+#: among them: a gyroscope calibrated against the reference matches its scale, so a held-out
+#: recording departs there through the reference as much as through the sensor). Statistics
+#: not listed respond to physical effects (temperature, g-sensitivity, misalignment...).
+TWIN_SHORTFALLS = (
+    ("ingest", ("loss_fraction", "stamp_scatter_s", "stamp_wander_s", "burst_fraction",
+                "long_gap_fraction"), "the host's receive timing"),
+    ("noise", ("adev_10s_excess", "adev_long_excess", "trend_per_s"),
+     "the sensor's slow bias drift"),
+    ("reference", ("resid_rms", "rate2", "rate3", "ref_scale", "ori_median_rad"),
+     "the reference's error beyond white noise (smoothing, latency, glitches)"),
+    ("reference", ("dir_resid_rad",), "a uniform magnetic field"),
+)  # fmt: skip
+#: Library effects that model the reference rather than the sensor or the world: accepted,
+#: they name what the twin's reference lacks.
+REFERENCE_EFFECTS = {"reference_jitter": "the reference's sample timing (reference_jitter)"}
+#: Library effects of the acquisition (the host, the logger, the clocks) rather than of the
+#: sensor or the world; the verdict names their kind, so that a user does not read a receive
+#: latency as a physical disturbance. Every other effect is ``physical``.
+ACQUISITION_EFFECTS = ("packet_loss", "timing_jitter", "time_offset")
+
+
+@dataclass(frozen=True)
+class DiagnosisSettings:
+    """Settings of a diagnosis: the config section ``gap`` (defaults are the schema's).
+
+    Attributes
+    ----------
+    replicas : int
+        Twin replicas in the null (>= 5).
+    alpha : float
+        Family-wise level of the location test (Holm), in (0, 1).
+    seed : int
+        First replica seed.
+    min_heldout_shrink : float
+        Smallest held-out shrink (0..1) for an effect to be accepted.
+    crn_seeds : int
+        Replica seeds an effect is rendered with to measure its shift of the statistics.
+    detect_z : float
+        Smallest |score| of an effect's estimate against the null for it to be evaluated.
+    exclude : tuple of str
+        Effects left out of the library (the unknown-effect check).
+    """
+
+    replicas: int = 20
+    alpha: float = 0.05
+    seed: int = 1000
+    min_heldout_shrink: float = 0.3
+    crn_seeds: int = 3
+    detect_z: float = 4.0
+    exclude: tuple = ()
+
+    def __post_init__(self) -> None:
+        if self.replicas < 5:
+            raise ValueError(
+                f"the null needs at least 5 replicas for a spread, got {self.replicas}"
+            )
+        if not 0 < self.alpha < 1:
+            raise ValueError(f"alpha is a probability in (0, 1), got {self.alpha}")
+        object.__setattr__(self, "exclude", tuple(self.exclude))
+
+    @classmethod
+    def from_config(cls, section: Mapping) -> DiagnosisSettings:
+        """Settings from a config section ``gap`` (a mapping with any of the fields)."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(section) - known)
+        if unknown:
+            raise ValueError(f"unknown diagnosis settings {unknown}; known: {sorted(known)}")
+        return cls(**section)
+
+    def describe(self) -> dict:
+        """The settings a diagnosis.json records (the replica count is under ``null``)."""
+        return {
+            "seed": self.seed,
+            "min_heldout_shrink": self.min_heldout_shrink,
+            "crn_seeds": self.crn_seeds,
+            "detect_z": self.detect_z,
+            "exclude": list(self.exclude),
+        }
+
+
+def _locations(keys, t, reject, only_significant: bool) -> list[dict]:
+    out = [
+        {**dict(zip(LOCATION_FIELDS, k, strict=True)), "z": float(z), "in_gap": bool(r)}
+        for k, z, r in zip(keys, t, reject, strict=True)
+        if np.isfinite(z) and (r or not only_significant)
+    ]
+    return sorted(out, key=lambda d: -abs(d["z"]))
+
+
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def _effect_record(c: Candidate, model: EffectModel, keys, reject) -> dict:
+    return {
+        "name": c.name,
+        "params": c.params,
+        "gap_before": c.gap_before,
+        "gap_after": c.gap_after,
+        "shrink": c.shrink,
+        "heldout_shrink": c.heldout_shrink,
+        "heldout_deviance": c.heldout_deviance,
+        "accepted": c.accepted,
+        "detect": _finite_or_none(c.detect),
+        "detect_z": _finite_or_none(c.detect_z),
+        "evaluated": c.evaluated,
+        "signature_hits": [
+            dict(zip(LOCATION_FIELDS, k, strict=True))
+            for k, r in zip(keys, reject, strict=True)
+            if r and model.matches(k)
+        ],
+        "note": c.note,
+    }
+
+
+def _effect_order(c: Candidate) -> tuple:
+    """Accepted first, then by held-out shrink (an effect without one last)."""
+    shrink = c.heldout_shrink if c.heldout_shrink is not None else -np.inf
+    return (not c.accepted, -shrink)
+
+
+def _shortfall(location: Mapping) -> str | None:
+    """What the twin lacks when a location departs, or None for a physical statistic."""
+    for stage, statistics, what in TWIN_SHORTFALLS:
+        if location["stage"] == stage and location["statistic"] in statistics:
+            return what
+    return None
+
+
+def _name(location: Mapping) -> str:
+    parts = [location[f] for f in LOCATION_FIELDS[:4] if location[f] not in ("-", "all")]
+    return f"{'/'.join(parts)} {location['statistic']} (z = {location['z']:.3g})"
+
+
+def verdict_of(result: Mapping) -> dict:
+    """The diagnosis in one of three outcomes a user can act on, and one sentence.
+
+    * ``nothing beyond the model``: no location is in the gap;
+    * ``effect``: an effect of the sensor, the platform or the acquisition was accepted (it
+      shrinks the gap held out by at least the settings' ``min_heldout_shrink``); the
+      sentence names it with its kind (``physical`` or ``acquisition``,
+      :data:`ACQUISITION_EFFECTS`) and its held-out shrink;
+    * ``twin lacks``: the gap is significant and no such effect closes it. What the twin
+      lacks is read from where the remaining gap lies: statistics of what the twin does not
+      replay (:data:`TWIN_SHORTFALLS`: receive timing, slow noise, the reference's error, the
+      field's uniformity), an accepted reference effect (:data:`REFERENCE_EFFECTS`), or, for
+      a gap in a statistic of a physical response that no library effect closes, "an effect
+      the library does not hold" at those locations.
+
+    Parameters
+    ----------
+    result : dict
+        diagnosis.json as :func:`scored_diagnosis` assembles it (``gap``, ``effects``,
+        ``remaining``; ``explained`` orders the accepted effects).
+
+    Returns
+    -------
+    dict
+        ``outcome``, ``sentence``, ``effects`` (accepted, with ``kind`` and ``heldout_shrink``),
+        ``lacks`` (what, share of the remaining gap's squared scores, locations, top
+        location), in that order of share.
+    """
+    gap = result["gap"]
+    order = {name: k for k, name in enumerate(result.get("explained", []))}
+    accepted = sorted(
+        (e for e in result["effects"] if e["accepted"]), key=lambda e: order.get(e["name"], 0)
+    )
+    physical = [e for e in accepted if e["name"] not in REFERENCE_EFFECTS]
+    named = [
+        {
+            "name": e["name"],
+            "kind": "acquisition" if e["name"] in ACQUISITION_EFFECTS else "physical",
+            "heldout_shrink": e["heldout_shrink"],
+            "params": e["params"],
+        }
+        for e in physical
+    ]
+    groups: dict = {}
+    for e in accepted:
+        if e["name"] in REFERENCE_EFFECTS:
+            what = REFERENCE_EFFECTS[e["name"]]
+            groups[what] = {"what": what, "weight": 0.0, "locations": [], "effect": e["name"]}
+    remaining = result["remaining"]["locations"] if result["remaining"]["significant"] else []
+    for loc in remaining:
+        what = _shortfall(loc) or "an effect the library does not hold"
+        g = groups.setdefault(what, {"what": what, "weight": 0.0, "locations": []})
+        g["weight"] += loc["z"] ** 2
+        g["locations"].append(loc)
+    total = sum(g["weight"] for g in groups.values()) or 1.0
+    lacks = [
+        {
+            "what": g["what"],
+            "share": g["weight"] / total,
+            "locations": len(g["locations"]),
+            "top": _name(g["locations"][0]) if g["locations"] else None,
+            **({"effect": g["effect"]} if "effect" in g else {}),
+        }
+        for g in sorted(groups.values(), key=lambda g: -g["weight"])
+    ]
+    if not gap["significant"]:
+        outcome = "nothing beyond the model"
+        sentence = (
+            "Nothing beyond the model: no location departs from the session's twin (total gap "
+            f"{gap['total']:.3g} against a null 95th percentile of {gap['null_p95']:.3g})."
+        )
+    elif named:
+        outcome = "effect"
+        sentence = "Effect " + "; then ".join(
+            f"{e['name']} ({e['kind']}), shrink {e['heldout_shrink']:.1%} held out" for e in named
+        )
+        sentence += (
+            f"; the twin still lacks {lacks[0]['what']} (at {lacks[0]['top']})."
+            if lacks and lacks[0]["top"]
+            else "."
+        )
+    else:
+        outcome = "twin lacks"
+        top = lacks[0] if lacks else {"what": "an effect the library does not hold", "top": None}
+        also = f"; also {lacks[1]['what']}" if len(lacks) > 1 else ""
+        if "effect" in top:
+            shrink = next(e["heldout_shrink"] for e in accepted if e["name"] == top["effect"])
+            sentence = (
+                f"The twin lacks {top['what']}: {top['effect']} shrinks the gap {shrink:.1%} "
+                f"held out{also}."
+            )
+        else:
+            at = f", above all at {top['top']}" if top.get("top") else ""
+            sentence = (
+                f"The twin lacks {top['what']}{at}{also}: no effect of the library closes "
+                "the gap held out."
+            )
+    return {"outcome": outcome, "sentence": sentence, "effects": named, "lacks": lacks}
+
+
+def scored_diagnosis(
+    twin: Twin | StaticTwin,
+    session,
+    stats: Mapping,
+    replicas: Sequence[Replica],
+    models: Mapping[str, EffectModel],
+    *,
+    dataset: str,
+    settings: DiagnosisSettings,
+    cannot_show: str = "the session cannot show this effect",
+) -> dict:
+    """Score a session against its twin's replicas and attribute its gap: the part of
+    diagnosis.json that the full and the static diagnosis share.
+
+    Parameters
+    ----------
+    twin : Twin or StaticTwin
+    session : SessionFit or dict of str to Stream
+        What the effect estimators read (:attr:`imucal.gap.twin.Replica.session`).
+    stats : dict
+        Half (None, 'A', 'B') -> the session's statistics.
+    replicas : list of Replica
+        The null's replicas (>= 5).
+    models : dict of str to EffectModel
+        The effect library.
+    dataset : str
+    settings : DiagnosisSettings
+        Its ``alpha``, ``min_heldout_shrink``, ``crn_seeds`` and ``detect_z``.
+    cannot_show : str
+        Note of an effect whose estimator finds nothing to estimate from.
+
+    Returns
+    -------
+    dict
+        ``format_version``, ``dataset``, ``gap``, ``locations``, ``effects``, ``explained``,
+        ``remaining``, ``confusable``, ``all_locations``, ``null`` (with the locations whose
+        replicas are all equal, which have no score: ``constant_locations``), ``verdict``
+        (:func:`verdict_of`).
+    """
+    alpha = settings.alpha
+    null_full = build_null(replicas, None, stats[None])
+    null_b = build_null(replicas, "B", stats["B"])
+    keys = null_full.keys
+    t_real = null_full.t(stats[None])
+    reject = holm(null_full.p_values(t_real), alpha)
+    loo = null_full.leave_one_out_gaps()
+    cands, explained, shift, _, rounds = attribute(
+        twin, session, stats, replicas, null_full, null_b, models,
+        alpha=alpha, min_heldout_shrink=settings.min_heldout_shrink, n_seeds=settings.crn_seeds,
+        detect_z=settings.detect_z, cannot_show=cannot_show,
+    )  # fmt: skip
+    t_after = null_full.t(stats[None], shift)
+    reject_after = holm(null_full.p_values(t_after), alpha)
+    result = {
+        "format_version": FORMAT_VERSION,
+        "dataset": dataset,
+        "gap": {
+            "total": null_full.gap(stats[None]),
+            "null_p95": float(np.percentile(loo, 95)),
+            "significant": bool(reject.any()),
+        },
+        "locations": _locations(keys, t_real, reject, True),
+        "effects": [
+            _effect_record(c, models[c.name], keys, reject)
+            for c in sorted(cands, key=_effect_order)
+        ],
+        "explained": explained,
+        "remaining": {
+            "total": null_full.gap(stats[None], shift),
+            "significant": bool(reject_after.any()),
+            "locations": _locations(keys, t_after, reject_after, True),
+        },
+        "confusable": confusable(rounds, explained, settings.min_heldout_shrink),
+        "all_locations": _locations(keys, t_real, reject, False),
+        "null": {
+            "replicas": len(replicas),
+            "alpha": alpha,
+            "n_locations": len(keys),
+            "loo_gap_median": float(np.median(loo)),
+            "loo_false_alarm": float(np.mean(null_full.leave_one_out_flags(alpha))),
+            "constant_locations": [
+                dict(zip(LOCATION_FIELDS, k, strict=True)) for k in null_full.constant
+            ],
+        },
+    }
+    return {**result, "verdict": verdict_of(result)}
