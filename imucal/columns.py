@@ -89,3 +89,12 @@ SEGMENT_COLUMNS = (
 KINDS = ("static", "phase", "transition", "position", "run")
 #: Kinds of segment at rest in one orientation (a static pose).
 POSE_KINDS = ("position", "static")
+
+
+def row_bounds(rows) -> zip:
+    """``(start_index, end_index)`` of each row of a segments table (DataFrame), end exclusive,
+    as integers.
+
+    Read from the two columns: iterating the rows (``itertuples``) reads every column,
+    its string ones element by element."""
+    return zip(rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int), strict=True)

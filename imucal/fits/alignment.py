@@ -32,9 +32,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from imucal.columns import AXES, TIME, column_values, sensor_columns
+from imucal.columns import AXES, TIME, column_values, row_bounds, sensor_columns
 from imucal.errormodel import rotation_matrix
-from imucal.segments.table import row_bounds
 
 METHODS = ("full", "paper")
 #: Phase-segment kind and labels in the segments table.

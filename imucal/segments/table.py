@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from imucal.columns import SEGMENT_COLUMNS, TIME, column_values
+from imucal.columns import SEGMENT_COLUMNS, TIME, column_values, row_bounds
 
 
 def segment_row(recording, label, kind, t, a, b, axis="", rate_dps=np.nan, sense=0, turns=np.nan,
@@ -51,14 +51,6 @@ def rows_of(segments: pd.DataFrame, recording: str, *kinds: str) -> pd.DataFrame
     """Rows of ``segments`` of ``recording`` whose kind is one of ``kinds``, in time order."""
     rows = segments[(segments["recording"] == recording) & segments["kind"].isin(kinds)]
     return rows.sort_values("start_index")
-
-
-def row_bounds(rows: pd.DataFrame) -> zip:
-    """``(start_index, end_index)`` of each segment row (end exclusive), as integers.
-
-    Read from the two columns: iterating the rows (``itertuples``) reads every column,
-    its string ones element by element."""
-    return zip(rows["start_index"].to_numpy(int), rows["end_index"].to_numpy(int), strict=True)
 
 
 def cut(table: pd.DataFrame, rows: pd.DataFrame, columns) -> list[np.ndarray]:
