@@ -57,7 +57,7 @@ from imucal.sim.effects import RecordingContext, stream_rng
 from imucal.sim.motion import evaluate_motion
 from imucal.sim.packets import build_packet_log
 from imucal.sim.protocol import plan_static
-from imucal.sim.sensors import INT16_MAX, quantise, sensor_readings, true_signals
+from imucal.sim.sensors import INT16_MAX, Signals, quantise, sensor_readings, true_signals
 from imucal.sim.session import REFERENCE_RATE_HZ
 from imucal.sim.truth import REFERENCE_NOISE, Truth
 
@@ -754,6 +754,36 @@ def _untempered(x: np.ndarray, temperature_c: np.ndarray | None) -> np.ndarray:
     return x - np.outer(d_t, d_t @ (x - x.mean(axis=0)) / (d_t @ d_t))
 
 
+def _about_level(readings: Signals, plain: Mapping, level: Mapping) -> Signals:
+    """Readings whose effects vary about the recording's level instead of moving it.
+
+    The level is the recording's mean reading, which holds whatever its effects did over it:
+    a bias drift with temperature, rendered from the effect's ``start_c``, is in it at the
+    recording's mean temperature. So the mean over the stream of what the effects changed
+    (``readings - plain``, per axis) is taken out of each sensor with a level; otherwise a
+    drift's mean would count twice and move the replica off the recording's range, where it
+    clips at the int16 full scale of its step and its statistics move with it.
+
+    Parameters
+    ----------
+    readings : Signals
+        The replica's readings with the effects (SI, before rounding).
+    plain : dict
+        Sensor -> the same readings without any effect, shape (n, 3) (SI).
+    level : dict
+        Sensor -> the recording's mean reading, shape (3,) (:attr:`StaticTwin.level`).
+
+    Returns
+    -------
+    Signals
+    """
+    for s, x in plain.items():
+        if s in level:
+            moved = readings.sensor(s)
+            readings = readings.with_sensor(s, moved - np.mean(moved - x, axis=0))
+    return readings
+
+
 def render_static(twin: StaticTwin, seed: int, effects: tuple = ()) -> dict[str, Stream]:
     """One replica of the static recording, as streams.
 
@@ -761,7 +791,8 @@ def render_static(twin: StaticTwin, seed: int, effects: tuple = ()) -> dict[str,
     ``k / rate``; sensor readings, quantisation and packets go through :mod:`imucal.sim` with
     the effects' hooks (``on_truth``, ``on_true_signals``, ``on_readings``, ``on_packets``).
     Each stream is a recording of its own for the random streams (``static/imu``,
-    ``static/mag``).
+    ``static/mag``). A sensor with a level (:attr:`StaticTwin.level`) reads it on average,
+    with or without effects: the effects vary about it (:func:`_about_level`).
 
     Parameters
     ----------
@@ -791,17 +822,23 @@ def render_static(twin: StaticTwin, seed: int, effects: tuple = ()) -> dict[str,
             s: twin.level[s] - errormodel.invert(cal.matrix, cal.bias, true.sensor(s)[:1])[0]
             for s, cal in ((s, truth.calibration.sensor(s)) for s in twin.level)
         }
+        hold = true
         for effect in effects:
             true = effect.on_true_signals(true, state, ctx)
         rng = stream_rng(seed, f"noise/{rec}")
         # the session's noise per axis, drawn below, instead of the truth's white noise
         readings = sensor_readings(truth.calibration, true, dict.fromkeys(SENSORS, 0.0), rng)
+        plain = {}
         for s in STREAMS[name]:
             process = twin.noise.get(s) or white_process(truth.noise[s], twin.sensitivity[s])
             drawn = process.draw(n, rate, rng) + moved.get(s, 0.0)
             readings = readings.with_sensor(s, readings.sensor(s) + drawn)
+            cal = truth.calibration.sensor(s)
+            plain[s] = errormodel.invert(cal.matrix, cal.bias, hold.sensor(s)) + drawn
         for effect in effects:
             readings = effect.on_readings(readings, true, state, ctx)
+        if effects:
+            readings = _about_level(readings, plain, twin.level)
         counts = {s: quantise(readings.sensor(s), twin.sensitivity[s])[0] for s in SENSORS}
         log = build_packet_log(counts, 0, rate, mag_every=1)
         for effect in effects:

@@ -61,7 +61,7 @@ def test_a_drift_with_temperature_is_named_and_a_clean_session_is_not(per_k, nam
     assert ("temperature_drift" in result["explained"]) is named
     if named:
         drift = next(e for e in result["effects"] if e["name"] == "temperature_drift")
-        assert drift["params"]["gyr_per_k"] == pytest.approx(GYR_PER_K, rel=0.05)
+        assert drift["params"]["gyr_per_k"] == pytest.approx([GYR_PER_K] * 3, rel=0.05)
 
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
