@@ -241,9 +241,10 @@ def motion_statistics(
 def white_noise(values: np.ndarray, rests: np.ndarray | None) -> float:
     """White-noise std (pooled over axes) from first differences: at rests when they hold
     at least 100 samples, else robustly (MAD) over the whole recording, where motion inflates
-    it a little."""
+    it a little. At rests, only differences within one rest count (the step from one rest to
+    the next is the motion between them, not noise)."""
     if rests is not None and np.count_nonzero(rests) >= 100:
-        d = np.diff(values[rests], axis=0)
+        d = np.diff(values, axis=0)[rests[1:] & rests[:-1]]
         return float(np.sqrt(np.mean(np.var(d, axis=0)) / 2.0))
     d = np.diff(values, axis=0)
     mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
