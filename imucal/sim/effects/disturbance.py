@@ -104,7 +104,9 @@ class Shock(Effect):
 
     Knocks come at random (a Poisson process of ``rate_per_s``), each a half-sine of
     ``duration_s`` in a random direction (drawn apart for the two sensors) with peaks
-    ``acc_peak_m_s2`` and ``gyr_peak_rad_s``, added to the readings: the reference does not
+    ``acc_peak_m_s2`` and ``gyr_peak_rad_s``, averaged over each sample period (a sensor's
+    anti-alias filter: the readings' integral is the pulse's, ``2 peak duration / pi``,
+    whatever its phase to the samples), added to the readings: the reference does not
     resolve a few milliseconds (the hand or the mount takes the board back; an optical system
     smooths over several frames). The knock times go to ``effects_realised`` (``times_s``).
 
@@ -152,9 +154,18 @@ class Shock(Effect):
         ctx.record(self.name, "times_s", times.tolist())
         acc, gyr = readings.acc.copy(), readings.gyr.copy()
         dirs_acc, dirs_gyr = random_unit(rng, len(times)), random_unit(rng, len(times))
+        dt = 1.0 / ctx.rate_hz
+        d = self.duration_s
+
+        def area(tau: np.ndarray) -> np.ndarray:
+            """Integral of the unit half-sine from its start to ``tau`` (clipped), s."""
+            return d / np.pi * (1.0 - np.cos(np.pi * np.clip(tau, 0.0, d) / d))
+
         for t0, d_acc, d_gyr in zip(times, dirs_acc, dirs_gyr, strict=True):
-            lo, hi = np.searchsorted(t, [t0, t0 + self.duration_s])
-            shape = np.sin(np.pi * (t[lo:hi] - t0) / self.duration_s)[:, None]
+            lo, hi = np.searchsorted(t, [t0, t0 + d + dt])
+            # each reading carries the pulse averaged over its sample period (the sensor's
+            # anti-alias filter): the readings' integral is the pulse's at any phase
+            shape = ((area(t[lo:hi] - t0) - area(t[lo:hi] - dt - t0)) / dt)[:, None]
             acc[lo:hi] += self.acc_peak_m_s2 * shape * d_acc
             gyr[lo:hi] += self.gyr_peak_rad_s * shape * d_gyr
         return Signals(acc, gyr, readings.mag)
