@@ -10,7 +10,8 @@ field alone. Each has a statistic of the gap map and an estimator of the simulat
   sensor's position, which for a module turned about a pivot (wrist, flange) is linear in the
   entries of its orientation matrix. Statistic ``field_position_rms``: the RMS of the world
   field's part linear in those entries. A magnetometer lag makes the world field follow the
-  rate, the reference's noise and jitter make it scatter; neither is linear in the attitude.
+  rate (fitted beside it, :func:`_field_fit`), the reference's noise and jitter make it
+  scatter; neither is linear in the attitude.
 * ``shock``: the gyroscope's angle over three reference intervals against the reference's
   (the reference's noise telescopes, so the window's noise is one interval's): a knock the
   reference does not resolve stands out. Statistic ``shock_rate``: outlying windows per second.
@@ -28,6 +29,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from scipy.ndimage import median_filter
 from scipy.signal import welch
 from scipy.spatial.transform import Rotation
 
@@ -41,6 +43,8 @@ from imucal.validation.orientation import reference_rates
 SHOCK_WINDOW = 3
 #: Robust z (norm over the three axes) above which a window holds a knock.
 SHOCK_Z = 6.0
+#: Windows over which the spread a knock is scored against is taken (about 2 s).
+SHOCK_SPREAD = 241
 #: Lowest frequency of a vibration line (Hz): above the band of hand and robot motion.
 LINE_MIN_HZ = 5.0
 #: Length of the blocks over which a line keeps its phase (s).
@@ -94,14 +98,15 @@ def twin_world_turn(rec) -> Rotation:
     return Rotation.from_euler("z", -np.arctan2(north[1], north[0])) * tilt
 
 
-def world_field(rec, tilt: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
-    """The magnetometer carried into the world at the present reference samples.
+def world_field(rec, tilt: bool = False) -> tuple | None:
+    """The magnetometer and the gyroscope carried into the world at the present reference
+    samples.
 
     Parameters
     ----------
     rec : MotionRecording
     tilt : bool
-        Express both in the twin's world (:func:`twin_world_turn`) instead of the reference's.
+        Express them in the twin's world (:func:`twin_world_turn`) instead of the reference's.
 
     Returns
     -------
@@ -109,6 +114,8 @@ def world_field(rec, tilt: bool = False) -> tuple[np.ndarray, np.ndarray] | None
         ``R M^T m_B`` (normalised field), R the reference's body -> world.
     orientation : ndarray, shape (k, 3, 3)
         ``R M^T`` (B -> world).
+    rate : ndarray, shape (k, 3)
+        The gyroscope's rate in the world, rad/s.
     None when the recording has no magnetometer or too few samples.
     """
     if rec.mag is None:
@@ -120,29 +127,62 @@ def world_field(rec, tilt: bool = False) -> tuple[np.ndarray, np.ndarray] | None
     if np.count_nonzero(use) < MIN_FIELD_SAMPLES:
         return None
     m_at = np.column_stack([np.interp(tau[use], t_m, m[:, k]) for k in range(3)])
+    w_at = np.column_stack([np.interp(tau[use], rec.t_s, rec.gyr[:, k]) for k in range(3)])
     q = rec.quat[use]
     orientation = (
         Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix() @ rec.alignment.mounting.matrix.T
     )
     if tilt:
         orientation = twin_world_turn(rec).as_matrix() @ orientation
-    return np.einsum("nij,nj->ni", orientation, m_at), orientation
+    field = np.einsum("nij,nj->ni", orientation, m_at)
+    return field, orientation, np.einsum("nij,nj->ni", orientation, w_at)
 
 
-def _linear_fit(field: np.ndarray, orientation: np.ndarray) -> np.ndarray:
-    """Coefficients (10, 3) of the world field on an offset and the 9 orientation entries."""
-    design = np.column_stack([np.ones(len(field)), orientation.reshape(len(field), 9)])
-    return np.linalg.lstsq(design, field, rcond=None)[0]
+def _field_fit(parts: list) -> tuple:
+    """The world field regressed on an offset per recording, the 9 entries of the orientation
+    and a lag: ``m_w = m_0 + C vec(R) + tau (omega_w x m_w)`` (a magnetometer ``tau`` late
+    reads ``R(t - tau)^T m`` and turns the world field by ``tau omega_w``; one ``tau`` for the
+    three components, so that a lag, which follows the rate, is not taken for a field that
+    follows the attitude).
+
+    Parameters
+    ----------
+    parts : list of tuple
+        :func:`world_field` per recording.
+
+    Returns
+    -------
+    offsets : ndarray, shape (k, 3)
+        ``m_0`` of each sample's recording.
+    coef : ndarray, shape (9, 3)
+        ``C`` (rows: the entries of R, row-major).
+    lag : ndarray, shape (k, 3)
+        ``tau (omega_w x m_w)``.
+    field, orientation : ndarray
+        The parts joined.
+    """
+    field = np.concatenate([p[0] for p in parts])
+    orientation = np.concatenate([p[1] for p in parts])
+    turn = np.cross(np.concatenate([p[2] for p in parts]), field)
+    which = np.concatenate([np.full(len(p[0]), k) for k, p in enumerate(parts)])
+    one_hot = (which[:, None] == np.arange(len(parts))[None, :]).astype(float)
+    design = np.column_stack([one_hot, orientation.reshape(len(field), 9)])
+    both = np.linalg.lstsq(design, np.hstack([field, turn]), rcond=None)[0]
+    # the shared lag by least squares on what the other regressors leave (Frisch-Waugh)
+    res_field, res_turn = field - design @ both[:, :3], turn - design @ both[:, 3:]
+    tau = float(np.sum(res_field * res_turn) / max(np.sum(res_turn**2), 1e-300))
+    coef = both[:, :3] - tau * both[:, 3:]
+    return one_hot @ coef[: len(parts)], coef[len(parts) :], tau * turn, field, orientation
 
 
 def field_position_rms(rec) -> float | None:
-    """RMS (normalised field) of the world field's part linear in the orientation's entries."""
+    """RMS (normalised field) of the world field's part linear in the orientation's entries
+    (:func:`_field_fit`)."""
     found = world_field(rec)
     if found is None:
         return None
-    field, orientation = found
-    coef = _linear_fit(field, orientation)
-    part = orientation.reshape(len(field), 9) @ coef[1:]
+    _, coef, _, field, orientation = _field_fit([found])
+    part = orientation.reshape(len(field), 9) @ coef
     part -= part.mean(axis=0)
     return float(np.sqrt(np.mean(np.sum(part**2, axis=1))))
 
@@ -150,8 +190,8 @@ def field_position_rms(rec) -> float | None:
 def estimate_world_magnetic(session: Mapping, half) -> Estimate | None:
     """Gradient ``G`` and arm ``r`` of a field fixed in the world (the simulator's model).
 
-    The world field (twin's axes) is regressed on an offset per recording and the entries of
-    ``R`` (B -> world): ``m_w = m_0 + C vec(R)``, with ``C_i,jk = G_ij r_k`` for the model.
+    The world field (twin's axes) is regressed on an offset per recording, the entries of
+    ``R`` (B -> world) and a lag (:func:`_field_fit`): ``C_i,jk = G_ij r_k`` for the model.
     ``C`` is brought to that form by its best rank-one factor (the SVD of ``C`` arranged as
     (ij) x k), ``G`` made symmetric and traceless (a static field in free space; this also
     leaves out a residual hard iron, ``G = I``), then ``r`` and ``G`` are refitted in turn by
@@ -162,36 +202,21 @@ def estimate_world_magnetic(session: Mapping, half) -> Estimate | None:
     parts = [p for p in parts if p is not None]
     if not parts:
         return None
-    rows, fields, offsets = [], [], []
-    for k, (field, orientation) in enumerate(parts):
-        rows.append(orientation)
-        fields.append(field)
-        offsets.append(np.full(len(field), k))
-    orientation, field, which = (
-        np.concatenate(rows),
-        np.concatenate(fields),
-        np.concatenate(offsets),
-    )
-    n_rec = len(parts)
-    one_hot = (which[:, None] == np.arange(n_rec)[None, :]).astype(float)
-    design = np.column_stack([one_hot, orientation.reshape(len(field), 9)])
-    coef = np.linalg.lstsq(design, field, rcond=None)[0]
-    m0 = one_hot @ coef[:n_rec]
-    c = coef[n_rec:].reshape(3, 3, 3)  # [j, k, i]: R_jk -> field_i
+    offsets, coef, lag, field, orientation = _field_fit(parts)
+    c = coef.reshape(3, 3, 3)  # [j, k, i]: R_jk -> field_i
     tensor = np.transpose(c, (2, 0, 1)).reshape(9, 3)  # rows (i, j), columns k
     u, s, vt = np.linalg.svd(tensor)
     g = (u[:, 0] * s[0]).reshape(3, 3)
     r = vt[0]
-    y = field - m0
+    y = field - offsets - lag
+    basis = [gradient_matrix(*e) for e in np.eye(5)]
     for _ in range(10):
         g = 0.5 * (g + g.T) - np.trace(g) / 3.0 * np.eye(3)
         a = g[None] @ orientation  # (n, 3, 3): r -> G R r
         r = np.linalg.lstsq(a.reshape(-1, 3), y.ravel(), rcond=None)[0]
         p = orientation @ r  # positions, (n, 3)
-        basis = [gradient_matrix(*e) for e in np.eye(5)]
         cols = np.stack([(p @ b.T).ravel() for b in basis], axis=1)
-        free = np.linalg.lstsq(cols, y.ravel(), rcond=None)[0]
-        g = gradient_matrix(*free)
+        g = gradient_matrix(*np.linalg.lstsq(cols, y.ravel(), rcond=None)[0])
     arm = np.linalg.norm(WorldMagnetic().arm())
     scale = np.linalg.norm(r) / arm if np.linalg.norm(r) > 0 else 1.0
     r, g = r / scale, g * scale
@@ -210,9 +235,9 @@ def estimate_world_magnetic(session: Mapping, half) -> Estimate | None:
 
 def shock_events(rec) -> tuple[np.ndarray, float]:
     """The knocks of one recording: the gyroscope's angle against the reference's over windows
-    of :data:`SHOCK_WINDOW` contiguous intervals, scaled per axis by its robust (MAD) spread;
-    windows whose norm exceeds :data:`SHOCK_Z` are knocks, overlapping ones merged into the
-    strongest.
+    of :data:`SHOCK_WINDOW` contiguous intervals, less its running median and scaled per axis
+    by its running robust (MAD) spread over :data:`SHOCK_SPREAD` windows; windows whose norm
+    exceeds :data:`SHOCK_Z` are knocks, overlapping ones merged into the strongest.
 
     Returns
     -------
@@ -232,15 +257,20 @@ def shock_events(rec) -> tuple[np.ndarray, float]:
     whole = broken[k + w] - broken[k + 1] == 0  # intervals k+1 .. k+w-1 follow their previous
     k = k[whole]
     window = total[k + w] - total[k]
-    mad = np.median(np.abs(window - np.median(window, axis=0)), axis=0)
-    z = np.linalg.norm(window / np.maximum(1.4826 * mad, 1e-300), axis=1)
+    # the spread about each window, so that errors growing with the rate (a reference's
+    # jitter) raise their own threshold; an isolated knock barely moves a median
+    deviation = window - median_filter(window, size=(SHOCK_SPREAD, 1), mode="reflect")
+    spread = 1.4826 * median_filter(np.abs(deviation), size=(SHOCK_SPREAD, 1), mode="reflect")
+    # never below half the recording's typical spread (the reference's noise is always there)
+    spread = np.maximum(spread, 0.5 * np.median(spread, axis=0) + 1e-300)
+    z = np.linalg.norm(deviation / spread, axis=1)
     impulses = []
     for i in np.argsort(-z):
         if z[i] <= SHOCK_Z:
             break
         if impulses and np.min(np.abs(k[i] - np.array([j for j, _ in impulses]))) < w:
             continue
-        impulses.append((k[i], window[i]))
+        impulses.append((k[i], deviation[i]))
     covered = float(np.sum(end - start))
     return np.array([v for _, v in impulses]).reshape(-1, 3), covered
 

@@ -39,16 +39,28 @@ PROTOCOLS = {
 SETTINGS = DiagnosisSettings(replicas=12, seed=0, crn_seeds=3)
 
 
+#: What the disturbances must not be taken for: the reference's samples off their time stamps
+#: by 0.3 ms RMS (``reference_jitter``, which the library has) and a magnetometer 30 ms late
+#: (``mag_delay``: the field at each packet is the one 30 ms before; the library has no lag).
+CONFOUNDERS = {"reference_jitter": 3e-4, "mag_delay": 0.03}
+
+
 def case_inputs(protocol: str, effect: str | None, seed: int, duration_s: float = 120.0):
     """The simulated session, its calibration and its motion part
-    (:func:`imucal.gap.motion.motion_part`)."""
-    effects = (make_effect(effect),) if effect else ()
+    (:func:`imucal.gap.motion.motion_part`); ``effect`` a simulator effect at its realistic
+    size, a confounder (:data:`CONFOUNDERS`) or None."""
+    effects = (make_effect(effect),) if effect and effect not in CONFOUNDERS else ()
+    jitter = CONFOUNDERS["reference_jitter"] if effect == "reference_jitter" else 0.0
     s = simulate_orientation_session(
         seed, matrix=MATRIX, bias=BIAS, mounting=MOUNTING, offset_s=0.3, duration_s=duration_s,
         mag_matrix=MAG_MATRIX, mag_bias=MAG_BIAS, mag_noise=MAG_NOISE, effects=effects,
-        **PROTOCOLS[protocol],
+        reference_jitter_s=jitter, **PROTOCOLS[protocol],
     )  # fmt: skip
-    table = pd.DataFrame({TIME: s.t_module, **dict(zip(GYR, s.gyr.T)), **dict(zip(MAG, s.mag.T))})
+    mag = s.mag
+    if effect == "mag_delay":
+        late = s.t_module - CONFOUNDERS["mag_delay"]
+        mag = np.column_stack([np.interp(late, s.t_module, s.mag[:, k]) for k in range(3)])
+    table = pd.DataFrame({TIME: s.t_module, **dict(zip(GYR, s.gyr.T)), **dict(zip(MAG, mag.T))})
     reference = pd.DataFrame({TIME: s.t_reference, **dict(zip(QUAT, s.quat_reference.T))})
     rests = [
         {"recording": "moves", "label": f"s{k + 1:02d}", "kind": "static", "start_s": lo,

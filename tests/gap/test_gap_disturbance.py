@@ -38,7 +38,7 @@ def test_a_world_fixed_field_is_recovered_as_the_field_along_the_path():
     # the observable is G R r along the path; the estimate is in the twin's world (north +x),
     # the simulation's in the reference's
     turn = twin_world_turn(recordings["moves"]).as_matrix()
-    _, orientation = world_field(recordings["moves"])
+    _, orientation, _ = world_field(recordings["moves"])
     error = orientation @ r @ (turn.T @ g @ turn).T - orientation @ true.arm() @ true.gradient().T
     # least squares of 8 parameters from 13,000 samples of 0.0125 noise: 3e-4 per sample of
     # the fitted field; five of them bound it
