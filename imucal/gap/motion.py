@@ -32,7 +32,9 @@ and is not refitted.
 The effects such a recording can show (:func:`motion_library`): ``g_sensitivity`` (a gyroscope
 output following the specific force), ``scale_nonlinearity`` (a response curved in the rate,
 which makes a scale fitted on fast motion wrong on slow motion) and ``reference_jitter`` (the
-reference's samples taken off their time stamps: an error growing with the rate).
+reference's samples taken off their time stamps: an error growing with the rate), and the
+disturbances of hand-held and robot use with their own locations (:mod:`imucal.gap.disturbance`:
+``world_magnetic``, ``shock``, ``vibration``).
 """
 
 from __future__ import annotations
@@ -48,6 +50,13 @@ from scipy.spatial.transform import Rotation
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import AXES, GYR, MAG, QUAT, SENSORS, TIME
+from imucal.gap.disturbance import (
+    disturbance_statistics,
+    estimate_shock,
+    estimate_vibration,
+    estimate_world_magnetic,
+    twin_world_turn,
+)
 from imucal.gap.effects import EffectModel, Estimate
 from imucal.gap.statistics import HALVES
 from imucal.gap.twin import Replica, identity_calibration, quantum
@@ -236,6 +245,7 @@ def motion_statistics(
                 out[("reference", "mag", "-", name, "dir_resid_rad")] = float(
                     np.radians(found["median_deg"])
                 )
+        out.update(disturbance_statistics(name, rec))
     return out
 
 
@@ -508,9 +518,9 @@ def build_motion_twin(
         q_body = rec.quat[first]
         q_mount = Rotation.from_matrix(rec.alignment.mounting.matrix)
         start = Rotation.from_quat(q_body[[1, 2, 3, 0]]) * q_mount.inv()
-        # the world of the twin has +z up (the simulator's): carry the reference's up there
-        tilt, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up_vector(rec.up)])
-        start = tilt * start
+        # the world of the twin has +z up and magnetic north +x (the simulator's): carry the
+        # reference's up and the recording's north there
+        start = twin_world_turn(rec) * start
         spec[name] = _Recording(
             t_s=rec.t_s,
             omega_b=rec.gyr,
@@ -722,6 +732,25 @@ def motion_library(twin: MotionTwin) -> dict[str, EffectModel]:
             estimate_reference_jitter,
             (("reference", "gyr", "resid_rms"), ("reference", "gyr", "ori_median_rad")),
             "the reference's samples taken off their time stamps (an error growing with rate)",
+        ),
+        "world_magnetic": EffectModel(
+            "world_magnetic",
+            estimate_world_magnetic,
+            (("reference", "mag", "field_position_rms"), ("reference", "mag", "dir_resid_rad")),
+            "a field fixed in the world near the path: the world field follows the sensor's "
+            "position (linear in its attitude about a pivot), not its rate",
+        ),
+        "shock": EffectModel(
+            "shock",
+            estimate_shock,
+            (("reference", "gyr", "shock_rate"), ("reference", "gyr", "resid_rms")),
+            "knocks: gyroscope pulses of a few ms the reference does not follow",
+        ),
+        "vibration": EffectModel(
+            "vibration",
+            estimate_vibration,
+            (("reference", "gyr", "line_power"), ("reference", "gyr", "resid_rms")),
+            "a line in the gyroscope the reference does not follow (a machine, a robot's drives)",
         ),
     }
 

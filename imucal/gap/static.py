@@ -51,6 +51,13 @@ NOT_OBSERVABLE = {
     "earth_rotation": "one orientation only: the Earth's rate is part of the constant bias",
     "saturation": "a static recording stays far from the ranges",
     "scale_nonlinearity": "one input level per axis in a static recording",
+    "world_magnetic": "one position and attitude: a field fixed in the world is part of the "
+    "constant field",
+    "shock": "no estimator on a static recording's streams (its statistics are Allan "
+    "deviations and receive times, which do not isolate a few spikes); recordings with an "
+    "orientation reference show knocks",
+    "vibration": "no estimator on a static recording's streams (no spectral line statistic); "
+    "recordings with an orientation reference show a line",
 }
 
 

@@ -129,6 +129,10 @@ MOTION_STATISTICS = {
     "ori_median_rad": StatisticInfo("rad", log=True, floor=0.02),
     "ref_scale": StatisticInfo("1", floor=1e-4),
     "ref_g_slope": StatisticInfo("rad/s per m/s^2", floor=2e-5),
+    # the disturbances' (imucal.gap.disturbance): one knock in 200 s; a line of 3 mrad/s
+    "shock_rate": StatisticInfo("1/s", floor=0.005),
+    "line_power": StatisticInfo("(rad/s)^2", floor=1e-5),
+    "field_position_rms": StatisticInfo("1", log=True, floor=0.05),
 }
 #: Every statistic a diagnosis scores: name -> scoring info.
 CATALOGUE = {**PROTOCOL_STATISTICS, **STATIC_STATISTICS, **MOTION_STATISTICS}

@@ -9,9 +9,10 @@ gaps (NaN rows). Used by the tests of :mod:`imucal.validation.orientation` and
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from imucal.orientation import (
     integrate_rates,
@@ -21,6 +22,9 @@ from imucal.orientation import (
     quat_multiply,
     quat_rotate,
 )
+from imucal.sim.effects import RecordingContext
+from imucal.sim.motion import KinematicState
+from imucal.sim.sensors import Signals
 
 #: Dip of the simulated field below the horizon, deg.
 FIELD_DIP_DEG = 60.0
@@ -50,6 +54,8 @@ class OrientationSession:
     offset_s, drift_ppm : float
     rests_s : list of (float, float)
         Module-clock rests.
+    realised : dict
+        The effects' random draws (effect -> ``moves`` -> key -> value), as in truth.json.
     """
 
     t_module: np.ndarray
@@ -64,6 +70,7 @@ class OrientationSession:
     offset_s: float
     drift_ppm: float
     rests_s: list
+    realised: dict = field(default_factory=dict)
 
 
 def simulate_orientation_session(
@@ -90,6 +97,9 @@ def simulate_orientation_session(
     reference_jitter_s: float = 0.0,
     axis_weights: np.ndarray | None = None,
     rest_s: float = 3.0,
+    moves: str = "hand",
+    mag_noise: float = 0.0,
+    effects: tuple = (),
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
@@ -107,7 +117,16 @@ def simulate_orientation_session(
     ``axis_weights`` (shape (3,)) multiplies the body rate per axis after that scaling, e.g.
     ``(1, 1, 0.02)`` for a motion that barely turns about the body's z axis. ``rest_s`` is
     the length of each rest (a robot's rests between moves can be about 1 s).
+
+    ``moves="robot"`` replaces the hand's motion by a robot's (:func:`robot_moves`: smooth
+    point-to-point turns with rests of about 1 s; ``rate_rad_s`` is then not used).
+    ``mag_noise`` adds white noise (normalised field) to the magnetometer. ``effects`` are
+    simulator effects (:mod:`imucal.sim.effects`) acting on the true signals in B and on the
+    readings (``on_true_signals``, ``on_readings``; recording name ``moves``, their own random
+    streams), e.g. ``world_magnetic``, ``shock``, ``vibration``.
     """
+    if moves not in ("hand", "robot"):
+        raise ValueError(f"moves must be 'hand' or 'robot', got {moves!r}")
     rng = np.random.default_rng(seed)
     dt_fine = 1e-3
     t_fine = np.arange(0.0, duration_s + 1.0, dt_fine)
@@ -128,6 +147,9 @@ def simulate_orientation_session(
     scale = rate_rad_s / np.sqrt(np.mean(rate(t_fine) ** 2))
     if axis_weights is not None:
         scale = scale * np.asarray(axis_weights, dtype=float)
+    if moves == "robot":
+        rate, robot_rests = robot_moves(np.random.default_rng([seed, 2]), duration_s + 1.0)
+        scale = 1.0
     w_fine = scale * rate(t_fine)
     q_fine = integrate_rates(t_fine, w_fine)  # body -> start frame
     q0 = quat_from_rotvec(rng.normal(0, 1, 3))
@@ -135,21 +157,40 @@ def simulate_orientation_session(
     t_m = np.arange(0.0, duration_s, 1.0 / module_rate_hz)
     w_body = scale * rate(t_m)
     gyr_b = w_body @ np.asarray(mounting).T
-    gyr = np.linalg.solve(matrix, gyr_b.T).T + bias + rng.normal(0, gyro_noise_rad_s, gyr_b.shape)
     up = np.array([0.0, 0.0, 1.0])
     idx = np.clip(np.round(t_m / dt_fine).astype(int), 0, t_fine.size - 1)
     q_mount = quat_from_matrix(mounting)
     acc = 9.81 * quat_rotate(quat_multiply(q_mount, quat_conjugate(q_fine[idx])), up)
+    mag = quat_rotate(quat_multiply(q_mount, quat_conjugate(q_fine[idx])), FIELD_WORLD)
+    ctx = RecordingContext("moves", module_rate_hz, 0.0, {}, seed)
+    if effects:
+        # B -> world: the body's orientation, B = mounting body
+        rotation = (
+            Rotation.from_quat(q_fine[idx][:, [1, 2, 3, 0]])
+            * Rotation.from_matrix(np.asarray(mounting, dtype=float)).inv()
+        )
+        state = KinematicState(t_m, rotation, gyr_b, np.zeros_like(gyr_b))
+        true = Signals(acc, gyr_b, mag)
+        for effect in effects:
+            true = effect.on_true_signals(true, state, ctx)
+        acc, gyr_b, mag = true.acc, true.gyr, true.mag
+    gyr = np.linalg.solve(matrix, gyr_b.T).T + bias + rng.normal(0, gyro_noise_rad_s, gyr_b.shape)
     if acc_matrix is not None:
         acc = np.linalg.solve(acc_matrix, acc.T).T
     if acc_bias is not None:
         acc = acc + acc_bias
     acc = acc + rng.normal(0, 1, acc.shape) * acc_noise_m_s2
-    mag = quat_rotate(quat_multiply(q_mount, quat_conjugate(q_fine[idx])), FIELD_WORLD)
     if mag_matrix is not None:
         mag = np.linalg.solve(mag_matrix, mag.T).T
     if mag_bias is not None:
         mag = mag + mag_bias
+    if mag_noise > 0:
+        mag = mag + np.random.default_rng([seed, 3]).normal(0.0, mag_noise, mag.shape)
+    if effects:
+        readings = Signals(acc, gyr, mag)
+        for effect in effects:
+            readings = effect.on_readings(readings, true, state, ctx)
+        acc, gyr, mag = readings.acc, readings.gyr, readings.mag
     # reference clock: sample k at t_ref = k / rate, module time (t_ref - offset) / (1 + drift)
     t_ref_all = np.arange(
         0.0, offset_s + duration_s * (1 + drift_ppm * 1e-6), 1.0 / reference_rate_hz
@@ -170,6 +211,8 @@ def simulate_orientation_session(
     for start in rng.uniform(t_ref[0] + 5, t_ref[-1] - 5, gaps):
         q_ref[(t_ref >= start) & (t_ref < start + gap_s)] = np.nan
     rests = [(s + 0.1 * rest_s, s + 0.9 * rest_s) for s in np.arange(0.0, duration_s - 3.0, 20.0)]
+    if moves == "robot":
+        rests = [(a + 0.1, b - 0.1) for a, b in robot_rests if b < duration_s]
     return OrientationSession(
         t_module=t_m,
         gyr=gyr,
@@ -183,4 +226,51 @@ def simulate_orientation_session(
         offset_s=offset_s,
         drift_ppm=drift_ppm,
         rests_s=rests,
+        realised=ctx.realised,
     )
+
+
+def robot_moves(rng: np.random.Generator, duration_s: float) -> tuple:
+    """A robot's motion: smooth point-to-point turns with rests between them.
+
+    Each move turns the body about an axis drawn uniformly in the body frame by 20-90 deg in
+    2-4 s with a minimum-jerk profile (rate ``angle s'(tau) / T``, ``s = 10 tau^3 - 15 tau^4 +
+    6 tau^5``: zero rate and acceleration at both ends), then rests for 0.8-1.2 s.
+
+    Parameters
+    ----------
+    rng : numpy Generator
+    duration_s : float
+        Span to cover, s.
+
+    Returns
+    -------
+    rate : callable
+        ``t (n,) -> body rate (n, 3)``, rad/s.
+    rests : list of (float, float)
+        The rests, s.
+    """
+    starts, lengths, turns, rests = [], [], [], []
+    t = 1.0
+    rests.append((0.0, t))
+    while t < duration_s:
+        length = rng.uniform(2.0, 4.0)
+        axis = rng.normal(size=3)
+        turns.append(np.radians(rng.uniform(20.0, 90.0)) * axis / np.linalg.norm(axis))
+        starts.append(t)
+        lengths.append(length)
+        pause = rng.uniform(0.8, 1.2)
+        rests.append((t + length, t + length + pause))
+        t += length + pause
+    starts, lengths, turns = np.array(starts), np.array(lengths), np.array(turns)
+
+    def rate(t_s: np.ndarray) -> np.ndarray:
+        t_s = np.asarray(t_s, dtype=float)
+        k = np.clip(np.searchsorted(starts, t_s, side="right") - 1, 0, len(starts) - 1)
+        tau = (t_s - starts[k]) / lengths[k]
+        inside = (tau >= 0) & (tau <= 1)
+        tau = np.where(inside, tau, 0.0)
+        speed = np.where(inside, 30 * tau**2 - 60 * tau**3 + 30 * tau**4, 0.0) / lengths[k]
+        return speed[:, None] * turns[k]
+
+    return rate, rests

@@ -24,6 +24,7 @@ from imucal.sim import ProtocolConfig, evaluate_motion, make_truth, simulate_ses
 from imucal.sim.effects import (
     CANONICAL,
     EFFECTS,
+    MOTION_EFFECTS,
     PROTOCOL_EFFECTS,
     REALISTIC,
     REFERENCE_EFFECTS,
@@ -93,9 +94,11 @@ def count_tol(session, sensor: str, n: int) -> float:
 # --- the table ------------------------------------------------------------------------------
 
 
-def test_all_16_effects_are_registered_with_realistic_defaults_and_a_magnitude():
-    every = CANONICAL + PROTOCOL_EFFECTS + REFERENCE_EFFECTS
-    assert len(CANONICAL) == 14 and sorted(every) == sorted(EFFECTS) and len(every) == 16
+def test_every_effect_is_registered_with_realistic_defaults_and_a_magnitude():
+    every = CANONICAL + PROTOCOL_EFFECTS + REFERENCE_EFFECTS + MOTION_EFFECTS
+    assert (
+        len(CANONICAL) == 14 and sorted(every) == sorted(EFFECTS) and len(set(every)) == len(every)
+    )
     for name in every:
         effect = make_effect(name)
         assert REALISTIC[name] == effect.params() == EFFECTS[name].realistic()
@@ -624,3 +627,61 @@ def test_large_misalignment_of_8_deg_on_a_mems_truth_fits_int16():
     assert on.clipped["ratetable"]["gyr"] == 0
     peak = np.abs(reading(on, "ratetable", "gyr")).max()
     assert np.degrees(peak) > 400 / 1.2 and peak / on.sensitivity["gyr"] < INT16_MAX
+
+
+def test_world_magnetic_adds_a_field_that_follows_the_position_not_the_attitude(truth, base):
+    effect = make_effect("world_magnetic")
+    on = render(truth, effect)
+    assert same_counts(on, base, sensors=("acc", "gyr"))
+    t = module_time(on, "rotation3d")
+    state = evaluate_motion(on.rendered["rotation3d"].motion, t)
+    # in the world, the added field is G p with p = R r the sensor's position from the pivot
+    added_world = state.rotation.apply(
+        calibrated(on, "rotation3d", "mag") - calibrated(base, "rotation3d", "mag")
+    )
+    fresh = np.isfinite(added_world[:, 0])
+    expected = state.rotation.apply(effect.arm())[fresh] @ effect.gradient().T
+    step = np.abs(truth.calibration.mag.matrix).sum(axis=1).max() * on.sensitivity["mag"]
+    # two roundings of one count, through the calibration matrix
+    assert np.abs(added_world[fresh] - expected).max() < 2 * step
+    assert np.sqrt((expected**2).sum(axis=1).mean()) > 0.5 * effect.magnitude().value
+    np.testing.assert_allclose(np.trace(effect.gradient()), 0.0, atol=1e-15)
+
+
+def test_shock_adds_half_sine_pulses_at_the_recorded_times_only(truth, base):
+    effect = make_effect("shock", rate_per_s=0.5)
+    on = render(truth, effect)
+    assert same_counts(on, base, sensors=("mag",))
+    times = np.array(on.realised["shock"]["static"]["times_s"])
+    t = module_time(on, "static")
+    # about rate x duration knocks (Poisson: 5 sigma)
+    assert abs(len(times) - 0.5 * np.ptp(t)) < 5 * np.sqrt(0.5 * np.ptp(t))
+    added = reading(on, "static", "gyr") - reading(base, "static", "gyr")
+    inside = np.zeros(len(t), dtype=bool)
+    step = on.sensitivity["gyr"]
+    for t0 in times:
+        knock = (t >= t0) & (t < t0 + effect.duration_s + 1 / RATE_HZ)
+        inside |= knock
+        # the readings' integral is the half-sine's, 2 A D / pi, up to a count per sample
+        impulse = np.linalg.norm(added[knock].sum(axis=0)) / RATE_HZ
+        expected = 2 * effect.gyr_peak_rad_s * effect.duration_s / np.pi
+        assert abs(impulse - expected) <= 2 * knock.sum() * step / RATE_HZ, t0
+    assert np.abs(added[~inside]).max() <= 1.01 * step
+    assert np.linalg.norm(added[inside], axis=1).max() <= effect.gyr_peak_rad_s + 2 * step
+    with pytest.raises(ValueError, match="shock rate_per_s must be > 0"):
+        make_effect("shock", rate_per_s=0.0)
+
+
+def test_vibration_is_a_line_at_its_frequency_in_acc_and_gyro(truth, base):
+    effect = make_effect("vibration")
+    on = render(truth, effect)
+    assert same_counts(on, base, sensors=("mag",))
+    t = module_time(on, "static")
+    for sensor, amp in (("gyr", effect.gyr_amp_rad_s), ("acc", effect.acc_amp_m_s2)):
+        added = reading(on, "static", sensor) - reading(base, "static", sensor)
+        direction = np.array(on.realised["vibration"]["static"][f"direction_{sensor}"])
+        phase = on.realised["vibration"]["static"]["phase_rad"]
+        wave = amp * np.sin(2 * np.pi * effect.freq_hz * t + phase)
+        assert np.abs(added - wave[:, None] * direction).max() <= 1.01 * on.sensitivity[sensor]
+    with pytest.raises(ValueError, match="vibration freq_hz must be > 0 Hz"):
+        make_effect("vibration", freq_hz=-1.0)

@@ -14,6 +14,7 @@ from imucal.sim.effects.base import (
     register,
     stream_rng,
 )
+from imucal.sim.effects.disturbance import Shock, Vibration, WorldMagnetic
 from imucal.sim.effects.handling import HandTremor
 from imucal.sim.effects.kinematic import EarthRotation, LeverArm
 from imucal.sim.effects.magnetic import MagLatency, PlatformMagnetic, platform_yaw
@@ -53,9 +54,14 @@ PROTOCOL_EFFECTS = ("hand_tremor",)
 #: reference is compared sample by sample with the gyroscope (:mod:`imucal.gap.motion`).
 REFERENCE_EFFECTS = ("reference_jitter",)
 
+#: Effects a hand-held or robot-borne module meets; the diagnosis models them where a reference
+#: gives the module's attitude (:mod:`imucal.gap.motion`).
+MOTION_EFFECTS = ("world_magnetic", "shock", "vibration")
+
 #: Effect name -> its typical realistic parameters (MEMS-class module, MTx-class reference).
 REALISTIC = {
-    name: EFFECTS[name].realistic() for name in CANONICAL + PROTOCOL_EFFECTS + REFERENCE_EFFECTS
+    name: EFFECTS[name].realistic()
+    for name in CANONICAL + PROTOCOL_EFFECTS + REFERENCE_EFFECTS + MOTION_EFFECTS
 }
 
 __all__ = [
@@ -72,6 +78,7 @@ __all__ = [
     "HandTremor",
     "LargeMisalignment",
     "LeverArm",
+    "MOTION_EFFECTS",
     "MagLatency",
     "Magnitude",
     "PacketLoss",
@@ -81,9 +88,12 @@ __all__ = [
     "RecordingContext",
     "Saturation",
     "ScaleNonlinearity",
+    "Shock",
     "TemperatureDrift",
     "TimeOffset",
     "TimingJitter",
+    "Vibration",
+    "WorldMagnetic",
     "make_effect",
     "parse_effect",
     "platform_yaw",

@@ -1,0 +1,430 @@
+"""Disturbances of hand-held and robot recordings, seen against an orientation reference.
+
+Three effects of the simulator (:mod:`imucal.sim.effects.disturbance`) that a recording with an
+orientation reference shows and the twin of :mod:`imucal.gap.motion` does not replay: its twin
+takes the calibrated gyroscope as the true rate and renders the magnetometer from the Earth's
+field alone. Each has a statistic of the gap map and an estimator of the simulator's parameters:
+
+* ``world_magnetic``: the field carried into the world by the reference's orientation is
+  constant in a clean recording; a field fixed in the world near the path makes it follow the
+  sensor's position, which for a module turned about a pivot (wrist, flange) is linear in the
+  entries of its orientation matrix. Statistic ``field_position_rms``: the RMS of the world
+  field's part linear in those entries. A magnetometer lag makes the world field follow the
+  rate (fitted beside it, :func:`_field_fit`), the reference's noise and jitter make it
+  scatter; neither is linear in the attitude.
+* ``shock``: the gyroscope's angle over three reference intervals against the reference's
+  (the reference's noise telescopes, so the window's noise is one interval's): a knock the
+  reference does not resolve stands out. Statistic ``shock_rate``: outlying windows per second.
+* ``vibration``: the frequency of the gyroscope's narrowest strong line above the motion's
+  band (:data:`LINE_MIN_HZ`), and the amplitude at that frequency of the gyroscope's residual
+  against the reference, integrated into an angle at the reference's samples (so that a line
+  above the reference's Nyquist frequency is measured too). Statistic ``line_power``.
+
+The functions read recordings as :class:`imucal.gap.motion.MotionRecording` holds them (module
+times, calibrated gyroscope and magnetometer, reference times and quaternions, alignment, up).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from scipy.ndimage import median_filter
+from scipy.signal import welch
+from scipy.spatial.transform import Rotation
+
+from imucal.gap.effects import Estimate
+from imucal.orientation import interval_means, up_vector
+from imucal.sim.effects import Shock, Vibration, WorldMagnetic
+from imucal.sim.effects.disturbance import gradient_matrix
+from imucal.validation.orientation import reference_rates
+
+#: Reference intervals summed in a shock window (the reference's noise telescopes over them).
+SHOCK_WINDOW = 3
+#: Robust z (norm over the three axes) above which a window holds a knock.
+SHOCK_Z = 6.0
+#: Windows over which the spread a knock is scored against is taken (about 2 s).
+SHOCK_SPREAD = 241
+#: Lowest frequency of a vibration line (Hz): above the band of hand and robot motion.
+LINE_MIN_HZ = 5.0
+#: Length of the blocks over which a line keeps its phase (s).
+LINE_BLOCK_S = 5.0
+#: Offsets (Hz) from a line at which the noise's share of its fitted power is measured.
+LINE_OFFSETS_HZ = tuple(sign * 0.6 * k for k in range(1, 7) for sign in (-1, 1))
+#: Fewest reference samples with a field for the world field's regression.
+MIN_FIELD_SAMPLES = 200
+
+
+def _halves(session: Mapping, half) -> list:
+    return [rec.half(half) for rec in session.values()]
+
+
+def reference_intervals(rec) -> tuple:
+    """The calibrated gyroscope and the reference over the reference's intervals.
+
+    Returns
+    -------
+    start, end : ndarray, shape (k,)
+        Interval ends on the module clock, s.
+    contiguous : ndarray of bool, shape (k,)
+        The interval starts where the previous one ended (no gap of the reference between).
+    residual : ndarray, shape (k, 3)
+        Gyroscope mean minus the reference's rate carried into B, rad/s.
+    """
+    start, end, body = reference_rates(rec.t_reference, rec.quat)
+    contiguous = np.concatenate([[False], start[1:] == end[:-1]])
+    to_module = rec.alignment.to_module_time
+    a, b = to_module(start), to_module(end)
+    gyro = interval_means(rec.t_s, rec.gyr, a, b)
+    residual = gyro - body @ rec.alignment.mounting.matrix.T
+    ok = np.all(np.isfinite(residual), axis=1)
+    contiguous = contiguous & np.concatenate([[False], ok[:-1]])
+    return a[ok], b[ok], contiguous[ok], residual[ok]
+
+
+# --------------------------------------------------------------------------- world_magnetic
+
+
+def twin_world_turn(rec) -> Rotation:
+    """The rotation from the reference's world to the twin's: up to +z, and the magnetometer's
+    mean field in the world (when the recording has one) to the x-z plane, north +x, as the
+    simulator's world has it (:class:`imucal.sim.World`). With it a field added in the twin's
+    world meets the Earth's field at the angles it met it in the recording."""
+    tilt, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up_vector(rec.up)])
+    found = world_field(rec)
+    if found is None:
+        return tilt
+    north = tilt.apply(found[0].mean(axis=0))
+    return Rotation.from_euler("z", -np.arctan2(north[1], north[0])) * tilt
+
+
+def world_field(rec, tilt: bool = False) -> tuple | None:
+    """The magnetometer and the gyroscope carried into the world at the present reference
+    samples.
+
+    Parameters
+    ----------
+    rec : MotionRecording
+    tilt : bool
+        Express them in the twin's world (:func:`twin_world_turn`) instead of the reference's.
+
+    Returns
+    -------
+    field : ndarray, shape (k, 3)
+        ``R M^T m_B`` (normalised field), R the reference's body -> world.
+    orientation : ndarray, shape (k, 3, 3)
+        ``R M^T`` (B -> world).
+    rate : ndarray, shape (k, 3)
+        The gyroscope's rate in the world, rad/s.
+    None when the recording has no magnetometer or too few samples.
+    """
+    if rec.mag is None:
+        return None
+    tau = rec.alignment.to_module_time(rec.t_reference)
+    fresh = np.all(np.isfinite(rec.mag), axis=1)
+    t_m, m = rec.t_s[fresh], rec.mag[fresh]
+    use = np.all(np.isfinite(rec.quat), axis=1) & (tau >= t_m[0]) & (tau <= t_m[-1])
+    if np.count_nonzero(use) < MIN_FIELD_SAMPLES:
+        return None
+    m_at = np.column_stack([np.interp(tau[use], t_m, m[:, k]) for k in range(3)])
+    w_at = np.column_stack([np.interp(tau[use], rec.t_s, rec.gyr[:, k]) for k in range(3)])
+    q = rec.quat[use]
+    orientation = (
+        Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix() @ rec.alignment.mounting.matrix.T
+    )
+    if tilt:
+        orientation = twin_world_turn(rec).as_matrix() @ orientation
+    field = np.einsum("nij,nj->ni", orientation, m_at)
+    return field, orientation, np.einsum("nij,nj->ni", orientation, w_at)
+
+
+def _field_fit(parts: list) -> tuple:
+    """The world field regressed on an offset per recording, the 9 entries of the orientation
+    and a lag: ``m_w = m_0 + C vec(R) + tau (omega_w x m_w)`` (a magnetometer ``tau`` late
+    reads ``R(t - tau)^T m`` and turns the world field by ``tau omega_w``; one ``tau`` for the
+    three components, so that a lag, which follows the rate, is not taken for a field that
+    follows the attitude).
+
+    Parameters
+    ----------
+    parts : list of tuple
+        :func:`world_field` per recording.
+
+    Returns
+    -------
+    offsets : ndarray, shape (k, 3)
+        ``m_0`` of each sample's recording.
+    coef : ndarray, shape (9, 3)
+        ``C`` (rows: the entries of R, row-major).
+    lag : ndarray, shape (k, 3)
+        ``tau (omega_w x m_w)``.
+    field, orientation : ndarray
+        The parts joined.
+    """
+    field = np.concatenate([p[0] for p in parts])
+    orientation = np.concatenate([p[1] for p in parts])
+    turn = np.cross(np.concatenate([p[2] for p in parts]), field)
+    which = np.concatenate([np.full(len(p[0]), k) for k, p in enumerate(parts)])
+    one_hot = (which[:, None] == np.arange(len(parts))[None, :]).astype(float)
+    design = np.column_stack([one_hot, orientation.reshape(len(field), 9)])
+    both = np.linalg.lstsq(design, np.hstack([field, turn]), rcond=None)[0]
+    # the shared lag by least squares on what the other regressors leave (Frisch-Waugh)
+    res_field, res_turn = field - design @ both[:, :3], turn - design @ both[:, 3:]
+    tau = float(np.sum(res_field * res_turn) / max(np.sum(res_turn**2), 1e-300))
+    coef = both[:, :3] - tau * both[:, 3:]
+    return one_hot @ coef[: len(parts)], coef[len(parts) :], tau * turn, field, orientation
+
+
+def field_position_rms(rec) -> float | None:
+    """RMS (normalised field) of the world field's part linear in the orientation's entries
+    (:func:`_field_fit`)."""
+    found = world_field(rec)
+    if found is None:
+        return None
+    _, coef, _, field, orientation = _field_fit([found])
+    part = orientation.reshape(len(field), 9) @ coef
+    part -= part.mean(axis=0)
+    return float(np.sqrt(np.mean(np.sum(part**2, axis=1))))
+
+
+def estimate_world_magnetic(session: Mapping, half) -> Estimate | None:
+    """Gradient ``G`` and arm ``r`` of a field fixed in the world (the simulator's model).
+
+    The world field (twin's axes) is regressed on an offset per recording, the entries of
+    ``R`` (B -> world) and a lag (:func:`_field_fit`): ``C_i,jk = G_ij r_k`` for the model.
+    ``C`` is brought to that form by its best rank-one factor (the SVD of ``C`` arranged as
+    (ij) x k), ``G`` made symmetric and traceless (a static field in free space; this also
+    leaves out a residual hard iron, ``G = I``), then ``r`` and ``G`` are refitted in turn by
+    least squares. ``|r|`` is set to the simulator's realistic arm (only ``G r`` is
+    observable). Detection: the RMS of ``G R r`` about its mean (normalised field).
+    """
+    parts = [world_field(rec, tilt=True) for rec in _halves(session, half)]
+    parts = [p for p in parts if p is not None]
+    if not parts:
+        return None
+    offsets, coef, lag, field, orientation = _field_fit(parts)
+    c = coef.reshape(3, 3, 3)  # [j, k, i]: R_jk -> field_i
+    tensor = np.transpose(c, (2, 0, 1)).reshape(9, 3)  # rows (i, j), columns k
+    u, s, vt = np.linalg.svd(tensor)
+    g = (u[:, 0] * s[0]).reshape(3, 3)
+    r = vt[0]
+    y = field - offsets - lag
+    basis = [gradient_matrix(*e) for e in np.eye(5)]
+    for _ in range(10):
+        g = 0.5 * (g + g.T) - np.trace(g) / 3.0 * np.eye(3)
+        a = g[None] @ orientation  # (n, 3, 3): r -> G R r
+        r = np.linalg.lstsq(a.reshape(-1, 3), y.ravel(), rcond=None)[0]
+        p = orientation @ r  # positions, (n, 3)
+        cols = np.stack([(p @ b.T).ravel() for b in basis], axis=1)
+        g = gradient_matrix(*np.linalg.lstsq(cols, y.ravel(), rcond=None)[0])
+    arm = np.linalg.norm(WorldMagnetic().arm())
+    scale = np.linalg.norm(r) / arm if np.linalg.norm(r) > 0 else 1.0
+    r, g = r / scale, g * scale
+    part = (orientation @ r) @ g.T
+    part -= part.mean(axis=0)
+    params = {
+        "arm_x_m": float(r[0]), "arm_y_m": float(r[1]), "arm_z_m": float(r[2]),
+        "grad_xx": float(g[0, 0]), "grad_yy": float(g[1, 1]), "grad_xy": float(g[0, 1]),
+        "grad_xz": float(g[0, 2]), "grad_yz": float(g[1, 2]),
+    }  # fmt: skip
+    return Estimate(params, float(np.sqrt(np.mean(np.sum(part**2, axis=1)))))
+
+
+# --------------------------------------------------------------------------- shock
+
+
+def shock_events(rec) -> tuple[np.ndarray, float]:
+    """The knocks of one recording: the gyroscope's angle against the reference's over windows
+    of :data:`SHOCK_WINDOW` contiguous intervals, less its running median and scaled per axis
+    by its running robust (MAD) spread over :data:`SHOCK_SPREAD` windows; windows whose norm
+    exceeds :data:`SHOCK_Z` are knocks, overlapping ones merged into the strongest.
+
+    Returns
+    -------
+    impulses : ndarray, shape (e, 3)
+        The residual angle of each knock's strongest window, rad.
+    duration_s : float
+        The time the windows cover, s.
+    """
+    start, end, contiguous, residual = reference_intervals(rec)
+    w = SHOCK_WINDOW
+    if len(start) <= w:
+        return np.zeros((0, 3)), 0.0
+    angle = residual * (end - start)[:, None]
+    total = np.concatenate([np.zeros((1, 3)), np.cumsum(angle, axis=0)])
+    broken = np.concatenate([[0], np.cumsum(~contiguous)])
+    k = np.arange(len(start) - w + 1)
+    whole = broken[k + w] - broken[k + 1] == 0  # intervals k+1 .. k+w-1 follow their previous
+    k = k[whole]
+    window = total[k + w] - total[k]
+    # the spread about each window, so that errors growing with the rate (a reference's
+    # jitter) raise their own threshold; an isolated knock barely moves a median
+    deviation = window - median_filter(window, size=(SHOCK_SPREAD, 1), mode="reflect")
+    spread = 1.4826 * median_filter(np.abs(deviation), size=(SHOCK_SPREAD, 1), mode="reflect")
+    # never below half the recording's typical spread (the reference's noise is always there)
+    spread = np.maximum(spread, 0.5 * np.median(spread, axis=0) + 1e-300)
+    z = np.linalg.norm(deviation / spread, axis=1)
+    impulses = []
+    for i in np.argsort(-z):
+        if z[i] <= SHOCK_Z:
+            break
+        if impulses and np.min(np.abs(k[i] - np.array([j for j, _ in impulses]))) < w:
+            continue
+        impulses.append((k[i], deviation[i]))
+    covered = float(np.sum(end - start))
+    return np.array([v for _, v in impulses]).reshape(-1, 3), covered
+
+
+def shock_rate(rec) -> float:
+    """Knocks per second of one recording (:func:`shock_events`)."""
+    impulses, covered = shock_events(rec)
+    return len(impulses) / covered if covered > 0 else 0.0
+
+
+def estimate_shock(session: Mapping, half) -> Estimate | None:
+    """Rate and peak of the knocks: the rate from the knocks found (:func:`shock_events`), the
+    gyroscope's peak from the median residual angle of a knock, which a half-sine of peak
+    ``A`` and duration ``D`` makes ``2 A D / pi`` (``D`` the simulator's realistic 5 ms: the
+    reference's intervals do not resolve it). The accelerometer's peak is not compared with
+    anything here and keeps the realistic ratio to the gyroscope's. Detection: the rate."""
+    found = [shock_events(rec) for rec in _halves(session, half)]
+    covered = sum(c for _, c in found)
+    if covered <= 0:
+        return None
+    impulses = np.concatenate([i for i, _ in found])
+    rate = len(impulses) / covered
+    realistic = Shock()
+    peak = 0.0
+    if len(impulses):
+        peak = (
+            float(np.median(np.linalg.norm(impulses, axis=1))) * np.pi / (2 * realistic.duration_s)
+        )
+    ratio = realistic.acc_peak_m_s2 / realistic.gyr_peak_rad_s
+    params = {
+        "rate_per_s": max(rate, 1.0 / covered), "acc_peak_m_s2": ratio * peak,
+        "gyr_peak_rad_s": peak, "duration_s": realistic.duration_s,
+    }  # fmt: skip
+    return Estimate(params, rate)
+
+
+# --------------------------------------------------------------------------- vibration
+
+
+def line_frequency(session: Mapping) -> float | None:
+    """Frequency (Hz) of the gyroscope's strongest narrow line above :data:`LINE_MIN_HZ`:
+    the Welch spectrum (pooled over axes and recordings of one rate) over its running median,
+    at its largest ratio, refined by a parabola through the log spectrum."""
+    best = None
+    for rec in session.values():
+        if len(rec.t_s) < 512:
+            continue
+        fs = (len(rec.t_s) - 1) / (rec.t_s[-1] - rec.t_s[0])
+        # segments of a quarter of the recording (a power of two): a fine frequency grid
+        nperseg = int(2 ** np.floor(np.log2(len(rec.t_s) / 4)))
+        f, p = welch(rec.gyr, fs=fs, nperseg=nperseg, axis=0)
+        p = p.sum(axis=1)
+        keep = (f >= LINE_MIN_HZ) & (f <= 0.95 * fs / 2)
+        if np.count_nonzero(keep) < 8:
+            continue
+        idx = np.flatnonzero(keep)
+        floor = np.array([np.median(p[max(i - 15, idx[0]) : i + 16]) for i in idx])
+        ratio = p[idx] / np.maximum(floor, 1e-300)
+        j = int(np.argmax(ratio))
+        i = idx[j]
+        df = f[1] - f[0]
+        freq = f[i]
+        if idx[0] < i < idx[-1]:
+            y0, y1, y2 = np.log(p[i - 1 : i + 2])
+            denom = y0 - 2 * y1 + y2
+            if denom < 0:
+                freq += df * 0.5 * (y0 - y2) / denom
+        if best is None or ratio[j] > best[0]:
+            best = (ratio[j], float(freq))
+    return None if best is None else best[1]
+
+
+def _line_power(angle: np.ndarray, t: np.ndarray, w: float) -> float:
+    """``c^2 + s^2`` summed over the axes of the line ``(c sin w t - s cos w t) / w`` fitted
+    with a quadratic in time to ``angle`` (shape (n, 3))."""
+    tc = t - t.mean()
+    design = np.column_stack([np.ones_like(t), tc, tc**2, np.sin(w * t) / w, -np.cos(w * t) / w])
+    coef, *_ = np.linalg.lstsq(design, angle, rcond=None)
+    return float(np.sum(coef[3] ** 2 + coef[4] ** 2))
+
+
+def line_power(recordings, freq_hz: float) -> float:
+    """Squared amplitude ((rad/s)^2, summed over axes) of a sinusoid of ``freq_hz`` in the
+    gyroscope's residual against the reference, less the noise's (negative when the noise
+    happens to be larger there).
+
+    The residual is integrated over the reference's contiguous intervals into an angle at
+    their ends, in which the reference's white orientation noise stays white (a rate from
+    orientation differences has it differenced, its power piled up near the reference's
+    Nyquist frequency). Over each contiguous stretch of at most :data:`LINE_BLOCK_S`, per axis,
+    the angle is fitted by least squares with a quadratic in time (the gyroscope's noise
+    integrates to a random walk) and the angle of the line, ``(c sin w t - s cos w t) / w``.
+    The noise's part of ``c^2 + s^2`` is the same fit's at :data:`LINE_OFFSETS_HZ` from the
+    line (whatever the noise's colour, it is smooth there). The difference, averaged over the
+    stretches (weighted by the inverse square of the noise's part: a stretch's power scatters
+    as its noise) and summed over the axes, is divided by the attenuation of the gyroscope's
+    samples integrated as a polyline (``sinc^2(f / fs)``, fs the module's rate)."""
+    lines, noises = [], []
+    gain = 1.0
+    for rec in recordings:
+        a, b, contiguous, residual = reference_intervals(rec)
+        if len(a) < 50:
+            continue
+        fs = (len(rec.t_s) - 1) / (rec.t_s[-1] - rec.t_s[0])
+        gain = np.sinc(freq_hz / fs) ** 2
+        run = np.cumsum(~contiguous)
+        block = np.floor((a - a[0]) / LINE_BLOCK_S).astype(int)
+        group = run * (block.max() + 1) + block
+        for g in np.unique(group):
+            sel = group == g
+            if np.count_nonzero(sel) < 50:
+                continue
+            angle = np.cumsum(residual[sel] * (b - a)[sel][:, None], axis=0)
+            lines.append(_line_power(angle, b[sel], 2 * np.pi * freq_hz))
+            noises.append(np.mean([
+                _line_power(angle, b[sel], 2 * np.pi * (freq_hz + df)) for df in LINE_OFFSETS_HZ
+            ]))  # fmt: skip
+    if not lines:
+        return 0.0
+    lines, noises = np.array(lines), np.array(noises)
+    # a stretch's power scatters as its noise's: weight by the inverse squared noise
+    weight = 1.0 / np.maximum(noises, 1e-300) ** 2
+    return float(np.sum(weight * (lines - noises)) / np.sum(weight) / gain**2)
+
+
+def line_power_of(rec) -> float:
+    """:func:`line_power` of one recording at its own :func:`line_frequency`."""
+    freq = line_frequency({"rec": rec})
+    return 0.0 if freq is None else line_power([rec], freq)
+
+
+def estimate_vibration(session: Mapping, half) -> Estimate | None:
+    """Frequency and gyroscope amplitude of a line the reference does not see: the frequency
+    from the gyroscope's spectrum over the whole recordings (:func:`line_frequency`; the twin
+    replays it, so it does not score), the amplitude from the residual against the reference
+    (:func:`line_power`). The accelerometer's amplitude is not compared with anything here
+    and keeps the realistic ratio to the gyroscope's. Detection: the squared amplitude."""
+    freq = line_frequency(session)
+    if freq is None:
+        return None
+    power = line_power(_halves(session, half), freq)
+    realistic = Vibration()
+    ratio = realistic.acc_amp_m_s2 / realistic.gyr_amp_rad_s
+    size = float(np.sqrt(max(power, 0.0)))
+    params = {"freq_hz": freq, "acc_amp_m_s2": ratio * size, "gyr_amp_rad_s": size}
+    return Estimate(params, power)
+
+
+def disturbance_statistics(name: str, rec) -> dict:
+    """The locations of one recording (stage ``reference``): ``shock_rate`` and ``line_power``
+    of the gyroscope, ``field_position_rms`` of the magnetometer when it has one."""
+    key = ("reference", "gyr", "-", name)
+    out = {(*key, "shock_rate"): shock_rate(rec), (*key, "line_power"): line_power_of(rec)}
+    field = field_position_rms(rec)
+    if field is not None:
+        out[("reference", "mag", "-", name, "field_position_rms")] = field
+    return out

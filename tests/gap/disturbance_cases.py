@@ -1,0 +1,94 @@
+"""Simulated hand-held and robot sessions with an orientation reference and a magnetometer,
+clean or with one disturbance (``world_magnetic``, ``shock``, ``vibration``), ready for the
+partial-session diagnosis; shared by tests/gap/test_gap_disturbance.py and
+tests/benchmarks/gap/bench_disturbances.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy.spatial.transform import Rotation
+
+from imucal import errormodel
+from imucal.calibration import SensorCalibration
+from imucal.columns import GYR, MAG, QUAT, SEGMENT_COLUMNS, TIME
+from imucal.gap import DiagnosisSettings
+from imucal.gap.composite import diagnose_partial_session
+from imucal.gap.motion import motion_part
+from imucal.sim.effects import make_effect
+from imucal.sim.orientation import simulate_orientation_session
+
+MATRIX = errormodel.compose([1.02, 0.98, 1.01], [0.004, -0.003, 0.005], [0.0, 0.0, 0.0])
+BIAS = np.array([0.01, -0.02, 0.015])
+MAG_MATRIX = errormodel.compose([1.05, 0.97, 1.02], [0.01, -0.02, 0.015], [0.0, 0.0, 0.0])
+MAG_BIAS = np.array([0.2, -0.1, 0.3])
+MOUNTING = Rotation.from_rotvec([0.3, -0.2, 0.8]).as_matrix()
+#: Magnetometer noise, normalised field: 0.6 uT of 48 uT (AK8963 class, effects.md #7).
+MAG_NOISE = 0.0125
+#: The protocols: a hand under optical motion capture (120 Hz, 0.5 mrad, tracking gaps) and a
+#: robot arm reporting its flange's orientation from its encoders (100 Hz, 0.1 mrad, no gaps).
+PROTOCOLS = {
+    "hand": {"moves": "hand", "reference_rate_hz": 120.0, "orientation_noise_rad": 5e-4},
+    "robot": {
+        "moves": "robot",
+        "reference_rate_hz": 100.0,
+        "orientation_noise_rad": 1e-4,
+        "gaps": 0,
+    },
+}
+SETTINGS = DiagnosisSettings(replicas=12, seed=0, crn_seeds=3)
+
+
+#: What the disturbances must not be taken for: the reference's samples off their time stamps
+#: by 0.3 ms RMS (``reference_jitter``, which the library has) and a magnetometer 30 ms late
+#: (``mag_delay``: the field at each packet is the one 30 ms before; the library has no lag).
+CONFOUNDERS = {"reference_jitter": 3e-4, "mag_delay": 0.03}
+
+
+def case_inputs(protocol: str, effect: str | None, seed: int, duration_s: float = 120.0):
+    """The simulated session, its calibration and its motion part
+    (:func:`imucal.gap.motion.motion_part`); ``effect`` a simulator effect at its realistic
+    size, a confounder (:data:`CONFOUNDERS`) or None."""
+    effects = (make_effect(effect),) if effect and effect not in CONFOUNDERS else ()
+    jitter = CONFOUNDERS["reference_jitter"] if effect == "reference_jitter" else 0.0
+    s = simulate_orientation_session(
+        seed, matrix=MATRIX, bias=BIAS, mounting=MOUNTING, offset_s=0.3, duration_s=duration_s,
+        mag_matrix=MAG_MATRIX, mag_bias=MAG_BIAS, mag_noise=MAG_NOISE, effects=effects,
+        reference_jitter_s=jitter, **PROTOCOLS[protocol],
+    )  # fmt: skip
+    mag = s.mag
+    if effect == "mag_delay":
+        late = s.t_module - CONFOUNDERS["mag_delay"]
+        mag = np.column_stack([np.interp(late, s.t_module, s.mag[:, k]) for k in range(3)])
+    table = pd.DataFrame({TIME: s.t_module, **dict(zip(GYR, s.gyr.T)), **dict(zip(MAG, mag.T))})
+    reference = pd.DataFrame({TIME: s.t_reference, **dict(zip(QUAT, s.quat_reference.T))})
+    rests = [
+        {"recording": "moves", "label": f"s{k + 1:02d}", "kind": "static", "start_s": lo,
+         "end_s": hi, "start_index": 0, "end_index": 0, "axis": "", "rate_dps": np.nan,
+         "sense": 0, "turns": np.nan, "up": "", "angle_deg": np.nan}
+        for k, (lo, hi) in enumerate(s.rests_s)
+    ]  # fmt: skip
+    calibration = {
+        "gyr": SensorCalibration("gyr", BIAS, MATRIX, "rad/s").to_dict(),
+        "mag": SensorCalibration("mag", MAG_BIAS, MAG_MATRIX, "normalised").to_dict(),
+    }
+    motion = motion_part(
+        {"moves": table},
+        {"moves": (reference, {"up": "+z"})},
+        calibration,
+        pd.DataFrame(rests, columns=list(SEGMENT_COLUMNS)),
+        {"moves": "d.yaml: recordings.moves.reference"},
+        {},
+        9.81,
+        (1.0, 10.0),
+    )
+    return s, calibration, motion
+
+
+def diagnose_case(protocol: str, effect: str | None, seed: int, settings=SETTINGS) -> dict:
+    """diagnosis.json of one simulated session."""
+    _, calibration, motion = case_inputs(protocol, effect, seed)
+    return diagnose_partial_session(
+        None, motion=motion, dataset="sim", calibration=calibration, sensitivity={},
+        gravity_m_s2=9.81, settings=settings,
+    )  # fmt: skip

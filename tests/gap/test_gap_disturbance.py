@@ -1,0 +1,90 @@
+"""The disturbances of hand-held and robot recordings (imucal.gap.disturbance) on simulated
+sessions with an orientation reference: each estimator recovers the simulator's parameters, and
+the diagnosis names the disturbance a session has and nothing on a clean one."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from disturbance_cases import MAG_NOISE, case_inputs, diagnose_case
+
+from imucal.gap.disturbance import (
+    estimate_shock,
+    estimate_vibration,
+    estimate_world_magnetic,
+    twin_world_turn,
+    world_field,
+)
+from imucal.gap.motion import motion_library
+from imucal.gap.static import NOT_OBSERVABLE
+from imucal.sim.effects import MOTION_EFFECTS, make_effect
+from imucal.sim.effects.disturbance import gradient_matrix
+
+
+def test_every_disturbance_has_a_motion_estimator_and_a_static_reason():
+    _, _, (_, twin) = case_inputs("robot", None, 0, duration_s=30.0)
+    library = motion_library(twin)
+    for name in MOTION_EFFECTS:
+        assert library[name].signature and name in NOT_OBSERVABLE, name
+
+
+def test_a_world_fixed_field_is_recovered_as_the_field_along_the_path():
+    _, _, (recordings, _) = case_inputs("hand", "world_magnetic", 3)
+    found = estimate_world_magnetic(recordings, None)
+    p = found.params
+    g = gradient_matrix(*(p[f"grad_{k}"] for k in ("xx", "yy", "xy", "xz", "yz")))
+    r = np.array([p["arm_x_m"], p["arm_y_m"], p["arm_z_m"]])
+    true = make_effect("world_magnetic")
+    # the observable is G R r along the path; the estimate is in the twin's world (north +x),
+    # the simulation's in the reference's
+    turn = twin_world_turn(recordings["moves"]).as_matrix()
+    _, orientation, _ = world_field(recordings["moves"])
+    error = orientation @ r @ (turn.T @ g @ turn).T - orientation @ true.arm() @ true.gradient().T
+    # least squares of 8 parameters from 13,000 samples of 0.0125 noise: 3e-4 per sample of
+    # the fitted field; five of them bound it
+    n = len(orientation)
+    assert np.sqrt(np.mean(np.sum(error**2, axis=1))) < 5 * MAG_NOISE * np.sqrt(8 / n)
+    assert found.detect > 0.5 * true.magnitude().value
+
+
+@pytest.mark.parametrize("protocol", ["hand", "robot"])
+def test_knocks_are_counted_and_their_peak_measured(protocol):
+    s, _, (recordings, _) = case_inputs(protocol, "shock", 4)
+    found = estimate_shock(recordings, None)
+    knocks = len(s.realised["shock"]["moves"]["times_s"])
+    found_knocks = found.params["rate_per_s"] * (s.t_module[-1] - s.t_module[0])
+    # every knock is found but those in the reference's tracking gaps (5 s of 120 s in the
+    # hand protocol) or sharing a window with another; the rate is per second of intervals
+    assert knocks * 0.85 <= found_knocks <= knocks * 1.05
+    # a half-sine sampled at 200 Hz: one or two samples, its integral within about 20 % of
+    # 2 A D / pi at any phase; the median of ~24 knocks
+    assert found.params["gyr_peak_rad_s"] == pytest.approx(2.0, rel=0.2)
+
+
+@pytest.mark.parametrize("protocol", ["hand", "robot"])
+def test_a_vibration_line_is_found_at_its_frequency_and_amplitude(protocol):
+    _, _, (recordings, _) = case_inputs(protocol, "vibration", 5)
+    found = estimate_vibration(recordings, None)
+    # the Welch grid is 0.05 Hz, the parabola refines it well below
+    assert found.params["freq_hz"] == pytest.approx(45.0, abs=0.01)
+    # the squared amplitude's spread on clean hand sessions is about 8e-5 (rad/s)^2 against
+    # 9e-4: five of them are 0.007 rad/s on the amplitude
+    assert found.params["gyr_amp_rad_s"] == pytest.approx(0.03, abs=0.007)
+
+
+@pytest.mark.parametrize(
+    ("protocol", "effect"),
+    [
+        ("hand", None),
+        ("robot", None),
+        ("hand", "world_magnetic"),
+        ("robot", "shock"),
+        ("hand", "vibration"),
+    ],
+)
+def test_the_diagnosis_names_the_disturbance_and_nothing_on_a_clean_session(protocol, effect):
+    result = diagnose_case(protocol, effect, 11)
+    assert result["explained"] == ([effect] if effect else [])
+    if effect:
+        found = next(e for e in result["effects"] if e["name"] == effect)
+        assert found["heldout_shrink"] > 0.5
