@@ -52,7 +52,7 @@ def test_bias_and_matrix_errors_follow_the_reported_covariance():
 
 def test_a_static_of_one_block_has_a_bias_std_and_no_goodness_of_fit():
     from imucal.fits.gyroscope import estimate_bias
-    from imucal.pipeline.partial import _calibration_of
+    from imucal.pipeline.partial.driver import _calibration_of
     from imucal.pipeline.stages import gyr_bias_quality, gyr_bias_value, plain
 
     rng = np.random.default_rng(3)
