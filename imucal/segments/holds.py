@@ -57,8 +57,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special  # F quantiles without scipy.stats' 0.5 s import per job
 
+from imucal.constants import STANDARD_GRAVITY_M_S2
 from imucal.fits.accelerometer import MIN_POSITIONS, fit_cube
-from imucal.io.readers import STANDARD_GRAVITY_M_S2
 from imucal.segments.detector import (
     NOISE_QUANTILE,
     DetectorSettings,

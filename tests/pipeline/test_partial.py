@@ -167,11 +167,12 @@ def test_rotation_sections_run_from_rest_to_rest():
 
 def test_a_fit_worse_than_nominal_on_left_out_positions_is_not_shipped():
     from imucal.calibration import SensorCalibration
+    from imucal.pipeline.partial.driver import _review
 
     cal = SensorCalibration("acc", np.zeros(3), np.eye(3), "m/s^2").to_dict()
     good = {"calibration": cal, "heldout_error_before_m_s2": [0.3] * 10,
             "heldout_error_after_m_s2": [0.02] * 10}  # fmt: skip
-    assert partial._review("acc_cube", {"acc_cube": good}) == {"refuse": [], "warn": []}
+    assert _review("acc_cube", {"acc_cube": good}) == {"refuse": [], "warn": []}
     bad = {**good, "heldout_error_after_m_s2": [0.5] * 10}
-    (reason,) = partial._review("acc_cube", {"acc_cube": bad})["refuse"]
+    (reason,) = _review("acc_cube", {"acc_cube": bad})["refuse"]
     assert "worse than the nominal calibration (RMS 0.5 against 0.3 over 10 left-out" in reason

@@ -52,7 +52,7 @@ def test_bias_and_matrix_errors_follow_the_reported_covariance():
 
 def test_a_static_of_one_block_has_a_bias_std_and_no_goodness_of_fit():
     from imucal.fits.gyroscope import estimate_bias
-    from imucal.pipeline.partial import _calibration_of
+    from imucal.pipeline.partial.driver import _calibration_of
     from imucal.pipeline.stages import gyr_bias_quality, gyr_bias_value, plain
 
     rng = np.random.default_rng(3)
@@ -104,7 +104,7 @@ def test_mean_of_the_acc_and_mag_angles_follows_its_noise():
     noise has the variance 1 / (1 / v_acc + 1 / v_mag); RMS z within 0.95-1.05 (its sampling
     std is 0.011) and the disagreement test inflates at its 0.1 % (at most 0.5 % here). A plain
     mean tested by the same sum inflates 31 % of the draws, its RMS z falls to 0.53."""
-    from imucal.pipeline.stages import _mean_angle
+    from imucal.pipeline.stages.toolfree import _mean_angle
 
     rng = np.random.default_rng(4)
     variances = np.array([1.5e-8, 6e-7])

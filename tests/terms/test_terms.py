@@ -253,7 +253,8 @@ def test_corrected_session_with_no_terms_is_the_session(twin, drift):
 
 
 def test_report_section_lists_the_terms_and_the_gap_before_and_after(drift, tmp_path):
-    from imucal.report.lab import _environment, _terms_section
+    from imucal.report.lab import _environment
+    from imucal.report.sections import _terms_section
 
     (tmp_path / "terms.json").write_text(json.dumps(terms_summary(drift[3])))
     (tmp_path / "after.json").write_text(

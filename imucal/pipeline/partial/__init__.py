@@ -1,0 +1,58 @@
+"""Calibration of a partial session: run every stage the recordings allow, say why not the rest.
+
+Public recordings rarely follow the paper's whole protocol (3-D platform, 12-position cube, rate
+table, reference). This package decides, from the recordings, the sensors they hold and their
+segments, which methods can run, runs them in dependency order and records every stage as
+``run`` or ``skipped`` with the reason. A stage that applies but cannot be fitted from these data
+(too few poses, a direction not excited, ...) is skipped with the fit's own message, so a partial
+session never fails as a whole; errors that are not about the data (bugs) still propagate.
+
+Methods per sensor, best first (the first that runs gives the final calibration):
+
+- magnetometer: ellipsoid fit (step 1) + ``T_R,mag`` from the rotation3d phases (step 2); step 1
+  alone leaves the field in the magnetometer's own (ellipsoid) frame;
+- accelerometer: known orientations (six faces, Ferraris) in frame B of the positions; cube fit
+  (eq. 32) on many static poses + ``T_R,acc`` from the rotation3d phases; the gravity direction
+  of an orientation reference at rests (in the gyroscope's frame); the cube fit alone;
+- gyroscope: rate table (eq. 33) + ``T_R,gyr``; known-angle rotations (Ferraris); against an
+  orientation reference (motion capture, robot); pose to pose (Tedaldi et al. 2014) in the
+  accelerometer's frame; tool-free (``T_R,gyr`` + eq. 36 scale);
+  the bias alone.
+
+The runners of each sensor live in :mod:`.magnetometer`, :mod:`.accelerometer` and
+:mod:`.gyroscope`, each with its condition and reason when it does not apply; they share the
+session's state (:mod:`.session`). :mod:`.driver` runs them and chooses the final calibration;
+:mod:`.listing` gives the stage listing, the artifacts per sensor and the figures. The public
+names are re-exported here.
+"""
+
+from imucal.pipeline.partial.accelerometer import MIN_CUBE_POSITIONS
+from imucal.pipeline.partial.driver import RUNNERS, final_calibration, run_stages
+from imucal.pipeline.partial.gyroscope import (
+    ADJACENT_SAMPLES,
+    pose_direction_covariance,
+    pose_intervals,
+    rest_to_rest,
+)
+from imucal.pipeline.partial.listing import figures, full_protocol_stages, stage_results
+from imucal.pipeline.partial.magnetometer import MAG_RECORDINGS, ONE_ORIENTATION
+from imucal.pipeline.partial.session import NotApplicable, Outcome, sensors_of
+
+__all__ = [
+    "ADJACENT_SAMPLES",
+    "MAG_RECORDINGS",
+    "MIN_CUBE_POSITIONS",
+    "NotApplicable",
+    "ONE_ORIENTATION",
+    "Outcome",
+    "RUNNERS",
+    "figures",
+    "final_calibration",
+    "full_protocol_stages",
+    "pose_direction_covariance",
+    "pose_intervals",
+    "rest_to_rest",
+    "run_stages",
+    "sensors_of",
+    "stage_results",
+]

@@ -1,0 +1,121 @@
+"""The accelerometer runners of the partial path: known orientations (Ferraris), the cube fit on
+many static poses, ``T_R,acc`` on the rotation3d phases and the gravity direction of an
+orientation reference. Each raises :class:`~imucal.pipeline.partial.session.NotApplicable` with
+the reason when the session does not allow it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from imucal.calibration import SensorCalibration
+from imucal.columns import ACC
+from imucal.fits import accelerometer, orientations
+from imucal.pipeline import stages
+from imucal.pipeline.partial.session import NotApplicable, _axis_vector, _need, _Session
+from imucal.pipeline.registry import FINAL
+from imucal.segments.table import cut_finite
+
+#: The cube fit has 9 parameters and one equation per position.
+MIN_CUBE_POSITIONS = 9
+
+
+def _acc_known_orientation(s: _Session) -> dict:
+    from imucal.fits import ferraris
+
+    _need(s.with_sensor("ferraris", "acc"), "needs a ferraris recording with accelerometer data")
+    rows = s.poses("ferraris")
+    _need("up" in rows.columns, "the ferraris segments carry no 'up' direction")
+    rows = rows[rows["up"].notna() & (rows["up"].astype(str) != "")]
+    _need(len(rows) >= 4, f"{len(rows)} static faces with a known up direction, expected >= 4")
+    positions = [v for _, v in cut_finite(s.tables["ferraris"], rows, ACC)]
+    directions = np.array([_axis_vector(str(u)) for u in rows["up"]])
+    fit = ferraris.fit_known_orientations(
+        positions, directions, s.gravity_m_s2, labels=[str(x) for x in rows["label"]]
+    )
+    artifact = stages.plain(fit)
+    artifact.update(calibration=fit.calibration.to_dict(), gravity_m_s2=s.gravity_m_s2)
+    if len(positions) >= ferraris.MIN_POSITIONS + 2:
+        held = ferraris.heldout_positions(positions, directions, s.gravity_m_s2)
+        artifact.update(heldout_error_m_s2=held.errors_m_s2.tolist(), heldout_z2=held.z2.tolist())
+    return artifact
+
+
+def _pose_recording(s: _Session) -> str:
+    for r in ("cube", "poses"):
+        if s.with_sensor(r, "acc") and len(s.poses(r)) >= MIN_CUBE_POSITIONS:
+            return r
+    counts = {r: len(s.poses(r)) for r in ("cube", "poses") if r in s.tables}
+    shown = [_coverage(s, r).reason for r in ("cube", "poses") if s.with_sensor(r, "acc")]
+    raise NotApplicable(
+        f"needs >= {MIN_CUBE_POSITIONS} static poses in a cube or poses recording with "
+        f"accelerometer data (static poses found: {counts or 'no such recording'})"
+        + "".join(f"; {reason}" for reason in shown if reason)
+    )
+
+
+def _coverage(s: _Session, recording: str) -> orientations.OrientationCoverage:
+    """The distinct gravity directions of a recording's poses (those long enough for the fit)."""
+    pieces = [v for _, v in cut_finite(s.tables[recording], s.poses(recording), ACC)]
+    pieces = [v for v in pieces if len(v) >= accelerometer.MIN_SAMPLES_PER_POSITION]
+    return orientations.cube_coverage(
+        np.array([v.mean(axis=0) for v in pieces]).reshape(-1, 3),
+        np.array([len(v) for v in pieces]),
+    )
+
+
+def _acc_cube(s: _Session) -> dict:
+    recording = _pose_recording(s)
+    coverage = _coverage(s, recording)
+    _need(coverage.identifiable, coverage.reason)
+    rows = s.poses(recording)
+    positions = [v for _, v in cut_finite(s.tables[recording], rows, ACC)]
+    fit = accelerometer.fit_cube(
+        positions,
+        s.gravity_m_s2,
+        labels=[str(x) for x in rows["label"]],
+        saturation_limit_m_s2=s.saturation_m_s2,
+        method=s.methods.acc_cube,
+    )
+    artifact = stages.plain(fit)
+    artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
+    artifact["orientations"] = coverage.to_dict()
+    if len(positions) > MIN_CUBE_POSITIONS:
+        held = accelerometer.heldout_errors(positions, s.gravity_m_s2)
+        artifact.update(
+            heldout_error_before_m_s2=held.before.tolist(),
+            heldout_error_after_m_s2=held.after.tolist(),
+            heldout_predicted_std_m_s2=held.predicted_std.tolist(),
+        )
+    if recording in s.notes:  # how the poses were found (e.g. the tremor-adaptive detector)
+        artifact["segmentation"] = s.notes[recording]
+    artifact["calibration"] = stages.cube_calibration(artifact).to_dict()
+    return artifact
+
+
+def _acc_align(s: _Session) -> dict:
+    _need("acc_cube" in s.done, "needs the cube fit (acc_cube)")
+    s.need_phases("acc")
+    return stages.align_acc(
+        s.rotation3d_lowpass,
+        s.segments,
+        s.done["acc_cube"],
+        method=s.methods.acc_alignment,
+        exact=s.exact,
+    )
+
+
+def _acc_reference(s: _Session) -> dict:
+    from imucal.pipeline.reference import fit_acc_reference
+
+    _need("gyr_reference" in s.done, "needs the gyroscope against the reference (gyr_reference)")
+    return fit_acc_reference(
+        s.tables, s.references, s.segments, s.done["gyr_reference"], s.gravity_m_s2
+    )
+
+
+def _acc_final(s: _Session) -> SensorCalibration | None:
+    for stage in FINAL["acc"]:
+        if stage in s.done:
+            return SensorCalibration.from_dict("acc", s.done[stage]["calibration"])
+    return None

@@ -1,0 +1,254 @@
+"""The partial path's driver: the runner of each stage, the run of every stage the session allows
+in the registry's order, the review of a final fit, and the choice of each sensor's final
+calibration among the stages that ran.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from imucal import uncertainty
+from imucal.calibration import SensorCalibration
+from imucal.columns import SENSORS
+from imucal.fits.propagation import upper_bias_covariance
+from imucal.pipeline import stages
+from imucal.pipeline.options import FitMethods
+from imucal.pipeline.outcome import NOT_SHIPPED
+from imucal.pipeline.partial.accelerometer import (
+    _acc_align,
+    _acc_cube,
+    _acc_known_orientation,
+    _acc_reference,
+)
+from imucal.pipeline.partial.gyroscope import (
+    _gyr_align,
+    _gyr_bias,
+    _gyr_known_rotation,
+    _gyr_pose_to_pose,
+    _gyr_reference,
+    _gyr_scale,
+    _gyr_table,
+)
+from imucal.pipeline.partial.magnetometer import _mag_reference, _mag_step1, _mag_step2
+from imucal.pipeline.partial.session import NotApplicable, Outcome, _Session
+from imucal.pipeline.registry import FINAL, STAGES
+
+RUNNERS: dict[str, Callable[[_Session], dict]] = {
+    "mag_step1": _mag_step1,
+    "mag_step2": _mag_step2,
+    "acc_known_orientation": _acc_known_orientation,
+    "acc_cube": _acc_cube,
+    "acc_align": _acc_align,
+    "gyr_bias": _gyr_bias,
+    "gyr_table": _gyr_table,
+    "gyr_align": _gyr_align,
+    "gyr_known_rotation": _gyr_known_rotation,
+    "gyr_reference": _gyr_reference,
+    "acc_reference": _acc_reference,
+    "mag_reference": _mag_reference,
+    "gyr_pose_to_pose": _gyr_pose_to_pose,
+    "gyr_scale": _gyr_scale,
+}
+
+
+def run_stages(
+    tables: Mapping[str, pd.DataFrame],
+    segments: pd.DataFrame,
+    *,
+    gravity_m_s2: float,
+    field_norm: float = 1.0,
+    ratetable: Mapping | None = None,
+    saturation_m_s2: float | None = None,
+    saturation_rad_s: float | None = None,
+    notes: Mapping[str, str] | None = None,
+    lowpass_order: int = 4,
+    lowpass_cutoff_hz: float = 5.0,
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
+    reference_where: Mapping[str, str] | None = None,
+    methods: FitMethods | None = None,
+    exact_rotation: bool = True,
+) -> list[Outcome]:
+    """Run every stage the session allows, in :data:`STAGES` order.
+
+    Parameters
+    ----------
+    tables : mapping of str to DataFrame
+        Ingested recordings by name (SI units; absent sensors have no columns).
+    segments : DataFrame
+        Segments table of the session (automatic or from a section list).
+    gravity_m_s2, field_norm : float
+    ratetable : mapping, optional
+        ``dataset.ratetable``.
+    saturation_m_s2, saturation_rad_s : float, optional
+        Sensor ranges; samples at them are left out of the fits that check it. None: the
+        recordings' ranges are unknown (readers of SI data), nothing is left out.
+    notes : mapping of str to str, optional
+        Segmentation notes per recording (why its protocol was not found); they join the
+        reasons of the stages that needed it.
+    lowpass_order, lowpass_cutoff_hz : int, float
+        Zero-phase Butterworth low-pass of rotation3d before the alignment stages (the
+        workflow's ``lowpass`` config), cutoff in Hz.
+    references : mapping, optional
+        Recording -> (ingested orientation reference, its metadata) for the stage
+        ``gyr_reference`` (:mod:`imucal.pipeline.reference`).
+    reference_where : mapping, optional
+        Recording -> key path of its reference in dataset.yaml (error messages).
+    methods : FitMethods, optional
+        The method of each fit (the workflow's config; defaults when None).
+    exact_rotation : bool
+        Exact rotation in the alignments (else the paper's small-angle form, eq. 5).
+
+    Returns
+    -------
+    list of Outcome
+        One per stage of :data:`STAGES`.
+    """
+    session = _Session(
+        tables,
+        segments,
+        gravity_m_s2,
+        field_norm,
+        ratetable,
+        saturation_m_s2,
+        saturation_rad_s,
+        notes or {},
+        {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz},
+        references,
+        reference_where,
+        methods,
+        exact_rotation,
+    )
+    outcomes = []
+    for name, runner in RUNNERS.items():
+        try:
+            artifact = runner(session)
+        except NotApplicable as why:
+            outcomes.append(Outcome(name, "skipped", f"not applicable: {why}"))
+            continue
+        except ValueError as err:  # the fit's own message: too little or degenerate data
+            outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
+            continue
+        # a calibration that does worse than nominal on left-out data, or lies outside its
+        # sensor's physical bounds on weak data, is not shipped (the sensor's next, simpler
+        # stage is); one outside them on strong data or undetermined carries a warning
+        review = _review(name, {**session.done, name: artifact}, session.methods, session.exact)
+        if review["refuse"]:
+            reason = f"{NOT_SHIPPED}: " + "; ".join(review["refuse"])
+            outcomes.append(Outcome(name, "skipped", reason))
+            continue
+        # (a stage shared with the full protocol may have warned of the same value already)
+        known = " ".join(artifact.get("warnings", []))
+        warn = [f"{name}: {w}" for w in review["warn"]]
+        warn = [w for w in warn if w.split(" against ")[0] not in known]
+        if warn:
+            artifact["warnings"] = [*artifact.get("warnings", []), *warn]
+        session.done[name] = artifact
+        what = STAGES[name].what
+        if "fallback" in artifact:  # the fit did worse than its fallback, which is shipped
+            what += f"; fitted but not shipped ({artifact['fallback']['shipped']} is): "
+            what += artifact["fallback"]["reason"]
+        outcomes.append(Outcome(name, "run", what, artifact))
+    return outcomes
+
+
+def _review(
+    name: str, done: Mapping[str, dict], methods: FitMethods | None = None, exact: bool = True
+) -> dict[str, list[str]]:
+    """Refusals and warnings of a stage's calibration
+    (:func:`imucal.validation.plausibility.review_fit`); none for stages that do not calibrate
+    a sensor."""
+    from imucal.validation.plausibility import review_fit
+
+    sensor = STAGES[name].sensor
+    if name not in FINAL.get(sensor, ()):
+        return {"refuse": [], "warn": []}
+    calibration = _calibration_of(name, done, methods or FitMethods(), exact)
+    return review_fit(sensor, calibration, done[name])
+
+
+def final_calibration(
+    outcomes: list[Outcome], methods: FitMethods | None = None, exact_rotation: bool = True
+) -> dict[str, Any]:
+    """The best calibration per sensor from the stages that ran, and why a sensor has none.
+
+    Parameters
+    ----------
+    outcomes : list of Outcome
+        :func:`run_stages`'s.
+    methods : FitMethods, optional
+        The methods the stages ran with (the gyro bias estimator picks the bias).
+    exact_rotation : bool
+        As the stages ran (the tool-free gyroscope's combination).
+
+    Returns
+    -------
+    dict
+        ``sensors``: sensor -> {'stage', 'calibration' (SensorCalibration dict)};
+        ``missing``: sensor -> reason.
+    """
+    done = {o.name: o.artifact for o in outcomes if o.status == "run"}
+    sensors, missing = {}, {}
+    for sensor in SENSORS:
+        stage = next((s for s in FINAL[sensor] if s in done), None)
+        if stage is None:
+            missing[sensor] = "no stage of this sensor could run: " + "; ".join(
+                f"{o.name}: {o.reason}" for o in outcomes if o.name in FINAL[sensor]
+            )
+            continue
+        calibration = _calibration_of(stage, done, methods or FitMethods(), exact_rotation)
+        sensors[sensor] = {"stage": stage, "calibration": calibration}
+    return {"sensors": sensors, "missing": missing}
+
+
+def _calibration_of(stage: str, done: Mapping[str, dict], methods: FitMethods, exact: bool) -> dict:
+    artifact = done[stage]
+    if stage == "mag_step1":
+        from imucal.fits import magnetometer
+
+        fit = magnetometer.EllipsoidFit.from_dict(dict(artifact))
+        cov = uncertainty.step1_only_covariance(fit.upper, fit.bias, fit.selected.covariance)
+        return SensorCalibration(
+            "mag",
+            fit.bias,
+            fit.upper,
+            "normalised",
+            uncertainty.std_of(cov),
+            "ellipsoid fit only (step 1, no T_R)",
+            cov,
+        ).to_dict()
+    if stage == "gyr_table":
+        shift = np.asarray(artifact.get("cut_shift", np.zeros(12)), dtype=float)
+        cov9 = upper_bias_covariance(
+            artifact["matrix"], np.asarray(artifact["covariance"]) + np.outer(shift, shift)
+        )
+        cov = uncertainty.step1_only_covariance(artifact["upper"], artifact["bias"], cov9)
+        return SensorCalibration(
+            "gyr",
+            artifact["bias"],
+            artifact["upper"],
+            "rad/s",
+            uncertainty.std_of(cov),
+            "rate table (eq. 33), no T_R",
+            cov,
+        ).to_dict()
+    if stage == "gyr_scale":
+        return stages.tool_free_gyr(
+            done["gyr_bias"], artifact, bias_estimator=methods.gyr_bias_estimator, exact=exact
+        ).to_dict()
+    if stage == "gyr_bias":
+        # the wander's variance where it shows
+        bias, std = stages.gyr_bias_value(artifact, methods.gyr_bias_estimator)
+        return SensorCalibration(
+            "gyr",
+            bias,
+            np.eye(3),
+            "rad/s",
+            {"bias": std},
+            "bias only (nominal scale, sensor frame)",
+            quality=stages.gyr_bias_quality(artifact),
+        ).to_dict()
+    return dict(artifact["calibration"])

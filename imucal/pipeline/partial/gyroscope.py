@@ -1,0 +1,293 @@
+"""The gyroscope runners of the partial path: the bias, the rate table, ``T_R,gyr``, known-angle
+rotations (Ferraris), an orientation reference, pose to pose (Tedaldi et al. 2014) and the
+tool-free scale (eq. 36), with the rests and pose intervals they are cut from. Each raises
+:class:`~imucal.pipeline.partial.session.NotApplicable` with the reason when the session does
+not allow it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from imucal import errormodel, uncertainty
+from imucal.calibration import SensorCalibration
+from imucal.columns import ACC, GYR, TIME
+from imucal.fits import gyroscope
+from imucal.pipeline import stages
+from imucal.pipeline.partial.accelerometer import _acc_final
+from imucal.pipeline.partial.session import _axis_vector, _need, _Session
+from imucal.segments.table import cut_finite, rows_of
+
+
+def _static_gyr(s: _Session) -> list[np.ndarray]:
+    names = (
+        ["static"]
+        if s.with_sensor("static", "gyr")
+        else [r for r in s.tables if s.with_sensor(r, "gyr")]
+    )
+    pieces = []
+    for name in names:
+        rows = rows_of(s.segments, name, "static", "position")
+        pieces += [v for _, v in cut_finite(s.tables[name], rows, GYR) if len(v) >= 2]
+    return pieces
+
+
+def _gyr_bias(s: _Session) -> dict:
+    found = _static_gyr(s)
+    # the segmentation's word on rests too short to count names the settings that find them
+    hints = [n for r, n in s.notes.items() if r in s.tables and "still interval" in n]
+    _need(bool(found), "; ".join(["no static segment with gyroscope samples", *hints]))
+    pieces, _, left_out = gyroscope.usable_static_segments(found)
+    _need(
+        bool(pieces),
+        f"no static segment with at least {gyroscope.MIN_STATIC_SAMPLES} gyroscope samples "
+        f"({left_out['short_left_out']} shorter ones)",
+    )
+    artifact = stages.plain(gyroscope.estimate_bias(pieces))
+    return {**artifact, **left_out} if left_out["short_left_out"] else artifact
+
+
+def _bias(s: _Session) -> np.ndarray:
+    return stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)[0]
+
+
+def _gyr_table(s: _Session) -> dict:
+    _need(
+        s.with_sensor("ratetable", "gyr") and s.ratetable is not None, "needs a ratetable recording"
+    )
+    artifact, _ = stages.fit_gyr_table(
+        s.tables["ratetable"],
+        s.segments,
+        saturation_limit_rad_s=np.inf if s.saturation_rad_s is None else s.saturation_rad_s,
+    )
+    return artifact
+
+
+def _gyr_align(s: _Session) -> dict:
+    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+    s.need_phases("gyr")
+    return stages.align_gyr(
+        s.rotation3d_lowpass,
+        s.segments,
+        _bias(s),
+        method=s.methods.gyr_alignment,
+        exact=s.exact,
+    )
+
+
+#: A rest this many samples or fewer away from a rotation section is next to it.
+ADJACENT_SAMPLES = 2
+
+
+def rest_to_rest(segments: pd.DataFrame, recording: str, rows: pd.DataFrame) -> pd.DataFrame:
+    """Rotation sections widened to the middles of the rests (static or position) beside them.
+
+    A rest ends where the rate passes the segmentation's threshold, so it takes in the slow
+    start and end of a turn (about 0.1 s of a 1.5-s cosine ramp); a section cut there misses
+    that part of the turn, an error of the same sign in every section (the scale about 5e-5 too
+    large for 720-deg turns, as large as its standard deviation). From the middle of the rest
+    before to the middle of the rest after, the integral holds the whole turn, at the price of
+    the rests' noise and the bias's error over them (both in the fit's covariance). A section
+    without a rest right next to it (ending or starting within :data:`ADJACENT_SAMPLES` of it)
+    keeps its bounds: a rest farther away has other motion between (declared sections of a
+    recording handled between them), which the integral must not take in.
+
+    Parameters
+    ----------
+    segments : DataFrame
+        The session's segments table.
+    recording : str
+    rows : DataFrame
+        Rows of ``segments`` of ``recording`` to widen.
+
+    Returns
+    -------
+    DataFrame
+        ``rows`` with ``start_index`` / ``end_index`` moved (sample indices; ``start_s`` and
+        ``end_s`` unchanged).
+    """
+    every = segments[segments["recording"] == recording].sort_values("start_index")
+    starts = every["start_index"].to_numpy(int)
+    ends = every["end_index"].to_numpy(int)
+    rest = every["kind"].isin(("static", "position")).to_numpy()
+    middles = (starts + ends) // 2
+    out = rows.copy()
+    for i, r in zip(rows.index, rows.itertuples(index=False)):
+        before = np.flatnonzero(ends <= int(r.start_index))
+        after = np.flatnonzero(starts >= int(r.end_index))
+        if (
+            before.size
+            and rest[before[-1]]
+            and r.start_index - ends[before[-1]] <= ADJACENT_SAMPLES
+        ):
+            out.loc[i, "start_index"] = middles[before[-1]]
+        if after.size and rest[after[0]] and starts[after[0]] - r.end_index <= ADJACENT_SAMPLES:
+            out.loc[i, "end_index"] = middles[after[0]] + 1
+    return out
+
+
+def _gyr_known_rotation(s: _Session) -> dict:
+    from imucal.fits import ferraris
+
+    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+    recording, rows = None, None
+    for name in ("ferraris", "rotation3d"):
+        if s.with_sensor(name, "gyr"):
+            rows = rows_of(s.segments, name, "phase")
+            if "angle_deg" in rows.columns:
+                rows = rows[np.isfinite(rows["angle_deg"].astype(float))]
+            if "angle_deg" in rows.columns and len(rows):
+                recording = name
+                break
+    _need(
+        recording is not None,
+        "needs rotation sections of known angle (a ferraris recording, "
+        "or rotation3d phases with angle_deg) with gyroscope data",
+    )
+    _need(len(rows) >= 3, f"{len(rows)} rotation sections with a known angle, expected >= 3")
+    known = np.array(
+        [np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()]
+    )
+    # the integrals' white noise is the static recording's sample noise; the bias's std (its
+    # wander added where the blocks show it) enters every integral times its duration
+    bias, bias_std = stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)
+    fit = ferraris.fit_known_rotations(
+        cut_finite(s.tables[recording], rest_to_rest(s.segments, recording, rows), GYR),
+        known,
+        bias,
+        noise_std_rad_s=np.asarray(s.done["gyr_bias"]["noise_std_rad_s"], dtype=float),
+        bias_std_rad_s=bias_std,
+        labels=[str(x) for x in rows["label"]],
+    )
+    artifact = stages.plain(fit)
+    artifact.update(recording=recording, calibration=fit.calibration.to_dict())
+    return artifact
+
+
+def _gyr_reference(s: _Session) -> dict:
+    from imucal.pipeline.reference import fit_gyr_reference
+
+    _need(bool(s.references), "needs a recording declared with an orientation reference")
+    where = {r: s.reference_where.get(r, f"recordings.{r}.reference") for r in s.references}
+    # without rests the fit finds its own bias; with them, the bias alone is its fallback
+    rests = stages.gyr_bias_value(s.done["gyr_bias"], "ls") if "gyr_bias" in s.done else None
+    return fit_gyr_reference({**s.tables, **s.held_out_tables}, s.references, rests, where)
+
+
+def pose_intervals(
+    table: pd.DataFrame, rows: pd.DataFrame, acc: SensorCalibration
+) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """Calibrated gravity direction per pose and the raw gyro (t, w) between consecutive poses.
+
+    Returns
+    -------
+    directions : ndarray, shape (n_pose, 3)
+        Unit up direction at each pose in frame B (mean of the calibrated accelerometer).
+    intervals : list of (ndarray (m,), ndarray (m, 3))
+        Times (s) and rad/s readings from the middle sample of pose k to that of pose k + 1.
+
+    Notes
+    -----
+    A pose's segment ends where the rate passes the segmentation's threshold, so it takes in
+    the slow start of the next motion; an interval from its last sample would miss that part
+    of every turn (the scale about 2e-4 too large on the simulated handling, 1.3 times its
+    standard deviation). From the middle of one pose to the middle of the next the increment
+    holds the whole turn; the rests add only their noise and the bias's error over them.
+    """
+    directions = []
+    for _, v in cut_finite(table, rows, ACC):
+        mean = errormodel.apply(acc.matrix, acc.bias, v).mean(axis=0)
+        directions.append(mean / np.linalg.norm(mean))
+    t = table[TIME].to_numpy(dtype=float)
+    w = table[list(GYR)].to_numpy(dtype=float)
+    intervals = []
+    middles = (rows["start_index"].to_numpy(int) + rows["end_index"].to_numpy(int)) // 2
+    for first, last in zip(middles[:-1], middles[1:]):
+        sl = slice(first, last + 1)
+        keep = np.isfinite(w[sl]).all(axis=1)
+        intervals.append((t[sl][keep], w[sl][keep]))
+    return np.array(directions), intervals
+
+
+def pose_direction_covariance(
+    table: pd.DataFrame, rows: pd.DataFrame, acc: SensorCalibration
+) -> np.ndarray | None:
+    """Covariance of the poses' gravity directions from the accelerometer calibration's.
+
+    The calibration's error moves every direction of :func:`pose_intervals` at once; the
+    pose-to-pose fit absorbs most of it, so its residuals cannot show it.
+
+    Returns
+    -------
+    ndarray, shape (6 (n_pose - 1), 6 (n_pose - 1)), or None
+        Over ``(directions[:-1].ravel(), directions[1:].ravel())`` (the intervals' start and
+        end directions), by the delta method from the covariance of the calibration's bias and
+        matrix; None when the calibration has no covariance.
+    """
+    if acc.covariance is None:
+        return None
+    means = np.array([v.mean(axis=0) for _, v in cut_finite(table, rows, ACC)])
+
+    def chain(p: np.ndarray) -> np.ndarray:
+        up = (means - p[:3]) @ p[3:].reshape(3, 3).T
+        up /= np.linalg.norm(up, axis=1, keepdims=True)
+        return np.concatenate([up[:-1].ravel(), up[1:].ravel()])
+
+    return uncertainty.propagate(
+        chain, np.concatenate([acc.bias, acc.matrix.ravel()]), acc.covariance[:12, :12]
+    )
+
+
+def _gyr_pose_to_pose(s: _Session) -> dict:
+    from imucal.fits import posetopose
+
+    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+    acc = _acc_final(s)
+    _need(acc is not None, "needs an accelerometer calibration for the gravity directions")
+    recording = next(
+        (
+            r
+            for r in ("poses", "cube")
+            if s.with_sensor(r, "gyr") and s.with_sensor(r, "acc") and len(s.poses(r)) >= 6
+        ),
+        None,
+    )
+    _need(
+        recording is not None,
+        "needs >= 6 static poses in a poses or cube recording with "
+        "accelerometer and gyroscope data",
+    )
+    directions, intervals = pose_intervals(s.tables[recording], s.poses(recording), acc)
+    fit = posetopose.fit_pose_to_pose(
+        directions[:-1],
+        directions[1:],
+        intervals,
+        _bias(s),
+        bias_std_rad_s=stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)[1],
+        direction_covariance=pose_direction_covariance(
+            s.tables[recording], s.poses(recording), acc
+        ),
+    )
+    artifact = stages.plain(fit)
+    artifact.update(recording=recording, calibration=fit.calibration.to_dict())
+    return artifact
+
+
+def _gyr_scale(s: _Session) -> dict:
+    _need("gyr_align" in s.done, "needs the gyroscope alignment (gyr_align)")
+    _need(
+        "mag_step2" in s.done or "acc_align" in s.done,
+        "needs a calibrated magnetometer (mag_step2) or accelerometer (acc_align) to measure "
+        "the phase angles",
+    )
+    return stages.estimate_gyr_scale(
+        s.tables["rotation3d"],
+        s.rotation3d_lowpass,
+        s.segments,
+        s.done["gyr_bias"],
+        s.done["gyr_align"],
+        s.done.get("acc_align"),
+        s.done.get("mag_step2"),
+        bias_estimator=s.methods.gyr_bias_estimator,
+    )

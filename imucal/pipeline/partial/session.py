@@ -1,0 +1,144 @@
+"""The state a partial session's runners share: its tables, segments and results so far
+(:class:`_Session`), the record of what happened to a stage (:class:`Outcome`) and the refusal
+of a stage whose requirements the data do not meet (:class:`NotApplicable`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Mapping
+
+import numpy as np
+import pandas as pd
+
+from imucal.columns import ACC, GYR, MAG
+from imucal.pipeline.options import FitMethods
+from imucal.pipeline.registry import STAGES, split_held_out
+from imucal.segments.table import rows_of
+
+
+class NotApplicable(Exception):
+    """A stage's requirements are not met by the dataset (the message says which)."""
+
+
+@dataclasses.dataclass
+class Outcome:
+    """What happened to one stage.
+
+    Attributes
+    ----------
+    name : str
+    status : {'run', 'skipped'}
+    reason : str
+        Why it was skipped, or what it used.
+    artifact : dict or None
+        The stage's JSON-ready result when it ran.
+    """
+
+    name: str
+    status: str
+    reason: str
+    artifact: dict | None = None
+
+    def summary(self) -> dict:
+        return {
+            "stage": self.name,
+            "what": STAGES[self.name].what,
+            "status": self.status,
+            "reason": self.reason,
+        }
+
+
+def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
+    """Sensors with at least one finite sample in an ingested table."""
+    present = []
+    for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
+        if (
+            all(c in table.columns for c in columns)
+            and np.isfinite(table[list(columns)].to_numpy(dtype=float)).all(axis=1).any()
+        ):
+            present.append(sensor)
+    return tuple(present)
+
+
+def _need(condition: bool, reason: str) -> None:
+    if not condition:
+        raise NotApplicable(reason)
+
+
+class _Session:
+    """The ingested tables, segments and the results so far of one partial session."""
+
+    def __init__(
+        self,
+        tables: Mapping[str, pd.DataFrame],
+        segments: pd.DataFrame,
+        gravity_m_s2: float,
+        field_norm: float,
+        ratetable: Mapping | None,
+        saturation_m_s2: float | None,
+        saturation_rad_s: float | None,
+        notes: Mapping[str, str],
+        lowpass: Mapping[str, float],
+        references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
+        reference_where: Mapping[str, str] | None = None,
+        methods: FitMethods | None = None,
+        exact_rotation: bool = True,
+    ):
+        self.methods = methods or FitMethods()
+        self.exact = exact_rotation
+        self.references = dict(references or {})
+        # a held-out recording is validated on, never fitted on (registry.split_held_out)
+        held = split_held_out(self.references)[1]
+        self.tables = {k: v for k, v in tables.items() if k != "reference" and k not in held}
+        self.held_out_tables = {k: tables[k] for k in held if k in tables}
+        self.reference_where = dict(reference_where or {})
+        self.segments = segments
+        self.gravity_m_s2 = gravity_m_s2
+        self.field_norm = field_norm
+        self.ratetable = ratetable
+        self.saturation_m_s2 = saturation_m_s2
+        self.saturation_rad_s = saturation_rad_s
+        self.sensors = {name: sensors_of(t) for name, t in self.tables.items()}
+        self.notes = dict(notes)
+        self.lowpass = dict(lowpass)
+        self.done: dict[str, dict] = {}
+
+    @functools.cached_property
+    def rotation3d_lowpass(self) -> pd.DataFrame:
+        """The low-pass filtered rotation3d recording (both alignment stages use it)."""
+        from imucal.segments.filtering import lowpass_recording
+
+        return lowpass_recording(self.tables["rotation3d"], **self.lowpass)
+
+    def with_sensor(self, recording: str, sensor: str) -> bool:
+        return recording in self.tables and sensor in self.sensors[recording]
+
+    def has_phases(self, recording: str = "rotation3d") -> bool:
+        return recording in self.tables and not rows_of(self.segments, recording, "phase").empty
+
+    def need_phases(self, sensor: str) -> None:
+        """Raise NotApplicable unless rotation3d has phases and ``sensor`` samples."""
+        if self.has_phases() and self.with_sensor("rotation3d", sensor):
+            return
+        why = f"needs rotation3d phases about x, y, z with {sensor} samples"
+        if "rotation3d" in self.notes:
+            why += f" ({self.notes['rotation3d']})"
+        elif "rotation3d" not in self.tables:
+            why += " (no rotation3d recording)"
+        raise NotApplicable(why)
+
+    def poses(self, recording: str) -> pd.DataFrame:
+        return rows_of(self.segments, recording, "position", "static")
+
+
+def _axis_vector(up: str) -> np.ndarray:
+    """'+x', '-z', 'x' ... -> unit vector in B."""
+    sign = -1.0 if up.startswith("-") else 1.0
+    axis = up.lstrip("+-")
+    if axis not in ("x", "y", "z"):
+        raise ValueError(f"up direction {up!r}: expected '+x', '-x', ..., '-z'")
+    v = np.zeros(3)
+    v["xyz".index(axis)] = sign
+    return v

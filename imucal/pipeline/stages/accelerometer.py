@@ -1,0 +1,195 @@
+"""The accelerometer stages: the cube fit and the alignment on the rotation3d phases, and the
+calibration and its quality that the cube gives.
+
+Each function cuts the segments it needs out of the ingested (or low-pass filtered) tables, calls
+the fits of :mod:`imucal.fits.accelerometer` and :mod:`imucal.fits.alignment` and returns a
+JSON-ready artifact.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from imucal import errormodel, uncertainty
+from imucal.calibration import SensorCalibration
+from imucal.columns import ACC
+from imucal.fits import accelerometer
+from imucal.fits.alignment import ALIGNMENT_RULE, align_constant_component
+from imucal.fits.propagation import alignment_sensitivity
+from imucal.pipeline.stages.common import ALIGNMENT_METHODS, _phases, plain
+from imucal.segments.table import cut, rows_of
+from imucal.validation.plausibility import bound_warnings
+
+if TYPE_CHECKING:  # matplotlib is imported by the stages that draw, when they draw
+    from matplotlib.figure import Figure
+
+
+def fit_acc_cube(
+    cube: pd.DataFrame,
+    segments: pd.DataFrame,
+    *,
+    gravity_m_s2: float,
+    saturation_limit_m_s2: float,
+    method: str = "means",
+    figures: bool = True,
+) -> tuple[dict, dict[str, Figure]]:
+    """Accelerometer step 1 (eq. 32) on the static cube positions.
+
+    Parameters
+    ----------
+    cube : DataFrame
+        Ingested cube recording (m/s^2).
+    segments : DataFrame
+        Segments table; rows of kind 'position' of 'cube'.
+    gravity_m_s2 : float
+    saturation_limit_m_s2 : float
+        ``range_counts * sensitivity`` of the accelerometer; samples at it are excluded.
+    method : {'means', 'samples'}
+        See :func:`imucal.fits.accelerometer.fit_cube`.
+    figures : bool
+        Draw the figure (the in-process chain does not need it).
+
+    Returns
+    -------
+    artifact : dict
+        The fit (``upper`` = S'_acc, ``bias``, std, per-position residuals before/after, warnings).
+    figures : dict of str to Figure
+        'acc_cube': |a| - g per position before/after (paper Fig. 10).
+    """
+    from imucal.plots import inertial as inertial_plots
+
+    rows = rows_of(segments, "cube", "position")
+    positions = cut(cube, rows, ACC)
+    fit = accelerometer.fit_cube(
+        positions,
+        gravity_m_s2,
+        labels=[str(label) for label in rows["label"]],
+        saturation_limit_m_s2=saturation_limit_m_s2,
+        method=method,
+    )
+    artifact = plain(fit)
+    artifact["gravity_m_s2"] = gravity_m_s2
+    if not figures:
+        return artifact, {}
+    return artifact, {"acc_cube": inertial_plots.plot_cube_magnitude_errors(fit)}
+
+
+def align_acc(
+    rotation3d_lowpass: pd.DataFrame,
+    segments: pd.DataFrame,
+    cube_fit: Mapping,
+    *,
+    method: str = "full",
+    exact: bool = True,
+    with_covariance: bool = True,
+) -> dict:
+    """Accelerometer step 2: ``T_R,acc`` from the low-pass filtered rotation3d phases.
+
+    Only phases whose axis is horizontal sweep gravity; :func:`align_constant_component` skips
+    the others (the z phase) and says why. Both methods are computed; ``method`` is used.
+    Without ``with_covariance`` the calibration has no covariance and no std (step 1's
+    uncertainty is not carried through the alignment) and the alignments' own covariance is
+    the plain one (``correlated=False``), for callers that read fitted values only.
+
+    Returns
+    -------
+    dict
+        ``calibration`` (SensorCalibration dict, ``matrix = T_R S'``), ``step2`` (both methods and
+        which was used), ``step1`` (the cube fit it builds on).
+    """
+    upper = np.asarray(cube_fit["upper"], dtype=float)
+    bias = np.asarray(cube_fit["bias"], dtype=float)
+    raw = _phases(rotation3d_lowpass, segments, "acc")
+    phases = {label: errormodel.apply(upper, bias, values) for label, values in raw.items()}
+    alignments = {
+        name: align_constant_component(phases, method=name, exact=exact, correlated=with_covariance)
+        for name in ALIGNMENT_METHODS
+    }
+    fit, step1 = cube_quality(cube_fit)
+    covariance = None
+    if with_covariance:
+        covariance = uncertainty.two_step_covariance(
+            upper,
+            bias,
+            step1,
+            alignments[method].alpha_rad,
+            alignments[method].covariance,
+            alignment_sensitivity(
+                lambda ph: align_constant_component(
+                    ph, method=method, exact=exact, correlated=False
+                ),
+                raw,
+                upper,
+                bias,
+            ),
+            exact,
+        )
+    calibration = SensorCalibration(
+        "acc",
+        bias,
+        alignments[method].matrix @ upper,
+        "m/s^2",
+        uncertainty.std_of(covariance),
+        f"step 1: cube fit ({cube_fit['method']}); step 2: {method} "
+        f"({'exact rotation' if exact else 'small-angle eq. 5'})",
+        covariance,
+        {
+            # the cube fit's covariance is its Cramer-Rao bound to first order (noise-weighted
+            # Jacobian at the solution): only the inflation sets it apart
+            "cube": fit,
+            "alignment": {"rule": ALIGNMENT_RULE},
+        },
+    )
+    return {
+        "calibration": calibration.to_dict(),
+        "step1": dict(cube_fit),
+        "step2": {"used": method, **{k: a.to_dict() for k, a in alignments.items()}},
+        "warnings": [
+            *cube_fit.get("warnings", []),
+            *bound_warnings("acc_align", "acc", calibration.to_dict()),
+        ],
+    }
+
+
+def cube_quality(cube_fit: Mapping) -> tuple[dict, np.ndarray]:
+    """The cube fit's goodness of fit and its covariance of (S' entries, o), inflated by its rule.
+
+    Returns
+    -------
+    quality : dict
+        :meth:`imucal.uncertainty.GoodnessOfFit.to_dict` with ``std_over_crlb`` (the cube fit's
+        covariance is its Cramer-Rao bound to first order, the noise-weighted Jacobian at the
+        solution: only the inflation sets it apart); without degrees of freedom (as many
+        positions as parameters) the rule says so and nothing is inflated.
+    covariance : ndarray, shape (9, 9)
+    """
+    covariance = np.asarray(cube_fit["covariance"], dtype=float)
+    if cube_fit["dof"] < 1:
+        rule = "no goodness of fit: as many position means as parameters, nothing inflated"
+        return {"dof": int(cube_fit["dof"]), "inflation": 1.0, "rule": rule}, covariance
+    fit = uncertainty.goodness_of_fit(cube_fit["chi2"], cube_fit["dof"])
+    quality = {**fit.to_dict(), "std_over_crlb": float(np.sqrt(fit.inflation))}
+    return quality, fit.inflation * covariance
+
+
+def cube_calibration(cube_fit: Mapping) -> SensorCalibration:
+    """The accelerometer from the cube fit alone (eq. 32; sensor frame, no ``T_R``) with the
+    covariance of every parameter, inflated by the fit's goodness of fit."""
+    upper = np.asarray(cube_fit["upper"], dtype=float)
+    bias = np.asarray(cube_fit["bias"], dtype=float)
+    quality, step1 = cube_quality(cube_fit)
+    covariance = uncertainty.step1_only_covariance(upper, bias, step1)
+    return SensorCalibration(
+        "acc",
+        bias,
+        upper,
+        "m/s^2",
+        uncertainty.std_of(covariance),
+        "cube fit (eq. 32), sensor frame (no T_R)",
+        covariance,
+        {"cube": quality},
+    )

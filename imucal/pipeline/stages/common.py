@@ -1,0 +1,40 @@
+"""What the stage functions share: the JSON-ready copy of an artifact, the saturation test and
+the phases of a rotation3d recording.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+import pandas as pd
+
+from imucal.fits.alignment import phase_samples
+
+ALIGNMENT_METHODS = ("full", "paper")
+
+
+def plain(obj):
+    """JSON-ready copy of a dataclass / dict / array tree."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, Mapping):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def _saturated(values: np.ndarray, limit: float) -> np.ndarray:
+    """Rows of ``values`` (n, 3) with any axis at or beyond the sensor range ``limit``."""
+    return np.any(np.abs(values) >= limit, axis=1)
+
+
+def _phases(table: pd.DataFrame, segments: pd.DataFrame, sensor: str) -> dict[str, np.ndarray]:
+    """Phase label -> the sensor's samples (n, 3) in that rotation3d phase."""
+    return {label: values for label, (_, values) in phase_samples(table, segments, sensor).items()}
