@@ -705,9 +705,13 @@ def estimate_reference_jitter(session: Mapping[str, MotionRecording], half) -> E
     return Estimate({"std_s": std}, std)
 
 
-def motion_library(twin: MotionTwin) -> dict[str, EffectModel]:
-    """The effects recordings with an orientation reference can show (module docstring)."""
-    full_scale = INT16_MAX * twin.sensitivity["gyr"]
+def motion_library(twin: MotionTwin | None = None) -> dict[str, EffectModel]:
+    """The effects recordings with an orientation reference can show (module docstring).
+
+    Without a twin the models hold no session's full scale: the catalogue of effects
+    (:mod:`imucal.gap.catalogue`) reads their names and signatures only.
+    """
+    full_scale = INT16_MAX * twin.sensitivity["gyr"] if twin is not None else float("nan")
     return {
         "g_sensitivity": EffectModel(
             "g_sensitivity",

@@ -58,6 +58,11 @@ NOT_OBSERVABLE = {
     "orientation reference show knocks",
     "vibration": "no estimator on a static recording's streams (no spectral line statistic); "
     "recordings with an orientation reference show a line",
+    "hand_tremor": "a static recording lies still; holds held by hand are the segmentation's",
+    "platform_magnetic": "no platform activity in a static recording: its field is constant",
+    "placement_error": "one pose: a tilt from a nominal direction needs a second pose",
+    "large_misalignment": "no rotation: the alignment T_R is not fitted on a static recording",
+    "reference_jitter": "no orientation reference in a static recording",
 }
 
 

@@ -10,15 +10,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
+from imucal.gap.catalogue import EFFECT_OF_TERM
 from imucal.modelterms import TERMS
 
-#: The diagnosis's effect behind each term.
-EFFECT_OF_TERM = {
-    "temperature": "temperature_drift",
-    "g_sensitivity": "g_sensitivity",
-    "mag_delay": "mag_latency",
-    "lever_arm": "lever_arm",
-}
 SWITCHES = ("off", "on", "auto")
 
 

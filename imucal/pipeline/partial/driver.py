@@ -204,7 +204,15 @@ def final_calibration(
     return {"sensors": sensors, "missing": missing}
 
 
-def _calibration_of(stage: str, done: Mapping[str, dict], methods: FitMethods, exact: bool) -> dict:
+def _calibration_of(
+    stage: str,
+    done: Mapping[str, dict],
+    methods: FitMethods | None = None,
+    exact: bool = True,
+) -> dict:
+    """The calibration (dict form) a stage's artifact gives its sensor, with the session's fit
+    methods (the defaults when None) and rotation form."""
+    methods = methods or FitMethods()
     artifact = done[stage]
     if stage == "mag_step1":
         from imucal.fits import magnetometer
