@@ -105,10 +105,10 @@ PLANS: dict[str, Counter | str] = {
     ),
     # 28 sessions with one hidden effect, 5 without, 2 with an effect outside the library
     "snakemake --cores 2 blind": Counter(
-        blind_render=35, blind_diagnose=35, blind_score=1, blind=1
+        blind_render=39, blind_diagnose=39, blind_score=1, blind=1
     ),
     "snakemake --cores 2 stress": Counter(
-        stress_render=75, stress_diagnose=75, stress_score=1, stress=1
+        stress_render=90, stress_diagnose=90, stress_score=1, stress=1
     ),
     "snakemake --cores 2 detection": Counter(
         detection_render=830, detection_diagnose=830, detection_score=1, detection=1
