@@ -47,3 +47,53 @@ def test_refuses_one_axis_motion_and_too_few_intervals():
         fit_gyro_to_reference([rates + 1e-9 * np.cos(3 * t)[:, None]], [rates])
     with pytest.raises(ValueError, match="50 intervals with both rates; expected at least 100"):
         fit_gyro_to_reference([rates[:50]], [rates[:50]])
+
+
+@pytest.fixture(scope="module")
+def reference_z() -> np.ndarray:
+    """z of the upper entries of U (6), the bias (3) and the mounting (3) over 8 sessions."""
+    z = []
+    for seed in range(20, 28):
+        rng = np.random.default_rng(seed)
+        matrix = errormodel.compose(
+            1 + rng.normal(0, 0.03, 3), rng.normal(0, 0.009, 3), np.zeros(3)
+        )
+        s = simulate_orientation_session(
+            seed, matrix=matrix, bias=BIAS, mounting=MOUNTING, offset_s=-1.3, drift_ppm=-25.0
+        )
+        al = align_orientation_reference(s.t_module, s.gyr - np.median(s.gyr[:200], axis=0),
+                                         s.t_reference, s.quat_reference)  # fmt: skip
+        readings, rates = aligned_intervals(s.t_module, s.gyr, s.t_reference, s.quat_reference, al)
+        fit = fit_gyro_to_reference([readings], [rates])
+        upper = np.triu_indices(3)
+        mount_error = Rotation.from_matrix(fit.mounting @ MOUNTING.T).as_rotvec()
+        z.append(
+            np.r_[
+                (fit.calibration.matrix - matrix)[upper] / fit.std_matrix[upper],
+                (fit.calibration.bias - BIAS) / fit.calibration.std["bias"],
+                mount_error / fit.mounting_std_rad,
+            ]
+        )
+    return np.array(z)
+
+
+def test_reported_std_is_not_smaller_than_the_errors(reference_z, rms_z_band):
+    """Over 8 sessions each of the 12 parameters' RMS z below the upper end of the 1 - 1e-4
+    interval of 8 standard normal draws (2.3 per parameter at 1e-4 / 12): a std that left out
+    the jackknife (the coloured errors of the finite-difference rates) or a factor would show."""
+    rms = np.sqrt(np.mean(reference_z**2, axis=0))
+    _, high = rms_z_band(reference_z.shape[0], 1e-4 / reference_z.shape[1])
+    assert np.all(rms < high), (rms.round(2), high)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the std (the larger of the formal and the delete-a-block jackknife's) overstates the "
+    "errors about 5x: RMS z 0.08-0.32 per parameter over 8 sessions",
+)
+def test_reported_std_is_not_larger_than_the_errors(reference_z, rms_z_band):
+    """The 96 z pooled (a session's 12 are not independent, so the interval is only a guide):
+    RMS z above the lower end of the 1 - 1e-4 interval of 96 draws (0.73)."""
+    rms = float(np.sqrt(np.mean(reference_z**2)))
+    low, _ = rms_z_band(reference_z.size, 1e-4)
+    assert rms > low, (rms, low)

@@ -20,7 +20,7 @@ def test_time_offset_and_drift_report_the_std_of_their_errors():
     errors within 0.6745 std, as a normal error does: the count is Binomial(200, 0.5) when the
     std is right, and must lie in its 99.995 % interval (72-128). Seen: 102 (offset) and 105
     (drift); without the inflation 63 and 61. The RMS z is not used: the Birge ratio from 6
-    windows has 4 dof, so the z have a tail (one of 5 in 300) that makes the RMS noisy."""
+    windows has 4 dof, so the z have a tail (a z of 5.3 in 100 sessions) that makes the RMS noisy."""
     motion = Motion()
     t_mod = np.arange(int(motion.duration_s * RATE_HZ)) / RATE_HZ
     t_ref = np.arange(int((motion.duration_s + 1.0) * RATE_HZ)) / RATE_HZ
