@@ -150,7 +150,14 @@ def _run_full(mc, seed: int) -> list[dict]:
                 ("full", "mag"): ("bias", "scale", "xi_rad", "alpha_rad"),
             },
         ),
-        ("ferraris", 6, {("acc_known_orientation", "acc"): ("bias", "matrix")}),
+        (
+            "ferraris",
+            6,
+            {
+                ("acc_known_orientation", "acc"): ("bias", "matrix"),
+                ("gyr_known_rotation", "gyr"): ("bias", "matrix"),
+            },
+        ),
         (
             "poses",
             5,
@@ -161,7 +168,7 @@ def _run_full(mc, seed: int) -> list[dict]:
 )
 def test_paths_report_the_std_of_their_errors(protocol, sessions, groups, rms_z_band):
     """The paper's chain (cube, rate table, ellipsoid, the alignments) and the partial paths
-    (Ferraris' known orientations, pose-to-pose gyroscope, the tumble's ellipsoid) over 5-8
+    (Ferraris' known orientations and known-angle turns, pose-to-pose gyroscope, the tumble's ellipsoid) over 5-8
     sessions each (a few seconds per session)."""
     mc = _benchmark()
     records = []
