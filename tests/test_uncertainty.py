@@ -103,3 +103,62 @@ def test_calibrated_covariance_matches_sampling():
         # a sample covariance of 20000 draws: entries within 4 % of the largest variance
         scale = np.max(np.diag(analytic[i]))
         np.testing.assert_allclose(np.cov(values.T), analytic[i], atol=0.04 * scale)
+
+
+def test_two_step_covariance_at_large_alpha_uses_the_exact_rotation():
+    """At alpha of 0.3 rad the exact and the small-angle T_R differ at first order in the
+    covariance of the matrix: the default (exact) must match a sampling of the exact model, and
+    differ from exact=False."""
+    rng = np.random.default_rng(2)
+    _, upper = errormodel.upper_triangular_factor(MATRIX)
+    alpha = np.array([0.3, -0.2, 0.25])
+    c1 = np.diag(np.r_[np.full(6, 1e-8), np.full(3, 1e-6)])
+    c_alpha = np.eye(3) * 1e-6
+    g = np.zeros((3, 9))
+    cov = uncertainty.two_step_covariance(upper, BIAS, c1, alpha, c_alpha, g)
+    small = uncertainty.two_step_covariance(upper, BIAS, c1, alpha, c_alpha, g, exact=False)
+    draws = []
+    for _ in range(4000):
+        u = upper + uncertainty.upper_matrix(1e-4 * rng.standard_normal(6))
+        a = alpha + 1e-3 * rng.standard_normal(3)
+        draws.append((errormodel.rotation_matrix(a, exact=True) @ u).ravel())
+    sampled = np.std(draws, axis=0)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)[3:12]), sampled, rtol=0.06)
+    assert np.max(np.abs(np.sqrt(np.diag(small)[3:12]) / sampled - 1)) > 0.15
+
+
+def test_numerical_jacobian_scales_its_step_with_the_value():
+    """The step is rel_step * max(1, |x|): exact for a quadratic far from 1 and near 0."""
+    jac = uncertainty.numerical_jacobian(lambda x: x**2, np.array([1e6, 3e-3]))
+    np.testing.assert_allclose(np.diag(jac), [2e6, 6e-3], rtol=1e-9)
+
+
+def test_covariance_checks_and_std_of_edge_cases():
+    with pytest.raises(ValueError, match=r"expected a finite \(12, 12\) covariance, got shape"):
+        uncertainty.calibration_covariance(BIAS, MATRIX, np.eye(9))
+    assert uncertainty.std_of(None) == {}
+    diag = np.full(21, 1e-6)
+    diag[0] = -1e-20  # round-off below zero: std 0, not NaN
+    std = uncertainty.std_of(np.diag(diag))
+    assert std["bias"][0] == 0.0 and std["bias"][1] == pytest.approx(1e-3)
+    assert std["matrix"].shape == (3, 3) and np.all(std["matrix"] == pytest.approx(1e-3))
+
+
+def test_goodness_of_fit_bounds():
+    fit = uncertainty.goodness_of_fit(0.0, 1)
+    assert (fit.chi2, fit.dof, fit.p_value, fit.inflation) == (0.0, 1, 1.0, 1.0)
+    for chi2 in (np.nan, np.inf, -1e-9):
+        with pytest.raises(ValueError, match="chi2 must be finite and >= 0"):
+            uncertainty.goodness_of_fit(chi2, 3)
+    with pytest.raises(ValueError, match="dof >= 1, got 0"):
+        uncertainty.goodness_of_fit(1.0, 0)
+
+
+def test_calibrated_covariance_reads_the_first_12_of_a_21_covariance():
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((21, 21))
+    cov21 = a @ a.T * 1e-6
+    readings = rng.standard_normal((4, 3))
+    got = uncertainty.calibrated_covariance(MATRIX, BIAS, cov21, readings)
+    want = uncertainty.calibrated_covariance(MATRIX, BIAS, cov21[:12, :12], readings)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
