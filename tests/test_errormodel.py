@@ -89,3 +89,12 @@ def test_compose_small_angle_form_and_column_inputs():
 def test_upper_triangular_factor_refuses_a_singular_matrix():
     with pytest.raises(ValueError):
         errormodel.upper_triangular_factor(np.diag([1.0, 1.0, 0.0]))
+
+
+def test_rotation_matrix_is_exact_by_default():
+    from scipy.spatial.transform import Rotation
+
+    alpha = np.array([0.3, -0.2, 0.25])
+    np.testing.assert_allclose(
+        errormodel.rotation_matrix(alpha), Rotation.from_rotvec(alpha).as_matrix(), atol=1e-12
+    )

@@ -162,3 +162,36 @@ def test_calibrated_covariance_reads_the_first_12_of_a_21_covariance():
     got = uncertainty.calibrated_covariance(MATRIX, BIAS, cov21, readings)
     want = uncertainty.calibrated_covariance(MATRIX, BIAS, cov21[:12, :12], readings)
     np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_joint_covariance_from_blocks_and_step_one_alone():
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((12, 12))
+    full = a @ a.T
+    joint = uncertainty.bias_matrix_covariance(full[:3, :3], full[3:, 3:], full[3:, :3])
+    np.testing.assert_array_equal(joint, full)
+    apart = uncertainty.bias_matrix_covariance(full[:3, :3], full[3:, 3:])
+    np.testing.assert_array_equal(apart[3:, :3], 0.0)
+    np.testing.assert_array_equal(apart[:3, :3], full[:3, :3])
+    # matrix = S': the covariance of its upper entries and of o is step 1's, below the
+    # diagonal nothing
+    _, upper = errormodel.upper_triangular_factor(MATRIX)
+    b = rng.standard_normal((9, 9))
+    c1 = b @ b.T * 1e-8
+    cov = uncertainty.step1_only_covariance(upper, BIAS, c1)
+    assert cov.shape == (21, 21)
+    rows = 3 + np.flatnonzero(np.triu(np.ones((3, 3))).ravel())
+    np.testing.assert_allclose(cov[np.ix_(rows, rows)], c1[:6, :6], rtol=1e-6, atol=1e-18)
+    np.testing.assert_allclose(cov[:3, :3], c1[6:, 6:], rtol=1e-6, atol=1e-18)
+    np.testing.assert_allclose(cov[:3][:, rows], c1[6:, :6], rtol=1e-6, atol=1e-18)
+    lower = 3 + np.flatnonzero(np.tril(np.ones((3, 3)), -1).ravel())
+    np.testing.assert_allclose(cov[lower, lower], 0.0, atol=1e-20)
+
+
+def test_goodness_of_fit_record():
+    fit = uncertainty.goodness_of_fit(87.0, 29)
+    d = fit.to_dict()
+    assert d["chi2"] == 87.0 and d["dof"] == 29 and d["chi2_per_dof"] == pytest.approx(3.0)
+    assert d["p_value"] == pytest.approx(stats.chi2.sf(87.0, 29), rel=1e-9)
+    assert d["inflation"] == pytest.approx(3.0)
+    assert str(uncertainty.INFLATION_QUANTILE) in d["rule"] and "chi2/dof" in d["rule"]
