@@ -131,6 +131,9 @@ def test_numerical_jacobian_scales_its_step_with_the_value():
     """The step is rel_step * max(1, |x|): exact for a quadratic far from 1 and near 0."""
     jac = uncertainty.numerical_jacobian(lambda x: x**2, np.array([1e6, 3e-3]))
     np.testing.assert_allclose(np.diag(jac), [2e6, 6e-3], rtol=1e-9)
+    # integers are differentiated as the floats they stand for
+    jac = uncertainty.numerical_jacobian(lambda x: x**2, [3, 4])
+    np.testing.assert_allclose(np.diag(jac), [6.0, 8.0], rtol=1e-9)
 
 
 def test_covariance_checks_and_std_of_edge_cases():
@@ -194,4 +197,7 @@ def test_goodness_of_fit_record():
     assert d["chi2"] == 87.0 and d["dof"] == 29 and d["chi2_per_dof"] == pytest.approx(3.0)
     assert d["p_value"] == pytest.approx(stats.chi2.sf(87.0, 29), rel=1e-9)
     assert d["inflation"] == pytest.approx(3.0)
-    assert str(uncertainty.INFLATION_QUANTILE) in d["rule"] and "chi2/dof" in d["rule"]
+    assert d["rule"] == (
+        f"covariance x chi2/dof when chi2 > the {uncertainty.INFLATION_QUANTILE:g} quantile of "
+        "chi-square(dof)"
+    )
