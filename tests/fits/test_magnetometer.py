@@ -268,3 +268,49 @@ def test_conformance_session(conformance_dir, with_cube):
     cal = calibrate_alignment(fit, phases).calibration
     assert np.abs(cal.matrix - np.array(truth["matrix"])).max() < 5e-3
     assert np.abs(cal.bias - np.array(truth["bias"])).max() < 5e-3
+
+
+def test_sphere_coverage_counts_equal_area_cells():
+    """COVERAGE_BANDS bands of equal height in z times COVERAGE_SECTORS sectors of longitude:
+    one direction in the middle of every cell covers 100 %, the upper half 50 %, one cell
+    1 / (bands x sectors); the directions' length does not matter."""
+    from imucal.fits.magnetometer import COVERAGE_BANDS, COVERAGE_SECTORS, sphere_coverage_pct
+
+    z = -1 + (np.arange(COVERAGE_BANDS) + 0.5) * 2 / COVERAGE_BANDS
+    lon = -np.pi + (np.arange(COVERAGE_SECTORS) + 0.5) * 2 * np.pi / COVERAGE_SECTORS
+    zz, ll = (a.ravel() for a in np.meshgrid(z, lon, indexing="ij"))
+    u = np.column_stack([np.sqrt(1 - zz**2) * np.cos(ll), np.sqrt(1 - zz**2) * np.sin(ll), zz])
+    assert sphere_coverage_pct(u) == pytest.approx(100.0)
+    assert sphere_coverage_pct(7.0 * u[zz > 0]) == pytest.approx(50.0)
+    assert sphere_coverage_pct(u[:1]) == pytest.approx(100.0 / (COVERAGE_BANDS * COVERAGE_SECTORS))
+    # the pole z = 1 and the date line (longitude pi) fall into the last band and sector,
+    # with their neighbours, not into cells beyond them
+    edges = np.array(
+        [
+            [0.0, 0.0, 1.0],
+            [np.sqrt(1 - 0.95**2), 0.0, 0.95],
+            [-1.0, 0.0, 0.0],
+            [-np.cos(0.01), np.sin(0.01), 0.0],
+        ]
+    )
+    assert sphere_coverage_pct(edges) == pytest.approx(200.0 / (COVERAGE_BANDS * COVERAGE_SECTORS))
+
+
+def test_ellipsoid_covariance_is_the_residual_variance_times_the_inverse_normal_matrix():
+    """The docstring's covariance, sigma^2 (J^T J)^-1 with sigma^2 = r.r / (n - 9), rebuilt
+    here by central differences of eq. 17, on 40 samples (where n - 9 and n + 9 differ by 2x)."""
+    u, _ = field_in_b(n_phase=12, seed=3)
+    m = readings(u[:40], 0.01, 9)
+    fit = fit_ellipsoid(m, min_coverage_pct=5)
+    for solution in (fit.svd, fit.lm):
+        p = np.r_[solution.upper[np.triu_indices(3)], solution.bias]
+        r = _eq17_residuals(p, m)
+        j = np.empty((m.shape[0], 9))
+        for k in range(9):
+            dp = np.zeros(9)
+            dp[k] = 1e-6
+            j[:, k] = (_eq17_residuals(p + dp, m) - _eq17_residuals(p - dp, m)) / 2e-6
+        want = float(r @ r) / (m.shape[0] - 9) * np.linalg.inv(j.T @ j)
+        np.testing.assert_allclose(solution.covariance, want, rtol=1e-5)
+        np.testing.assert_allclose(solution.std_bias, np.sqrt(np.diag(want))[6:], rtol=1e-5)
+        assert solution.residual_rms == pytest.approx(np.sqrt(np.mean(r**2)), rel=1e-12)
