@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -17,3 +18,22 @@ def conformance_dir() -> Path:
     if not (CONFORMANCE / "dataset.yaml").is_file():
         pytest.skip(f"conformance session not found at {CONFORMANCE} (../shared is absent)")
     return CONFORMANCE
+
+
+def rms_z_limits(n: int, false_alarm: float = 1e-4) -> tuple[float, float]:
+    """Central interval of the RMS of ``n`` independent standard normal z-scores.
+
+    ``n * RMS^2`` is chi-square with ``n`` degrees of freedom when the reported standard
+    deviations are right; the interval holds it with probability ``1 - false_alarm``. A std off
+    by a factor ``f`` moves the RMS to about ``1 / f``.
+    """
+    from scipy import stats
+
+    low, high = stats.chi2.ppf([false_alarm / 2, 1 - false_alarm / 2], n)
+    return float(np.sqrt(low / n)), float(np.sqrt(high / n))
+
+
+@pytest.fixture(scope="session")
+def rms_z_band():
+    """:func:`rms_z_limits` for the multi-seed checks of reported standard deviations."""
+    return rms_z_limits

@@ -26,10 +26,16 @@ def test_apply_calibrates_and_refuses_a_second_time(tmp_path, capsys):
         **dict.fromkeys(MAG, "normalised"),
     }
     write_recording(pd.DataFrame(table), tmp_path / "in.parquet", {"units": units, "source": "x"})
-    matrix = errormodel.compose([1.01, 0.99, 1.02], [0.01, 0.0, -0.01], [0.0, 0.02, 0.0])
+    # three different calibrations, so that one sensor's parameters applied to another fail
+    truths = {
+        "acc": (([1.01, 0.99, 1.02], [0.01, 0.0, -0.01], [0.0, 0.02, 0.0]), [0.1, -0.1, 0.2]),
+        "gyr": (([0.95, 1.1, 1.05], [-0.02, 0.01, 0.0], [0.03, 0.0, -0.01]), [0.02, 0.03, -0.01]),
+        "mag": (([1.2, 0.85, 1.0], [0.0, -0.03, 0.02], [-0.02, 0.01, 0.04]), [0.3, 0.2, -0.4]),
+    }
+    units = {"acc": "m/s^2", "gyr": "rad/s", "mag": "normalised"}
+    matrices = {s: errormodel.compose(*parts) for s, (parts, _) in truths.items()}
     sensors = {
-        s: SensorCalibration(s, [0.1, -0.1, 0.2], matrix, unit, {}, "test")
-        for s, unit in (("acc", "m/s^2"), ("gyr", "rad/s"), ("mag", "normalised"))
+        s: SensorCalibration(s, truths[s][1], matrices[s], units[s], {}, "test") for s in truths
     }
     write_calibration(ImuCalibration(**sensors), tmp_path / "cal.json")
 
@@ -45,8 +51,11 @@ def test_apply_calibrates_and_refuses_a_second_time(tmp_path, capsys):
         == 0
     )
     out, meta = read_recording(tmp_path / "out.parquet")
-    expected = errormodel.apply(matrix, [0.1, -0.1, 0.2], pd.DataFrame(table)[list(GYR)].to_numpy())
-    np.testing.assert_allclose(out[list(GYR)].to_numpy(), expected, rtol=1e-12)
+    for s, cols in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
+        raw = pd.DataFrame(table)[list(cols)].to_numpy()
+        expected = errormodel.apply(matrices[s], truths[s][1], raw)
+        np.testing.assert_allclose(out[list(cols)].to_numpy(), expected, rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(out[TIME].to_numpy(), table[TIME])
     assert meta["calibrated"] is True
 
     # a calibrated recording is refused with a message, not a traceback, and nothing is written

@@ -72,3 +72,29 @@ def test_apply_invert_round_trip():
 def test_upper_triangular_factor_refuses_mirror():
     with pytest.raises(ValueError, match="positive determinant"):
         errormodel.upper_triangular_factor(np.diag([1.0, 1.0, -1.0]))
+
+
+def test_compose_small_angle_form_and_column_inputs():
+    """exact=False composes with the small-angle T_R (eq. 5); scale and angles may come as
+    columns (3, 1)."""
+    scale, xi, alpha = [1.05, 0.97, 1.01], [0.01, -0.02, 0.015], [0.2, -0.1, 0.3]
+    shape = errormodel.nonorthogonality_matrix(xi) @ np.diag(scale)
+    small = errormodel.compose(scale, xi, alpha, exact=False)
+    np.testing.assert_allclose(small, errormodel.rotation_matrix(alpha, exact=False) @ shape)
+    assert np.abs(small - errormodel.compose(scale, xi, alpha)).max() > 1e-3
+    column = errormodel.compose(np.c_[scale], np.c_[xi], np.c_[alpha])
+    np.testing.assert_array_equal(column, errormodel.compose(scale, xi, alpha))
+
+
+def test_upper_triangular_factor_refuses_a_singular_matrix():
+    with pytest.raises(ValueError):
+        errormodel.upper_triangular_factor(np.diag([1.0, 1.0, 0.0]))
+
+
+def test_rotation_matrix_is_exact_by_default():
+    from scipy.spatial.transform import Rotation
+
+    alpha = np.array([0.3, -0.2, 0.25])
+    np.testing.assert_allclose(
+        errormodel.rotation_matrix(alpha), Rotation.from_rotvec(alpha).as_matrix(), atol=1e-12
+    )

@@ -103,3 +103,101 @@ def test_calibrated_covariance_matches_sampling():
         # a sample covariance of 20000 draws: entries within 4 % of the largest variance
         scale = np.max(np.diag(analytic[i]))
         np.testing.assert_allclose(np.cov(values.T), analytic[i], atol=0.04 * scale)
+
+
+def test_two_step_covariance_at_large_alpha_uses_the_exact_rotation():
+    """At alpha of 0.3 rad the exact and the small-angle T_R differ at first order in the
+    covariance of the matrix: the default (exact) must match a sampling of the exact model, and
+    differ from exact=False."""
+    rng = np.random.default_rng(2)
+    _, upper = errormodel.upper_triangular_factor(MATRIX)
+    alpha = np.array([0.3, -0.2, 0.25])
+    c1 = np.diag(np.r_[np.full(6, 1e-8), np.full(3, 1e-6)])
+    c_alpha = np.eye(3) * 1e-6
+    g = np.zeros((3, 9))
+    cov = uncertainty.two_step_covariance(upper, BIAS, c1, alpha, c_alpha, g)
+    small = uncertainty.two_step_covariance(upper, BIAS, c1, alpha, c_alpha, g, exact=False)
+    draws = []
+    for _ in range(4000):
+        u = upper + uncertainty.upper_matrix(1e-4 * rng.standard_normal(6))
+        a = alpha + 1e-3 * rng.standard_normal(3)
+        draws.append((errormodel.rotation_matrix(a, exact=True) @ u).ravel())
+    sampled = np.std(draws, axis=0)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)[3:12]), sampled, rtol=0.06)
+    assert np.max(np.abs(np.sqrt(np.diag(small)[3:12]) / sampled - 1)) > 0.15
+
+
+def test_numerical_jacobian_scales_its_step_with_the_value():
+    """The step is rel_step * max(1, |x|): exact for a quadratic far from 1 and near 0."""
+    jac = uncertainty.numerical_jacobian(lambda x: x**2, np.array([1e6, 3e-3]))
+    np.testing.assert_allclose(np.diag(jac), [2e6, 6e-3], rtol=1e-9)
+    # integers are differentiated as the floats they stand for
+    jac = uncertainty.numerical_jacobian(lambda x: x**2, [3, 4])
+    np.testing.assert_allclose(np.diag(jac), [6.0, 8.0], rtol=1e-9)
+
+
+def test_covariance_checks_and_std_of_edge_cases():
+    with pytest.raises(ValueError, match=r"expected a finite \(12, 12\) covariance, got shape"):
+        uncertainty.calibration_covariance(BIAS, MATRIX, np.eye(9))
+    assert uncertainty.std_of(None) == {}
+    diag = np.full(21, 1e-6)
+    diag[0] = -1e-20  # round-off below zero: std 0, not NaN
+    std = uncertainty.std_of(np.diag(diag))
+    assert std["bias"][0] == 0.0 and std["bias"][1] == pytest.approx(1e-3)
+    assert std["matrix"].shape == (3, 3) and np.all(std["matrix"] == pytest.approx(1e-3))
+
+
+def test_goodness_of_fit_bounds():
+    fit = uncertainty.goodness_of_fit(0.0, 1)
+    assert (fit.chi2, fit.dof, fit.p_value, fit.inflation) == (0.0, 1, 1.0, 1.0)
+    for chi2 in (np.nan, np.inf, -1e-9):
+        with pytest.raises(ValueError, match="chi2 must be finite and >= 0"):
+            uncertainty.goodness_of_fit(chi2, 3)
+    with pytest.raises(ValueError, match="dof >= 1, got 0"):
+        uncertainty.goodness_of_fit(1.0, 0)
+
+
+def test_calibrated_covariance_reads_the_first_12_of_a_21_covariance():
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((21, 21))
+    cov21 = a @ a.T * 1e-6
+    readings = rng.standard_normal((4, 3))
+    got = uncertainty.calibrated_covariance(MATRIX, BIAS, cov21, readings)
+    want = uncertainty.calibrated_covariance(MATRIX, BIAS, cov21[:12, :12], readings)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_joint_covariance_from_blocks_and_step_one_alone():
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((12, 12))
+    full = a @ a.T
+    joint = uncertainty.bias_matrix_covariance(full[:3, :3], full[3:, 3:], full[3:, :3])
+    np.testing.assert_array_equal(joint, full)
+    apart = uncertainty.bias_matrix_covariance(full[:3, :3], full[3:, 3:])
+    np.testing.assert_array_equal(apart[3:, :3], 0.0)
+    np.testing.assert_array_equal(apart[:3, :3], full[:3, :3])
+    # matrix = S': the covariance of its upper entries and of o is step 1's, below the
+    # diagonal nothing
+    _, upper = errormodel.upper_triangular_factor(MATRIX)
+    b = rng.standard_normal((9, 9))
+    c1 = b @ b.T * 1e-8
+    cov = uncertainty.step1_only_covariance(upper, BIAS, c1)
+    assert cov.shape == (21, 21)
+    rows = 3 + np.flatnonzero(np.triu(np.ones((3, 3))).ravel())
+    np.testing.assert_allclose(cov[np.ix_(rows, rows)], c1[:6, :6], rtol=1e-6, atol=1e-18)
+    np.testing.assert_allclose(cov[:3, :3], c1[6:, 6:], rtol=1e-6, atol=1e-18)
+    np.testing.assert_allclose(cov[:3][:, rows], c1[6:, :6], rtol=1e-6, atol=1e-18)
+    lower = 3 + np.flatnonzero(np.tril(np.ones((3, 3)), -1).ravel())
+    np.testing.assert_allclose(cov[lower, lower], 0.0, atol=1e-20)
+
+
+def test_goodness_of_fit_record():
+    fit = uncertainty.goodness_of_fit(87.0, 29)
+    d = fit.to_dict()
+    assert d["chi2"] == 87.0 and d["dof"] == 29 and d["chi2_per_dof"] == pytest.approx(3.0)
+    assert d["p_value"] == pytest.approx(stats.chi2.sf(87.0, 29), rel=1e-9)
+    assert d["inflation"] == pytest.approx(3.0)
+    assert d["rule"] == (
+        f"covariance x chi2/dof when chi2 > the {uncertainty.INFLATION_QUANTILE:g} quantile of "
+        "chi-square(dof)"
+    )

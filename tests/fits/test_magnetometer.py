@@ -102,6 +102,70 @@ def test_field_norm_scales_the_output():
     np.testing.assert_allclose(np.linalg.norm(fit.apply(48.0 * m), axis=1), 48.0, atol=1e-8)
 
 
+def test_reported_std_follows_the_errors_in_the_unit_of_the_field(rms_z_band):
+    """400 sessions read in a unit where the field is 48 (readings and noise times 48): the
+    error of each of the 6 entries of S' and the 3 of o over its reported std, for the SVD
+    and the LM solution. Each parameter's RMS z must lie in the 99.99 % interval of 400
+    standard normal draws (0.86-1.14); a std of S' not scaled by the field norm makes its z
+    48 times larger."""
+    u, _ = field_in_b()
+    field = 48.0
+    upper = np.triu_indices(3)
+    z = {"svd": [], "lm": []}
+    for seed in range(400):
+        fit = fit_ellipsoid(field * readings(u, NOISE, 100 + seed), field_norm=field)
+        for name in z:
+            sol = getattr(fit, name)
+            z[name].append(
+                np.r_[
+                    (sol.upper - true_upper())[upper] / sol.std_upper[upper],
+                    (sol.bias - field * TRUE_BIAS) / sol.std_bias,
+                ]
+            )
+    low, high = rms_z_band(400, 1e-4 / 18)
+    for name, values in z.items():
+        rms = np.sqrt(np.mean(np.square(values), axis=0))
+        assert np.all((low < rms) & (rms < high)), (name, rms.round(2), low, high)
+
+
+def _eq17_residuals(p: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``|S'(m - o)| - 1`` for p = (6 upper entries row-major, o), written out here."""
+    s = np.array([[p[0], p[1], p[2]], [0.0, p[3], p[4]], [0.0, 0.0, p[5]]])
+    return np.linalg.norm((m - p[6:]) @ s.T, axis=1) - 1.0
+
+
+def _gauss_newton_step_in_std(solution, m: np.ndarray) -> tuple[float, float]:
+    """Sum of squared eq. 17 residuals at ``solution`` and the largest entry of the
+    Gauss-Newton step from it in units of the reported std (central differences, h = 1e-6)."""
+    p = np.r_[solution.upper[np.triu_indices(3)], solution.bias]
+    r = _eq17_residuals(p, m)
+    j = np.empty((m.shape[0], p.size))
+    for k in range(p.size):
+        dp = np.zeros(p.size)
+        dp[k] = 1e-6
+        j[:, k] = (_eq17_residuals(p + dp, m) - _eq17_residuals(p - dp, m)) / 2e-6
+    step = np.linalg.lstsq(j, -r, rcond=None)[0]
+    return float(r @ r), float(np.max(np.abs(step) / np.sqrt(np.diag(solution.covariance))))
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+def test_lm_solution_is_the_minimum_of_eq17(seed):
+    """At noise 0.03 the algebraic (SVD) solution is off the minimum of eq. 17 by about one
+    std (its Gauss-Newton step is 1.0-1.2 std, the sum of squares ~0.002 above the minimum,
+    twice the residual variance); LM must end where the gradient vanishes (a step below 1e-3
+    std, seen 2e-5) with a sum of squares below the SVD's by at least one residual variance.
+    A refinement stuck at its SVD start fails both."""
+    u, _ = field_in_b()
+    m = readings(u, 0.03, seed)
+    fit = fit_ellipsoid(m)
+    cost_svd, step_svd = _gauss_newton_step_in_std(fit.svd, m)
+    cost_lm, step_lm = _gauss_newton_step_in_std(fit.lm, m)
+    variance = cost_lm / (m.shape[0] - 9)
+    assert step_svd > 0.5, step_svd
+    assert step_lm < 1e-3, step_lm
+    assert cost_lm < cost_svd - variance, (cost_lm, cost_svd, variance)
+
+
 def test_non_ellipsoid_is_refused():
     rng = np.random.default_rng(6)
     # hyperboloid x^2 + y^2 - z^2 = 1
@@ -215,3 +279,49 @@ def test_static_log_is_refused_with_no_coverage():
         r"sphere 0\.0 %"
     ):  # fmt: skip
         fit_ellipsoid(m)
+
+
+def test_sphere_coverage_counts_equal_area_cells():
+    """COVERAGE_BANDS bands of equal height in z times COVERAGE_SECTORS sectors of longitude:
+    one direction in the middle of every cell covers 100 %, the upper half 50 %, one cell
+    1 / (bands x sectors); the directions' length does not matter."""
+    from imucal.fits.magnetometer import COVERAGE_BANDS, COVERAGE_SECTORS, sphere_coverage_pct
+
+    z = -1 + (np.arange(COVERAGE_BANDS) + 0.5) * 2 / COVERAGE_BANDS
+    lon = -np.pi + (np.arange(COVERAGE_SECTORS) + 0.5) * 2 * np.pi / COVERAGE_SECTORS
+    zz, ll = (a.ravel() for a in np.meshgrid(z, lon, indexing="ij"))
+    u = np.column_stack([np.sqrt(1 - zz**2) * np.cos(ll), np.sqrt(1 - zz**2) * np.sin(ll), zz])
+    assert sphere_coverage_pct(u) == pytest.approx(100.0)
+    assert sphere_coverage_pct(7.0 * u[zz > 0]) == pytest.approx(50.0)
+    assert sphere_coverage_pct(u[:1]) == pytest.approx(100.0 / (COVERAGE_BANDS * COVERAGE_SECTORS))
+    # the pole z = 1 and the date line (longitude pi) fall into the last band and sector,
+    # with their neighbours, not into cells beyond them
+    edges = np.array(
+        [
+            [0.0, 0.0, 1.0],
+            [np.sqrt(1 - 0.95**2), 0.0, 0.95],
+            [-1.0, 0.0, 0.0],
+            [-np.cos(0.01), np.sin(0.01), 0.0],
+        ]
+    )
+    assert sphere_coverage_pct(edges) == pytest.approx(200.0 / (COVERAGE_BANDS * COVERAGE_SECTORS))
+
+
+def test_ellipsoid_covariance_is_the_residual_variance_times_the_inverse_normal_matrix():
+    """The docstring's covariance, sigma^2 (J^T J)^-1 with sigma^2 = r.r / (n - 9), rebuilt
+    here by central differences of eq. 17, on 40 samples (where n - 9 and n + 9 differ by 2x)."""
+    u, _ = field_in_b(n_phase=12, seed=3)
+    m = readings(u[:40], 0.01, 9)
+    fit = fit_ellipsoid(m, min_coverage_pct=5)
+    for solution in (fit.svd, fit.lm):
+        p = np.r_[solution.upper[np.triu_indices(3)], solution.bias]
+        r = _eq17_residuals(p, m)
+        j = np.empty((m.shape[0], 9))
+        for k in range(9):
+            dp = np.zeros(9)
+            dp[k] = 1e-6
+            j[:, k] = (_eq17_residuals(p + dp, m) - _eq17_residuals(p - dp, m)) / 2e-6
+        want = float(r @ r) / (m.shape[0] - 9) * np.linalg.inv(j.T @ j)
+        np.testing.assert_allclose(solution.covariance, want, rtol=1e-5)
+        np.testing.assert_allclose(solution.std_bias, np.sqrt(np.diag(want))[6:], rtol=1e-5)
+        assert solution.residual_rms == pytest.approx(np.sqrt(np.mean(r**2)), rel=1e-12)

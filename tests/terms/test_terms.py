@@ -441,3 +441,35 @@ def test_competing_explanations_get_the_right_terms_with_their_coefficients(twin
         true = np.asarray(next(e for e in effects if e.name == "g_sensitivity").matrix)
         g = terms.g_sensitivity
         assert np.all(np.abs(g.matrix - true) < 3 * g.std), (g.matrix, true, g.std)
+
+
+@pytest.mark.slow
+def test_term_std_follows_the_errors_over_sessions(twin, rms_z_band):
+    """8 sessions of the twin with a g-sensitivity, a lever arm and a temperature drift: the
+    g-sensitivity matrix (9 entries), the lever arm (3) and the gyroscope's bias drift per
+    kelvin (3) against the truth, each term's z pooled (72, 24 and 24 draws; one session's
+    are not all independent). Each RMS z within the 1 - 1e-4 interval of that many standard
+    normal draws over the three terms (0.67-1.36 for 72, 0.46-1.63 for 24); seen 0.95, 1.36
+    and 0.72."""
+    effects = tuple(make_effect(e) for e in ("g_sensitivity", "lever_arm", "temperature_drift"))
+    g_effect, lever, drift = effects
+    true_g = np.asarray(g_effect.matrix)
+    true_r = np.array([lever.x_m, lever.y_m, lever.z_m])
+    z = {"g_sensitivity": [], "lever_arm": [], "temperature": []}
+    for seed in range(20, 28):
+        terms = _loop(twin, seed, effects, TermSettings("on", "on", "off", "on"))[3]
+        terms = terms["calibration"].terms
+        z["g_sensitivity"].append(
+            ((terms.g_sensitivity.matrix - true_g) / terms.g_sensitivity.std).ravel()
+        )
+        z["lever_arm"].append((terms.lever_arm.r_m - true_r) / terms.lever_arm.std_m)
+        gyr = terms.temperature["gyr"]
+        z["temperature"].append((gyr.bias[0] - drift.coefficients("gyr")[0]) / gyr.bias_std[0])
+    failed = []
+    for name, values in z.items():
+        values = np.ravel(values)
+        low, high = rms_z_band(values.size, 1e-4 / len(z))
+        rms = float(np.sqrt(np.mean(values**2)))
+        if not low < rms < high:
+            failed.append(f"{name}: RMS z {rms:.2f} of {values.size}, [{low:.2f}, {high:.2f}]")
+    assert not failed, failed
