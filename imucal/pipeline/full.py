@@ -153,30 +153,14 @@ def calibrate_session(
                 saturation_limit_rad_s=options.limit("gyr"),
                 figures=False,
             )
-            table_align = stages.align_gyr(
-                low,
-                segments,
-                table["bias"],
-                table["upper"],
-                method=methods.gyr_alignment,
-                exact=exact,
-                with_covariance=cov,
-            )
+            table_align = _align_table(low, segments, table, options, exact)
         except ValueError as err:
             # as the workflow: the tool-free result calibrates when eq. 36 ran
             if scale is None:
                 raise
             notes.append(f"rate-table fit (eq. 33) failed: {err}; the tool-free result is used")
             table = table_align = None
-    gyr, _ = stages.combine_gyr(
-        bias,
-        scale,
-        table,
-        table_align,
-        bias_estimator=methods.gyr_bias_estimator,
-        exact=exact,
-        with_covariance=cov,
-    )
+    gyr = _combine_gyr(bias, scale, table, table_align, options, exact)
     calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None
     if reference is not None:
@@ -250,25 +234,38 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
         scale = {**scale, "alignment": refit}
     table_align = None
     if a["table"] is not None:
-        table_align = stages.align_gyr(
-            low,
-            seg,
-            a["table"]["bias"],
-            a["table"]["upper"],
-            method=methods.gyr_alignment,
-            exact=exact,
-            with_covariance=cov,
-        )
-    gyr, _ = stages.combine_gyr(
-        a["bias"],
-        scale,
-        a["table"],
-        table_align,
-        bias_estimator=methods.gyr_bias_estimator,
-        exact=exact,
-        with_covariance=cov,
-    )
+        table_align = _align_table(low, seg, a["table"], options, exact)
+    gyr = _combine_gyr(a["bias"], scale, a["table"], table_align, options, exact)
     return stages.combine_calibration(acc, gyr, mag)
+
+
+def _align_table(
+    low: pd.DataFrame, segments: pd.DataFrame, table: Mapping, options: PipelineOptions, exact: bool
+) -> dict:
+    """``T_R,gyr`` at the rate table's bias and ``S'_gyr`` (its alignment stage)."""
+    return stages.align_gyr(
+        low,
+        segments,
+        table["bias"],
+        table["upper"],
+        method=options.methods.gyr_alignment,
+        exact=exact,
+        with_covariance=options.with_covariance,
+    )
+
+
+def _combine_gyr(bias, scale, table, table_align, options: PipelineOptions, exact: bool) -> dict:
+    """The gyroscope's calibration from its stages (rate table, else eq. 36), as rule gyr."""
+    gyr, _ = stages.combine_gyr(
+        bias,
+        scale,
+        table,
+        table_align,
+        bias_estimator=options.methods.gyr_bias_estimator,
+        exact=exact,
+        with_covariance=options.with_covariance,
+    )
+    return gyr
 
 
 def reference_alignment(
