@@ -27,9 +27,10 @@ from scipy.optimize import brentq, curve_fit
 from imucal.columns import SENSORS
 from imucal.constants import STANDARD_GRAVITY_M_S2
 from imucal.gap.effects import EffectModel, Estimate
+from imucal.gap.locations import allan_deviation
 from imucal.gap.null import run_replicas
 from imucal.gap.scoring import FORMAT_VERSION, DiagnosisSettings, scored_diagnosis
-from imucal.gap.statistics import HALVES, allan_deviation
+from imucal.gap.statistics import HALVES
 from imucal.gap.streams import (
     Stream,
     receive_latency,

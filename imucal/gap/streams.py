@@ -28,8 +28,8 @@ import numpy as np
 import pandas as pd
 from scipy.ndimage import minimum_filter1d
 
-from imucal.columns import AXES, SENSOR_COLUMNS, TIME
-from imucal.gap.statistics import allan_deviation, temperature_column
+from imucal.columns import AXES, SENSOR_COLUMNS, TIME, temperature_column
+from imucal.gap.locations import allan_deviation
 
 #: Sensor of each stream of a static recording.
 STREAMS = {"imu": ("acc", "gyr"), "mag": ("mag",)}
