@@ -2,7 +2,7 @@
 an orientation reference.
 
 A partial session (:mod:`imucal.pipeline.partial`) has no cube, rate table or MT Manager
-reference, so the full-protocol diagnosis cannot refit it; it may hold a static recording (:class:`imucal.gap.twin.StaticTwin`) and
+reference, so the full-protocol diagnosis cannot refit it; it may hold a static recording (:class:`imucal.gap.statictwin.StaticTwin`) and
 recordings with an orientation reference (:class:`imucal.gap.motion.MotionTwin`). Their
 locations differ (stages ``static``/``temperature`` and ``reference``), so one diagnosis scores
 them together (:func:`diagnose_partial_session`): a replica of the composite is a replica of each part with the same seed, its
@@ -38,9 +38,10 @@ from imucal.gap.static import (
     diagnose_static,
     unscored_diagnosis,
 )
+from imucal.gap.statictwin import build_static_twin
 from imucal.gap.statistics import HALVES
 from imucal.gap.streams import split_streams, static_statistics
-from imucal.gap.twin import Replica, build_static_twin
+from imucal.gap.twin import Replica
 from imucal.segments.table import rows_of
 
 #: Shortest rest scored in place of a static recording (s): each half of it must hold twice the

@@ -58,8 +58,9 @@ from imucal.gap.disturbance import (
     twin_world_turn,
 )
 from imucal.gap.effects import EffectModel, Estimate
+from imucal.gap.statictwin import identity_calibration, quantum
 from imucal.gap.statistics import HALVES
-from imucal.gap.twin import Replica, identity_calibration, quantum
+from imucal.gap.twin import Replica
 from imucal.noise.process import NoiseProcess, dither_std, fit_noise_process, white_process
 from imucal.orientation import (
     integrate_rates,
