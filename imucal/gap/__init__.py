@@ -1,9 +1,12 @@
 """Sim-to-real gap diagnosis: where a recorded session departs from its twin, which
 unmodelled effect causes it, and how far adding the effect to the twin closes it.
 
-Modules: :mod:`.twin` (the session's twin under the paper's model, full or static, and its
-replicas), :mod:`.statistics` (the locations of a full session's gap map), :mod:`.streams` (a
-static recording's streams and locations), :mod:`.null` (scores, Holm, total gap),
+Modules: :mod:`.twin` (the session's twin under the paper's model and its replicas; the static
+recording's twin in :mod:`.statictwin`), :mod:`.statistics` (the catalogue and the locations of
+a full session's gap map; the per-stage statistics in :mod:`.locations`, the session's rows,
+halves and resting means in :mod:`.session`), :mod:`.streams` (a static recording's streams and
+locations), :mod:`.motion` (recordings with an orientation reference; their locations and
+estimators in :mod:`.motionstats`, their twin in :mod:`.motiontwin`), :mod:`.null` (scores, Holm, total gap),
 :mod:`.effects` (the effect model, estimators and signatures), :mod:`.attribution` (held-out
 forward selection), :mod:`.diagnosis` (diagnosis.json: one assembly for both twins),
 :mod:`.static` (what a static recording can show: the partial session's diagnosis),

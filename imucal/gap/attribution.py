@@ -30,7 +30,8 @@ import numpy as np
 
 from imucal.gap.effects import EffectModel
 from imucal.gap.null import NullModel, holm, transform
-from imucal.gap.twin import StaticTwin, Twin
+from imucal.gap.statictwin import StaticTwin
+from imucal.gap.twin import Twin
 
 
 @dataclass

@@ -2,8 +2,8 @@
 an orientation reference.
 
 A partial session (:mod:`imucal.pipeline.partial`) has no cube, rate table or MT Manager
-reference, so the full-protocol diagnosis cannot refit it; it may hold a static recording (:class:`imucal.gap.twin.StaticTwin`) and
-recordings with an orientation reference (:class:`imucal.gap.motion.MotionTwin`). Their
+reference, so the full-protocol diagnosis cannot refit it; it may hold a static recording (:class:`imucal.gap.statictwin.StaticTwin`) and
+recordings with an orientation reference (:class:`imucal.gap.motiontwin.MotionTwin`). Their
 locations differ (stages ``static``/``temperature`` and ``reference``), so one diagnosis scores
 them together (:func:`diagnose_partial_session`): a replica of the composite is a replica of each part with the same seed, its
 statistics the union of theirs. An effect is rendered in the part whose library holds it (the
@@ -23,13 +23,9 @@ from dataclasses import dataclass
 import pandas as pd
 
 from imucal.gap.effects import EffectModel
-from imucal.gap.motion import (
-    MOTION_NOT_OBSERVABLE,
-    MotionRecording,
-    MotionTwin,
-    motion_library,
-    motion_statistics,
-)
+from imucal.gap.motion import MOTION_NOT_OBSERVABLE, motion_library
+from imucal.gap.motionstats import MotionRecording, motion_statistics
+from imucal.gap.motiontwin import MotionTwin
 from imucal.gap.null import run_replicas
 from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
 from imucal.gap.static import (
@@ -38,9 +34,10 @@ from imucal.gap.static import (
     diagnose_static,
     unscored_diagnosis,
 )
+from imucal.gap.statictwin import build_static_twin
 from imucal.gap.statistics import HALVES
 from imucal.gap.streams import split_streams, static_statistics
-from imucal.gap.twin import Replica, build_static_twin
+from imucal.gap.twin import Replica
 from imucal.segments.table import rows_of
 
 #: Shortest rest scored in place of a static recording (s): each half of it must hold twice the

@@ -22,9 +22,10 @@ import pandas as pd
 
 from imucal.gap.blocks import StaticBlocks, decimate_static_table, window_segments
 from imucal.gap.effects import library, misalignment_report
+from imucal.gap.locations import clip_fractions
 from imucal.gap.null import run_replicas
 from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
-from imucal.gap.statistics import HALVES, PROTOCOL_STATISTICS, clip_fractions, compute_statistics
+from imucal.gap.statistics import HALVES, PROTOCOL_STATISTICS, compute_statistics
 from imucal.gap.twin import build_twin
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 

@@ -20,7 +20,7 @@ field alone. Each has a statistic of the gap map and an estimator of the simulat
   against the reference, integrated into an angle at the reference's samples (so that a line
   above the reference's Nyquist frequency is measured too). Statistic ``line_power``.
 
-The functions read recordings as :class:`imucal.gap.motion.MotionRecording` holds them (module
+The functions read recordings as :class:`imucal.gap.motionstats.MotionRecording` holds them (module
 times, calibrated gyroscope and magnetometer, reference times and quaternions, alignment, up).
 """
 

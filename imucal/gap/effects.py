@@ -19,9 +19,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from imucal import errormodel
-from imucal.columns import AXES, MAG, SENSOR_COLUMNS, SENSORS, SEQ, TIME, column_values
+from imucal.columns import (
+    AXES,
+    MAG,
+    SENSOR_COLUMNS,
+    SENSORS,
+    SEQ,
+    TIME,
+    column_values,
+    temperature_column,
+)
 from imucal.constants import EARTH_RATE_RAD_S
-from imucal.gap import statistics as st
+from imucal.gap import locations as loc
+from imucal.gap import session as ses
 from imucal.pipeline.full import SessionFit, calibrated
 from imucal.sim.effects import EFFECTS, make_effect
 
@@ -81,14 +91,14 @@ class EffectModel:
 
 
 def _halves(fit: SessionFit, half):
-    return {name: t.iloc[st._time_half(len(t), half)] for name, t in fit.imu.items()}
+    return {name: t.iloc[ses._time_half(len(t), half)] for name, t in fit.imu.items()}
 
 
 def estimate_packet_loss(fit: SessionFit, half) -> Estimate:
     lost = expected = 0
     gaps = []
     for t in _halves(fit, half).values():
-        n, e, g = st.lost_packets(t[SEQ].to_numpy())
+        n, e, g = loc.lost_packets(t[SEQ].to_numpy())
         lost, expected = lost + n, expected + e
         gaps.append(g)
     g = np.concatenate(gaps)
@@ -104,7 +114,7 @@ def estimate_packet_loss(fit: SessionFit, half) -> Estimate:
 def estimate_timing_jitter(fit: SessionFit, half) -> Estimate:
     res = []
     for t in _halves(fit, half).values():
-        r = st.stamp_residual(t[TIME].to_numpy(dtype=float), t[SEQ].to_numpy())
+        r = loc.stamp_residual(t[TIME].to_numpy(dtype=float), t[SEQ].to_numpy())
         res.append(r - np.median(r))
     r = np.concatenate(res)
     std = float(np.std(r))
@@ -114,7 +124,7 @@ def estimate_timing_jitter(fit: SessionFit, half) -> Estimate:
 def estimate_time_offset(fit: SessionFit, half) -> Estimate | None:
     if fit.time_alignment is None:
         return None
-    stats = st._reference(fit, half)
+    stats = loc._reference(fit, half)
     offset = stats[("validate", "clock", "-", "rotation3d", "ref_offset_s")]
     drift = float(fit.time_alignment.drift_ppm)
     return Estimate({"offset_s": float(offset), "drift_ppm": drift}, abs(float(offset)))
@@ -123,7 +133,7 @@ def estimate_time_offset(fit: SessionFit, half) -> Estimate | None:
 def estimate_lever_arm(fit: SessionFit, half) -> Estimate | None:
     if fit.artifacts.get("table") is None:
         return None
-    r = -st.centripetal_slopes(fit, half)
+    r = -loc.centripetal_slopes(fit, half)
     r = np.nan_to_num(r)
     return Estimate(
         {"x_m": float(r[0]), "y_m": float(r[1]), "z_m": float(r[2])}, float(np.linalg.norm(r))
@@ -133,13 +143,13 @@ def estimate_lever_arm(fit: SessionFit, half) -> Estimate | None:
 def estimate_g_sensitivity(fit: SessionFit, half) -> Estimate | None:
     """The full matrix ``G`` of ``w_B = c + G a_B`` (rad/s per m/s^2, frame B: the model
     term's and the simulator's parameterisation) from the calibrated resting means of the
-    session (:func:`imucal.gap.statistics.resting_means`), each gyro axis regressed on the
+    session (:func:`imucal.gap.session.resting_means`), each gyro axis regressed on the
     three components of the specific force with a constant, as
     :func:`imucal.terms.gsensitivity.fit_g_sensitivity`; with a temperature channel the
     temperature is in the same regression (a per-axis drift over poses taken at different
     temperatures is not taken for a g-sensitivity). Detection: ``|G|`` (Frobenius). None when
     the resting segments do not span three directions of gravity."""
-    rest = st.resting_means(fit, half)
+    rest = ses.resting_means(fit, half)
     w, f = rest.gyr, rest.acc
     columns = [np.ones(len(w)), *f.T]
     if np.any(np.isfinite(rest.temp)) and np.nanmax(rest.temp) > np.nanmin(rest.temp):
@@ -156,9 +166,9 @@ def estimate_g_sensitivity(fit: SessionFit, half) -> Estimate | None:
 
 def estimate_earth_rotation(fit: SessionFit, half) -> Estimate | None:
     """Latitude and rate of the world-fixed rate that the resting segments share
-    (:func:`imucal.gap.statistics.world_fixed_rate`: north from the magnetometer, up from the
+    (:func:`imucal.gap.locations.world_fixed_rate`: north from the magnetometer, up from the
     accelerometer); detection: its magnitude."""
-    omega = st.world_fixed_rate(fit, half)
+    omega = loc.world_fixed_rate(fit, half)
     if omega is None:
         return None
     rate = float(np.linalg.norm(omega))
@@ -185,7 +195,7 @@ def earth_gate(est: Estimate, null: list, z: float) -> str:
 def estimate_saturation(fit: SessionFit, half) -> Estimate:
     opt = fit.extra["options"]
     params, detect = {}, 0.0
-    stats = st._clipping(fit, half)
+    stats = loc._clipping(fit, half)
     for s in SENSORS:
         frac = stats[("ingest", s, "-", "all", "clip_fraction")]
         top = 32767
@@ -206,8 +216,8 @@ def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
     from scipy.optimize import curve_fit
 
     ts, temps = [], []
-    for name, start in st.session_clock(fit).items():
-        col = st.temperature_column(fit.imu[name])
+    for name, start in ses.session_clock(fit).items():
+        col = temperature_column(fit.imu[name])
         if col is None:
             continue
         t = fit.imu[name][TIME].to_numpy(dtype=float)
@@ -242,7 +252,7 @@ def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
     temperature channel or with fewer than 6 resting segments that have a reading."""
     from imucal.terms.temperature import linear_drift
 
-    if not any(st.temperature_column(t) for t in fit.imu.values()):
+    if not any(temperature_column(t) for t in fit.imu.values()):
         return None
     drift = linear_drift(fit, half)
     if drift is None:
@@ -306,7 +316,7 @@ def _wander_variance(
 def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
     """Gauss-Markov bias std of the gyroscope (per axis, averaged) and the accelerometer (along
     gravity, from ``|a| - g``) from the variogram (:func:`_wander_variance`) of the resting
-    means (:func:`imucal.gap.statistics.resting_means`) on the twin's session clock.
+    means (:func:`imucal.gap.session.resting_means`) on the twin's session clock.
 
     Taken out first, so that they are not counted as wander: a line in the temperature (where
     a segment has no reading, none) for both; for the gyro also its specific force (a
@@ -319,11 +329,11 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
     mean (the accelerometer's, seen through ``|a| - g`` after the cube fit, is much the
     noisier). None with fewer than 4 resting segments.
     """
-    rest = st.resting_means(fit, half)
+    rest = ses.resting_means(fit, half)
     n = len(rest)
     if n < 4:
         return None
-    clock = st.session_clock(fit)
+    clock = ses.session_clock(fit)
     t = np.array([clock[rec] for rec in rest.recording]) + rest.mid_s
     d_t = (
         np.nan_to_num(rest.temp - np.nanmean(rest.temp))
@@ -356,7 +366,7 @@ def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
         return None
     opt = fit.extra["options"]
     fs = 32767 * float(opt.sensitivity["gyr"])
-    rows, res, true = st.table_residuals(fit, half)
+    rows, res, true = ses.table_residuals(fit, half)
     scale = errormodel.decompose(fit.calibration.sensor("gyr").matrix).scale
     k2, k3 = [], []
     for j, a in enumerate(AXES):
@@ -382,7 +392,7 @@ def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
 
 
 def estimate_mag_latency(fit: SessionFit, half) -> Estimate:
-    lags = [st.magnetometer_lag(fit, p) for p in st._phase_half(AXES, half)]
+    lags = [loc.magnetometer_lag(fit, p) for p in ses._phase_half(AXES, half)]
     lag = float(np.nanmean(lags))
     mag = column_values(fit.imu["rotation3d"], MAG)
     fresh = mag[np.all(np.isfinite(mag), axis=1)]
@@ -395,13 +405,13 @@ def estimate_mag_latency(fit: SessionFit, half) -> Estimate:
 
 def estimate_platform_magnetic(fit: SessionFit, half) -> Estimate | None:
     """Platform-fixed field from the resting poses' world field against the outer-axis angle
-    (:func:`imucal.gap.statistics.platform_field`) and the motor-current term from the
+    (:func:`imucal.gap.locations.platform_field`) and the motor-current term from the
     field residual against the angular acceleration during the motion."""
-    pf = st.platform_field(fit, half)
+    pf = loc.platform_field(fit, half)
     if pf is None:
         return None
     d_h, m_earth = pf
-    rot, psi = st.platform_motion(fit)
+    rot, psi = loc.platform_motion(fit)
     t = fit.imu["rotation3d"][TIME].to_numpy(dtype=float)
     mag = calibrated(fit, "rotation3d", "mag")
     low = column_values(fit.lowpass, SENSOR_COLUMNS["gyr"])
@@ -423,13 +433,13 @@ def estimate_placement_error(fit: SessionFit, half) -> Estimate | None:
     """Placement std per axis (deg) from the cube positions' tilts about their nominal
     directions (2 tilt components per position, 3 dof of the common rotation; white noise of
     the position means removed) and the rate-table mountings' tilts (their rest runs)."""
-    res, noise, _ = st.cube_direction_residuals(fit, half)
+    res, noise, _ = loc.cube_direction_residuals(fit, half)
     if len(res) < 3:
         return None
     dof = 2 * len(res) - 3
     var = max((np.sum(res**2) - 2 * np.sum(noise)) / dof, 0.0)
     cube = float(np.degrees(np.sqrt(var)))
-    tilts = st.table_mount_tilts(fit)
+    tilts = loc.table_mount_tilts(fit)
     table = float(np.degrees(np.sqrt(np.sum(tilts**2) / (2 * len(tilts))))) if len(tilts) else cube
     return Estimate({"cube_sigma_deg": cube, "table_sigma_deg": table}, cube)
 

@@ -24,8 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
+from imucal.gap.statictwin import StaticTwin
 from imucal.gap.statistics import CATALOGUE, Key
-from imucal.gap.twin import Replica, StaticTwin, Twin
+from imucal.gap.twin import Replica, Twin
 
 
 def transform(key: Key, value: float) -> float:

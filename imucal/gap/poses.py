@@ -20,7 +20,8 @@ import pandas as pd
 
 from imucal.columns import POSE_KINDS, TIME
 from imucal.gap.composite import diagnose_partial_session
-from imucal.gap.motion import MotionRecording, MotionTwin
+from imucal.gap.motionstats import MotionRecording
+from imucal.gap.motiontwin import MotionTwin
 from imucal.gap.scoring import DiagnosisSettings
 from imucal.segments.table import rows_of
 

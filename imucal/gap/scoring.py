@@ -19,7 +19,8 @@ import numpy as np
 from imucal.gap.attribution import Candidate, attribute, confusable
 from imucal.gap.effects import EffectModel
 from imucal.gap.null import build_null, holm
-from imucal.gap.twin import Replica, StaticTwin, Twin
+from imucal.gap.statictwin import StaticTwin
+from imucal.gap.twin import Replica, Twin
 
 FORMAT_VERSION = 1
 LOCATION_FIELDS = ("stage", "sensor", "axis", "segment", "statistic")

@@ -4,7 +4,7 @@ A partial session (:mod:`imucal.pipeline.partial`) has no cube, rate table or re
 full-protocol diagnosis (:func:`imucal.gap.diagnosis.diagnose`) cannot refit it. What such a
 session usually does have is a long ``static`` recording, and that is where this diagnosis
 looks, with the definitions of :mod:`imucal.gap`: the twin is
-:class:`~imucal.gap.twin.StaticTwin`, the locations are those of :mod:`imucal.gap.streams`, the
+:class:`~imucal.gap.statictwin.StaticTwin`, the locations are those of :mod:`imucal.gap.streams`, the
 null, scores, attribution and ``diagnosis.json`` are :func:`imucal.gap.scoring.scored_diagnosis`
 as for a full session.
 
@@ -27,9 +27,11 @@ from scipy.optimize import brentq, curve_fit
 from imucal.columns import SENSORS
 from imucal.constants import STANDARD_GRAVITY_M_S2
 from imucal.gap.effects import EffectModel, Estimate
+from imucal.gap.locations import allan_deviation
 from imucal.gap.null import run_replicas
 from imucal.gap.scoring import FORMAT_VERSION, DiagnosisSettings, scored_diagnosis
-from imucal.gap.statistics import HALVES, allan_deviation
+from imucal.gap.statictwin import build_static_twin
+from imucal.gap.statistics import HALVES
 from imucal.gap.streams import (
     Stream,
     receive_latency,
@@ -38,7 +40,6 @@ from imucal.gap.streams import (
     temperature_slopes,
     white_std,
 )
-from imucal.gap.twin import build_static_twin
 from imucal.sim.effects import stream_rng
 
 #: Effects of the library a single static recording cannot show, and why.

@@ -3,7 +3,7 @@
 A static recording holds one or two streams (:data:`STREAMS`): the acc/gyro rows and the
 magnetometer rows, each in receive order. Its locations are ``static`` stage x sensor x axis x
 segment ``static`` x statistic, measured the same way on a recording and on the replicas of its
-twin (:class:`imucal.gap.twin.StaticTwin`):
+twin (:class:`imucal.gap.statictwin.StaticTwin`):
 
 * timing per stream (``imu``: acc/gyro rows; ``mag``): the receive latency above the stream's
   lower envelope (``stamp_scatter_s``), the wander of that envelope about the straight clock
@@ -28,8 +28,8 @@ import numpy as np
 import pandas as pd
 from scipy.ndimage import minimum_filter1d
 
-from imucal.columns import AXES, SENSOR_COLUMNS, TIME
-from imucal.gap.statistics import allan_deviation, temperature_column
+from imucal.columns import AXES, SENSOR_COLUMNS, TIME, temperature_column
+from imucal.gap.locations import allan_deviation
 
 #: Sensor of each stream of a static recording.
 STREAMS = {"imu": ("acc", "gyr"), "mag": ("mag",)}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from imucal.gap import statistics as st
+from imucal.gap import session as st
 from imucal.modelterms import GSensitivity
 from imucal.pipeline.full import SessionFit
 from imucal.terms.temperature import heldout_residuals, select_model

@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 
 from imucal.calibration import ImuCalibration
 from imucal.columns import ACC, GYR, SI_COLUMN_UNITS, TIME
-from imucal.gap import statistics as st
+from imucal.gap import session as st
 from imucal.pipeline.full import SessionFit
 from imucal.pipeline.stages import apply_calibration
 from imucal.segments.table import row_bounds

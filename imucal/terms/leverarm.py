@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from imucal.columns import AXES
-from imucal.gap import statistics as st
+from imucal.gap import session as st
 from imucal.modelterms import LeverArm
 from imucal.pipeline.full import SessionFit, calibrated
 
@@ -27,7 +27,7 @@ METHOD = (
 
 def table_runs(fit: SessionFit, half: str | None = None) -> pd.DataFrame | None:
     """The rate-table runs the gyroscope fit kept (rest runs included), of one half of the
-    rate levels (:func:`imucal.gap.statistics._run_half`) or all; None without a table."""
+    rate levels (:func:`imucal.gap.session._run_half`) or all; None without a table."""
     table = fit.artifacts.get("table")
     if table is None or "ratetable" not in fit.imu:
         return None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from imucal.columns import AXES
-from imucal.gap import statistics as st
+from imucal.gap import session as st
 from imucal.modelterms import MagDelay
 from imucal.pipeline.full import SessionFit
 
@@ -14,7 +14,7 @@ def fit_mag_delay(fit: SessionFit) -> tuple[MagDelay | None, dict]:
     """Lag of the calibrated field behind the integrated rate, combined over the three phases.
 
     Each phase gives a lag and its least-squares standard deviation
-    (:func:`imucal.gap.statistics.magnetometer_lag_fit`); the term is their inverse-variance
+    (:func:`imucal.gap.session.magnetometer_lag_fit`); the term is their inverse-variance
     weighted mean. Its standard deviation is that of the weighted mean, widened by the Birge
     ratio ``sqrt(chi2 / (n - 1))`` when the phases disagree by more than their own standard
     deviations allow (three phases alone are too few for a spread-based standard deviation:

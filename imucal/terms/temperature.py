@@ -1,6 +1,6 @@
 """Temperature polynomials of bias and scale per axis, with the order chosen on held-out data.
 
-The estimators work on the session's resting segments (:func:`imucal.gap.statistics.resting_rows`:
+The estimators work on the session's resting segments (:func:`imucal.gap.session.resting_rows`:
 rotation3d rests, cube positions, rate-table rest runs, the static recording in blocks) and on
 the rate-table runs, each reduced to its raw mean reading and mean temperature:
 
@@ -42,7 +42,7 @@ import numpy as np
 
 from imucal.columns import AXES, GYR, SENSOR_COLUMNS, TIME, column_values, temperature_column
 from imucal.fits.wander import fit_with_wander
-from imucal.gap import statistics as st
+from imucal.gap import session as st
 from imucal.modelterms import TemperaturePolynomial
 from imucal.pipeline.full import SessionFit, calibrated
 from imucal.segments.table import row_bounds
@@ -67,7 +67,7 @@ class Means:
         White-noise variance of the raw gyro means ((rad/s)^2, from first differences).
     t_s : ndarray, shape (n,)
         Middle of each segment on the session clock (s,
-        :func:`imucal.gap.statistics.session_clock`).
+        :func:`imucal.gap.session.session_clock`).
     """
 
     raw: dict
@@ -124,7 +124,7 @@ def _white_variance(x: np.ndarray, quantum: float) -> np.ndarray:
 def resting_means(fit: SessionFit, *, table: bool = True, half: str | None = None) -> Means:
     """Raw means of the session's resting segments with a temperature reading (rate-table rest
     runs left out when ``table`` is False; every other segment for ``half`` 'A' or 'B', as
-    :func:`imucal.gap.statistics.resting_rows`)."""
+    :func:`imucal.gap.session.resting_rows`)."""
     segments = [(r, rows) for r, rows in st.resting_rows(fit, half) if table or r != "ratetable"]
     return _segment_means(fit, segments)
 

@@ -11,9 +11,10 @@ import pytest
 from scipy.stats import f as f_dist
 
 from imucal.calibration import ImuCalibration, SensorCalibration
-from imucal.columns import SENSOR_COLUMNS, SENSORS, TIME
+from imucal.columns import AXES, SENSOR_COLUMNS, SENSORS, TIME
 from imucal.gap import blocks as bl
-from imucal.gap import statistics as st
+from imucal.gap import locations, session
+from imucal.gap.statistics import HALVES
 from imucal.gap.twin import BlockSpec, Twin, quantised_moments, render_static_blocks
 from imucal.sim import ProtocolConfig, World, simulate_session
 from imucal.sim.session import SENSITIVITY
@@ -80,8 +81,8 @@ def test_long_statistics_of_one_row_blocks_equal_the_full_rate_ones(monkeypatch)
     assert blocks.samples_per_block == 1 and len(window) < len(table)
     whole = SimpleNamespace(imu={"static": table}, extra={})
     cut = SimpleNamespace(imu={"static": window}, extra={"static_blocks": blocks})
-    for half in st.HALVES:
-        a, b = st._noise(whole, half), st._noise(cut, half)
+    for half in HALVES:
+        a, b = locations._noise(whole, half), locations._noise(cut, half)
         long_keys = [k for k in a if k[4] in ("adev_long_excess", "trend_per_s")]
         assert len(long_keys) == 18
         for k in long_keys:
@@ -91,8 +92,8 @@ def test_long_statistics_of_one_row_blocks_equal_the_full_rate_ones(monkeypatch)
             # the same Allan deviation; the white-noise line is the window's
             white = {}
             for name, x in (("whole", table), ("window", window)):
-                v = x[SENSOR_COLUMNS[k[1]][st.AXES.index(k[2])]].to_numpy()
-                v = v[np.isfinite(v)][st._time_half(int(np.isfinite(v).sum()), half)]
+                v = x[SENSOR_COLUMNS[k[1]][AXES.index(k[2])]].to_numpy()
+                v = v[np.isfinite(v)][session._time_half(int(np.isfinite(v).sum()), half)]
                 white[name] = np.std(np.diff(v))
             expected = a[k] + np.log(white["whole"] / white["window"])
             assert b[k] == pytest.approx(expected, abs=1e-9), k
@@ -104,8 +105,10 @@ def test_block_means_of_long_statistics_agree_with_full_rate_ones():
     table = _recording(4000.0, rate_hz=20.0, seed=3)
     window, blocks = bl.decimate_static_table(table)
     assert blocks.samples_per_block == 8
-    a = st._noise(SimpleNamespace(imu={"static": table}, extra={}), None)
-    b = st._noise(SimpleNamespace(imu={"static": window}, extra={"static_blocks": blocks}), None)
+    a = locations._noise(SimpleNamespace(imu={"static": table}, extra={}), None)
+    b = locations._noise(
+        SimpleNamespace(imu={"static": window}, extra={"static_blocks": blocks}), None
+    )
     for k in a:
         if k[4] == "adev_long_excess":
             # 4 clusters' worth of Allan variance: log std about 0.35; the two share the data

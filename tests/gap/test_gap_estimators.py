@@ -173,7 +173,7 @@ def test_large_misalignment_reported_not_a_gap(base, null_fits):
 def test_world_fixed_rate_points_north_and_up(base, null_fits):
     """An exaggerated Earth rate (3e-3 rad/s at 48 deg) seen at the resting segments comes out
     in world axes (magnetic north, east, up) within NULL_Z of the clean replicas' spread."""
-    from imucal.gap.statistics import world_fixed_rate
+    from imucal.gap.locations import world_fixed_rate
 
     fit = _fit(base, 18, (make_effect("earth_rotation", rate_rad_s=3e-3, latitude_deg=48.0),))
     lat = np.radians(48.0)

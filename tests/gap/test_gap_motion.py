@@ -14,8 +14,9 @@ from imucal.calibration import SensorCalibration
 from imucal.columns import GYR, QUAT, SEGMENT_COLUMNS, SENSOR_COLUMNS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session
-from imucal.gap.motion import motion_part, motion_statistics, reference_part
-from imucal.gap.twin import StaticTwin, render_static
+from imucal.gap.motion import motion_part, reference_part
+from imucal.gap.motionstats import motion_statistics
+from imucal.gap.statictwin import StaticTwin, render_static
 from imucal.sim import make_truth
 from imucal.sim.effects import stream_rng
 from imucal.sim.orientation import simulate_orientation_session

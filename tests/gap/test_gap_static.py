@@ -18,8 +18,8 @@ from imucal.columns import SEGMENT_COLUMNS, SENSOR_COLUMNS, SENSORS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session, rest_as_static
 from imucal.gap.static import STATIC_LIBRARY, diagnose_static
+from imucal.gap.statictwin import StaticTwin, build_static_twin, render_static
 from imucal.gap.streams import split_streams, temperature_slopes
-from imucal.gap.twin import StaticTwin, build_static_twin, render_static
 from imucal.sim import make_effect, make_truth
 from imucal.sim.effects import stream_rng
 from imucal.sim.session import SENSITIVITY

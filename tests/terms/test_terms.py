@@ -14,7 +14,7 @@ import yaml
 
 from imucal.calibration import ImuCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, SI_COLUMN_UNITS
-from imucal.gap import statistics as st
+from imucal.gap import session as st
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
 from imucal.modelterms import LeverArm, ModelTerms, TemperaturePolynomial
 from imucal.pipeline.full import PipelineOptions, calibrate_session
