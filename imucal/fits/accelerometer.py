@@ -10,8 +10,8 @@ Step 2 (the rotation ``T_R,acc`` into frame B) is done in :mod:`imucal.fits.alig
 The magnitude model is shared with the gyroscope's magnitude-only rate-table fit
 (:func:`imucal.fits.ratetable.fit_rate_table_magnitude`) through :func:`fit_magnitude_model`.
 
-The module is long (about 590 lines): one fit, its input checks, its goodness of fit and
-its covariance (with the inflation rule) belong together.
+One fit, its input checks, its goodness of fit and its covariance (with the inflation rule)
+belong together.
 """
 
 from __future__ import annotations

@@ -20,8 +20,8 @@ small-angle matrix ``I + [alpha]_x`` of eq. 5 instead.
 Assumption: ``T_R`` is closer to the identity than 90 degrees about any axis (signs of the phase
 directions are taken from the phase's own axis component).
 
-The module is long (about 580 lines): the paper's and the full-phase ways to ``T_R`` share
-the phase samples and the sandwich covariance, so they are kept side by side.
+The paper's and the full-phase ways to ``T_R`` share the phase samples and the sandwich
+covariance, so they are kept side by side.
 """
 
 from __future__ import annotations

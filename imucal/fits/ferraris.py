@@ -23,8 +23,8 @@ Ferraris, Grimaldi, Parvis, "Procedure for effortless in-field calibration of th
 gyro and accelerometers", Sensors and Materials 7(5), 1995.
 Zhang, Hoeflinger, Reindl, IEEE Sensors J. 14(6), 2014, eqs. 11 and 36.
 
-The module is long (about 540 lines): the two fits of the Ferraris protocol share its
-sections and their checks, and each carries its covariance beside its estimator.
+The two fits of the Ferraris protocol share its sections and their checks, and each carries
+its covariance beside its estimator.
 """
 
 from __future__ import annotations

@@ -12,8 +12,7 @@ positive definite, ``o`` from eq. 22 and ``S'`` the upper-triangular Cholesky fa
 algebraic fit at low coverage. Step 2 (the rotation ``T_R``, eqs. 25-27) is
 :func:`calibrate_alignment`, built on :mod:`imucal.fits.alignment`.
 
-The module is long (about 590 lines): the ellipsoid fit, its LM refinement and the
-covariance of both belong together.
+The ellipsoid fit, its LM refinement and the covariance of both belong together.
 """
 
 from __future__ import annotations

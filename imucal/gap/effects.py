@@ -7,8 +7,8 @@ the simulator's internals, and returns parameters of the simulator's effect of t
 that the effect can be added to the twin. ``detect`` is a scalar whose null distribution comes
 from running the same estimator on the twin replicas.
 
-The module is long (about 630 lines): it holds the library, one estimator per effect of the
-simulator, each beside the signature it is matched by, so that an effect is defined in one place.
+The library holds one estimator per effect of the simulator, each beside the signature it is
+matched by, so that an effect is defined in one place.
 """
 
 from __future__ import annotations

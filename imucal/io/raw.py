@@ -9,8 +9,8 @@ The module (about 630 lines) keeps both native formats together because they sha
 reading machinery (header, pyarrow options, locating the bad line, the cell checks), which
 the IMU CSV also runs batch by batch (:class:`ImuCsvStream`).
 
-The module is long (about 640 lines): the two native formats (IMU CSV log, streamed in
-batches, and the MT Manager export) share the error reporting with file and line.
+The two native formats (IMU CSV log, streamed in batches, and the MT Manager export) share the
+error reporting with file and line.
 """
 
 from __future__ import annotations
