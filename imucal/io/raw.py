@@ -5,12 +5,9 @@ cells, which cells may be empty) and report any problem as one :class:`RawDataEr
 the file, the 1-based line number as a text editor shows it, and what was expected. Checks of
 the *content* (time order, packet counter) live in :mod:`imucal.ingest`.
 
-The module (about 630 lines) keeps both native formats together because they share the
-reading machinery (header, pyarrow options, locating the bad line, the cell checks), which
-the IMU CSV also runs batch by batch (:class:`ImuCsvStream`).
-
-The two native formats (IMU CSV log, streamed in batches, and the MT Manager export) share the
-error reporting with file and line.
+Both native formats are here because they share the reading machinery (header, pyarrow
+options, locating the bad line, the cell checks), which the IMU CSV also runs batch by batch
+(:class:`ImuCsvStream`).
 """
 
 from __future__ import annotations
