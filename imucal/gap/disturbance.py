@@ -43,8 +43,6 @@ from imucal.validation.orientation import reference_rates
 SHOCK_WINDOW = 3
 #: Robust z (norm over the three axes) above which a window holds a knock.
 SHOCK_Z = 6.0
-#: Module samples of the running median a knock's gyroscope spike stands out from.
-SPIKE_SAMPLES = 9
 #: Windows over which the spread a knock is scored against is taken (about 2 s).
 SHOCK_SPREAD = 241
 #: Lowest frequency of a vibration line (Hz): above the band of hand and robot motion.
@@ -239,10 +237,7 @@ def shock_events(rec) -> tuple[np.ndarray, float]:
     """The knocks of one recording: the gyroscope's angle against the reference's over windows
     of :data:`SHOCK_WINDOW` contiguous intervals, less its running median and scaled per axis
     by its running robust (MAD) spread over :data:`SHOCK_SPREAD` windows; windows whose norm
-    exceeds :data:`SHOCK_Z` and in which the gyroscope itself spikes (beyond :data:`SHOCK_Z`
-    times the robust spread of its departure from a running median of :data:`SPIKE_SAMPLES`:
-    a glitch of the reference is not a knock) are knocks, overlapping ones merged into the
-    strongest.
+    exceeds :data:`SHOCK_Z` are knocks, overlapping ones merged into the strongest.
 
     Returns
     -------
@@ -269,19 +264,11 @@ def shock_events(rec) -> tuple[np.ndarray, float]:
     # never below half the recording's typical spread (the reference's noise is always there)
     spread = np.maximum(spread, 0.5 * np.median(spread, axis=0) + 1e-300)
     z = np.linalg.norm(deviation / spread, axis=1)
-    # a knock is in the gyroscope itself: a spike above its own short running median (a glitch
-    # of the reference, which also opens a window, is not)
-    gyr = np.nan_to_num(rec.gyr)
-    jump = np.linalg.norm(gyr - median_filter(gyr, size=(SPIKE_SAMPLES, 1), mode="reflect"), axis=1)
-    floor = 1.4826 * np.median(jump)
     impulses = []
     for i in np.argsort(-z):
         if z[i] <= SHOCK_Z:
             break
         if impulses and np.min(np.abs(k[i] - np.array([j for j, _ in impulses]))) < w:
-            continue
-        lo, hi = np.searchsorted(rec.t_s, [start[k[i]], end[k[i] + w - 1]])
-        if hi <= lo or np.max(jump[lo:hi]) <= SHOCK_Z * floor:
             continue
         impulses.append((k[i], deviation[i]))
     covered = float(np.sum(end - start))

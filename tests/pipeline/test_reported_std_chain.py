@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 from imucal.columns import ACC, MAG
-from imucal.pipeline import stages
 from imucal.pipeline.full import calibrate_session
+from imucal.pipeline.stages.toolfree import _phase_angles
 from imucal.segments.segmentation import segment_dataset
 from imucal.sim import make_truth, simulate_session
 from imucal.sim.effects import stream_rng
@@ -110,7 +110,7 @@ def test_rate_integral_weights_give_the_change_of_the_pause_means():
     truth = session.truth.calibration
     measuring = [("mag", truth.mag, MAG), ("acc", truth.acc, ACC)]
     table = imu["rotation3d"]
-    angles = stages._phase_angles(table, segments, measuring)
+    angles = _phase_angles(table, segments, measuring)
     rows = segments[segments["recording"] == "rotation3d"].reset_index(drop=True)
     for label, phase in angles.items():
         i = int(np.flatnonzero(rows["label"] == label)[0])
