@@ -11,9 +11,10 @@ the residual RMS per pose, sensor and axis for
 * ``none``: no temperature term (the held-out signal about its own mean);
 * ``term``: this project's temperature term, a polynomial ``sum_k c_k dT^k`` per axis with one
   constant per fit pose as a nuisance (the constants absorb the orientation), its order
-  ``0 .. max_order`` chosen per axis on the held-out poses (:func:`choose_order`, the
-  one-standard-error rule of :func:`imucal.terms.temperature.select_model`), so an axis where
-  no polynomial predicts the held-out poses better than none gets no term;
+  ``0 .. max_order`` chosen per axis and held-out pose on the fit poses alone, each predicted
+  from the others (:func:`nested_order`, the one-standard-error rule of
+  :func:`imucal.terms.temperature.select_model`), so an axis where no polynomial carries over
+  from one fit pose to another gets no term;
 * ``regression``: the approach of scikit-diveMove's ``IMUcalibrate`` (Luque): per axis, a
   linear regression of the static signal on temperature with one intercept, pooled over the
   fit poses' samples.
@@ -22,7 +23,11 @@ The held-out pose is compared on its samples within the fit poses' temperature s
 ``margin_c`` (where the term calibrates; beyond it :class:`imucal.modelterms.TemperaturePolynomial`
 refuses), all three on the same samples. The term is fitted to block means of ``block_s`` (the
 drift; the white noise averages out), the regression to the samples as ``IMUcalibrate`` does;
-the comparison is on every sample and on the block means.
+the comparison is on every sample and on the block means. The residuals of a drift are
+correlated over hours, so the RMS's uncertainty comes from a circular block bootstrap with
+blocks of ``se_block_s`` (each pose resampled apart): a standard error per RMS and a 95 %
+interval per ratio, which says whether the term is resolvably better or worse than the
+regression or within the noise.
 """
 
 from __future__ import annotations
@@ -193,21 +198,25 @@ def _span(temps: Sequence[np.ndarray], margin_c: float) -> tuple[float, float]:
 def choose_order(
     squares: Mapping[int, Sequence[tuple[np.ndarray, np.ndarray]]],
 ) -> tuple[int, dict]:
-    """The order of an axis's polynomial from its residuals on held-out poses.
+    """The order of an axis's polynomial from its residuals on poses its fit did not see.
 
-    The order is the smallest whose mean squared held-out residual (over the samples of every
-    held-out pose) is within one standard error of the best, as
-    :func:`imucal.terms.temperature.select_model` chooses; order 0 (no term) when no polynomial
-    predicts the held-out poses better by more than that. The residuals of a drift are
-    correlated over minutes, so the standard error is that of a ratio over blocks (clusters):
-    ``sqrt(sum_b (s_b - m n_b)^2) / sum_b n_b`` with ``s_b`` the sum of squares and ``n_b`` the
-    samples of block ``b`` and ``m`` the mean.
+    Two steps. A polynomial is a law of the part, so an order ``k >= 1`` is admissible only if
+    it predicts every held-out pose better than no term, each by more than one standard error
+    of the paired difference (the orders are compared on the same samples, which share the
+    white noise and the pose's own drift); with no admissible order the axis gets none (0).
+    Among the admissible orders the choice is the smallest whose mean squared held-out residual
+    (over the samples of every held-out pose) is within one standard error of the best's, the
+    one-standard-error rule of :func:`imucal.terms.temperature.select_model`. The residuals of
+    a drift are correlated over hours, so each standard error is that of a ratio over long
+    blocks (clusters): ``sqrt(sum_b (s_b - m n_b)^2) / sum_b n_b`` with ``s_b`` the block's
+    sum (of squares, or of their difference), ``n_b`` its samples and ``m`` the mean.
 
     Parameters
     ----------
     squares : mapping of int to sequence of (ndarray, ndarray)
-        Order -> per held-out pose, the sums of its squared residuals (constant removed) over
-        consecutive blocks and the samples of each block, each shape (n_blocks,).
+        Order (0 = no term) -> per held-out pose, the sums of its squared residuals (constant
+        removed) over consecutive blocks and the samples of each block, each shape
+        (n_blocks,); the same blocks for every order.
 
     Returns
     -------
@@ -215,18 +224,28 @@ def choose_order(
     heldout_rms : dict of int to float
         Order -> RMS over all held-out samples.
     """
-    mean, se = {}, {}
-    for k, pieces in squares.items():
-        sums = np.concatenate([p[0] for p in pieces])
-        counts = np.concatenate([p[1] for p in pieces])
-        total = counts.sum()
-        mean[k] = sums.sum() / total if total else np.nan
-        se[k] = np.sqrt(np.sum((sums - mean[k] * counts) ** 2)) / total if total else np.nan
-    heldout = {k: float(np.sqrt(v)) for k, v in mean.items()}
-    if not np.isfinite(mean[0]):
+
+    def ratio(sums: np.ndarray, counts: np.ndarray) -> tuple[float, float]:
+        """Mean per sample over the blocks and its standard error (NaN without samples)."""
+        if not counts.sum():
+            return np.nan, np.nan
+        m = sums.sum() / counts.sum()
+        return m, np.sqrt(np.sum((sums - m * counts) ** 2)) / counts.sum()
+
+    pooled = {
+        k: ratio(*(np.concatenate([p[i] for p in pieces]) for i in (0, 1)))
+        for k, pieces in squares.items()
+    }
+    heldout = {k: float(np.sqrt(m)) for k, (m, _) in pooled.items()}
+    admissible = []
+    for k in squares:
+        gains = [ratio(p[0] - q[0], p[1]) for p, q in zip(squares[k], squares[0])]
+        if k and all(m + se < 0 for m, se in gains):
+            admissible.append(k)
+    if not admissible:
         return 0, heldout
-    best = min(mean, key=lambda k: mean[k])
-    return min(k for k in mean if mean[k] <= mean[best] + se[best]), heldout
+    best = min(admissible, key=lambda k: pooled[k][0])
+    return min(k for k in admissible if pooled[k][0] <= sum(pooled[best])), heldout
 
 
 def _block_sums(x: np.ndarray, t_s: np.ndarray, block_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -242,8 +261,113 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x**2))) if len(x) else float("nan")
 
 
+def _residual(poses, blocks, fit, held, inside, sensor, j, order, margin_c) -> tuple:
+    """The term of ``order`` fitted on the poses ``fit`` (indices), its residual on ``held``'s
+    samples ``inside`` (constant not removed) and the term's coefficients and reference."""
+    lo, hi = _span([poses[p].temp_c for p in fit], margin_c)
+    reference_c = round(0.5 * (lo + hi), 2)
+    coef = fit_term(
+        [blocks[p][0] for p in fit], [blocks[p][1][sensor][:, j] for p in fit], order, reference_c
+    )
+    y = held.values[sensor][inside, j]
+    return y - _predict(coef, held.temp_c[inside], reference_c), coef, reference_c
+
+
+def _inside(poses: Sequence[PoseSeries], fit: Sequence[int], held: int, margin_c: float):
+    lo, hi = _span([poses[p].temp_c for p in fit], margin_c)
+    return (poses[held].temp_c >= lo) & (poses[held].temp_c <= hi)
+
+
+def nested_order(
+    poses: Sequence[PoseSeries],
+    blocks: Sequence[tuple],
+    fit: Sequence[int],
+    sensor: str,
+    j: int,
+    *,
+    max_order: int,
+    margin_c: float,
+    se_block_s: float,
+) -> tuple[int, dict]:
+    """The order of one axis chosen on the fit poses alone: each held out from the others.
+
+    Each pose of ``fit`` is predicted from the other fit poses (its constant removed, within
+    their span widened by ``margin_c``) for every order ``0 .. max_order``;
+    :func:`choose_order` picks on these residuals. The pose held out of the whole comparison
+    takes no part, so its residual is an honest test of the choice too.
+
+    Parameters
+    ----------
+    poses : sequence of PoseSeries
+    blocks : sequence of (ndarray, dict)
+        Each pose's block means (temperature, sensor -> (m, 3)), as the term is fitted.
+    fit : sequence of int
+        Indices of the fit poses (at least two).
+    sensor : str
+    j : int
+        Axis index.
+    max_order : int
+    margin_c : float
+        K.
+    se_block_s : float
+        Block length (s) of the standard error of :func:`choose_order`.
+
+    Returns
+    -------
+    order : int
+    inner_rms : dict of int to float
+        Order -> RMS over the fit poses, each predicted from the others.
+    """
+    squares = {k: [] for k in range(max_order + 1)}
+    for i in fit:
+        rest = [p for p in fit if p != i]
+        inside = _inside(poses, rest, i, margin_c)
+        for k in squares:
+            r = _residual(poses, blocks, rest, poses[i], inside, sensor, j, k, margin_c)[0]
+            squares[k].append(_block_sums(_centred(r) ** 2, poses[i].t_s[inside], se_block_s))
+    return choose_order(squares)
+
+
+def _block_starts(n: int, block: int, replicates: int, rng: np.random.Generator) -> np.ndarray:
+    """Starts (replicates, ceil(n / block)) of a circular block bootstrap of ``n`` samples."""
+    return rng.integers(0, max(n, 1), size=(replicates, -(-max(n, 1) // block)))
+
+
+def _boot_mean_square(r: np.ndarray, starts: np.ndarray, block: int) -> np.ndarray:
+    """Mean square of ``r`` (n,) about its mean in each circular block-bootstrap replicate."""
+    if not len(r):
+        return np.full(len(starts), np.nan)
+    block = min(block, len(r))
+    size = starts.shape[1] * block
+    moments = []
+    for x in (r, r**2):
+        c = np.concatenate([[0.0], np.cumsum(np.concatenate([x, x[:block]]))])
+        moments.append((c[starts + block] - c[starts]).sum(axis=1) / size)
+    return moments[1] - moments[0] ** 2
+
+
+def _uncertainty(point: Mapping, boot: Mapping) -> dict:
+    """Bootstrap standard errors of the three RMS and 95 % intervals of the ratios."""
+    rms = {m: np.sqrt(v) for m, v in boot.items()}
+    out = {f"rms_{m}_se": float(np.std(v, ddof=1)) for m, v in rms.items()}
+    for name, a, b in (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
+                       ("term_vs_regression", "term", "regression")):  # fmt: skip
+        out[name] = point[a] / point[b]
+        out[f"{name}_ci95"] = [float(q) for q in np.percentile(rms[a] / rms[b], [2.5, 97.5])]
+    lo, hi = out["term_vs_regression_ci95"]
+    out["verdict"] = "better" if hi < 1.0 else "worse" if lo > 1.0 else "within noise"
+    return out
+
+
 def hold_out_poses(
-    poses: Sequence[PoseSeries], *, block_s: float, max_order: int, margin_c: float
+    poses: Sequence[PoseSeries],
+    *,
+    block_s: float,
+    max_order: int,
+    margin_c: float,
+    se_block_s: float,
+    replicates: int,
+    seed: int,
 ) -> dict:
     """Held-out residual RMS per pose x sensor x axis: no term, the project's term, regression.
 
@@ -252,27 +376,38 @@ def hold_out_poses(
     poses : sequence of PoseSeries
         At least :data:`MIN_POSES` poses with samples, the same sensors each.
     block_s : float
-        Block length (s) of the fits (block means), the order's standard error and the block
-        comparison.
+        Block length (s) of the term's fit (block means) and of the block comparison.
     max_order : int
         Highest polynomial order tried (>= 1).
     margin_c : float
         How far beyond the fit poses' temperature span (K) a held-out sample is compared.
+    se_block_s : float
+        Block length (s) of the order's standard error and of the circular block bootstrap of
+        the held-out RMS: longer than the correlation of the residuals.
+    replicates : int
+        Bootstrap replicates.
+    seed : int
+        Seed of the bootstrap's block draws.
 
     Returns
     -------
     dict
         ``cells``: one per held-out pose, sensor and axis, with ``held_out``, ``sensor``,
         ``axis``, ``unit``, ``samples`` (compared), ``fraction`` (of the pose's samples within
-        the span), ``rms_none``, ``rms_term``, ``rms_regression`` (samples, constant removed),
-        the same of the block means (``blocks_none`` ...), ``order`` (the axis's, chosen over
-        all held-out poses), ``coef`` (``c_1 .. c_order``, unit per K^k), ``reference_c``,
-        ``regression_slope`` (unit per K), ``paired`` (mean of ``r_term^2 - r_regression^2``
-        over the samples and its standard error over blocks as in :func:`choose_order`,
-        unit^2).
-        ``orders``: per sensor and axis the chosen order and the held-out RMS of every order.
-        ``summary``: per sensor and axis, the RMS over all held-out samples of each method and
-        the ratios to none. ``poses``: label, samples, temperature span.
+        the span), ``rms_none``, ``rms_term``, ``rms_regression`` (samples, constant removed)
+        and their bootstrap standard errors (``rms_none_se`` ...), the ratios ``term_ratio``,
+        ``regression_ratio`` (to none) and ``term_vs_regression`` each with its 95 % interval
+        (``..._ci95``), ``verdict`` (the term ``better``, ``worse`` or ``within noise`` against
+        the regression: the interval below, above or around 1), the same RMS of the block means
+        (``blocks_none`` ...), ``order`` (chosen on the fit poses alone, :func:`nested_order`),
+        ``inner_rms`` (order -> RMS of the fit poses predicted from each other), ``coef``
+        (``c_1 .. c_order``, unit per K^k), ``reference_c``, ``regression_slope`` (unit per K).
+        ``orders``: per sensor and axis the order of each held-out pose and ``outer_rms``, the
+        RMS over all held-out samples of every order (for comparison only: choosing on it
+        would choose on the reported residuals). ``summary``: per sensor and axis, the RMS
+        over all held-out samples of each method, its standard error and the ratios with their
+        intervals (the bootstrap resamples each pose apart). ``poses``: label, samples,
+        temperature span.
 
     Raises
     ------
@@ -281,10 +416,11 @@ def hold_out_poses(
 
     Notes
     -----
-    The order of an axis is chosen on the same leave-one-pose-out residuals the table reports
-    (as the term would be chosen for this recording). With ``max_order + 1`` candidates the
-    choice adds little optimism; it removes a term from an axis where no order predicts the
-    held-out poses better than none.
+    The order is chosen in a nested way: for each held-out pose on the two (or more) fit
+    poses alone, each predicted from the others, so the held-out residual the table reports
+    played no part in it. An information criterion on the fit poses' residuals would need a
+    noise model for a drift correlated over hours; the inner hold-out asks the question the
+    term has to answer (does the polynomial carry over to a pose it has not seen) without one.
     """
     poses = [p for p in poses if len(p.t_s)]
     if len(poses) < MIN_POSES:
@@ -295,6 +431,7 @@ def hold_out_poses(
         raise ValueError(f"max_order must be >= 1, got {max_order}")
     sensors = list(poses[0].values)
     blocks = [_blocks(p, block_s) for p in poses]
+    rng = np.random.default_rng(seed)
     folds = []
     for h, held in enumerate(poses):
         fit = [p for p in range(len(poses)) if p != h]
@@ -307,35 +444,38 @@ def hold_out_poses(
             )[0][1]
             for s in sensors
         }
+        inside = _inside(poses, fit, h, margin_c)
+        step = float(np.median(np.diff(held.t_s))) if len(held.t_s) > 1 else se_block_s
+        block = max(1, int(round(se_block_s / step)))
         folds.append({
-            "fit": fit, "reference_c": round(0.5 * (lo + hi), 2),
-            "inside": (held.temp_c >= lo) & (held.temp_c <= hi),
-            "block_in": (blocks[h][0] >= lo) & (blocks[h][0] <= hi), "slopes": slopes,
+            "fit": fit, "inside": inside, "block_in": (blocks[h][0] >= lo) & (blocks[h][0] <= hi),
+            "slopes": slopes, "block": block,
+            "starts": _block_starts(int(inside.sum()), block, replicates, rng),
         })  # fmt: skip
-    cells, orders = [], []
+    cells, orders, summary = [], [], []
     for s in sensors:
         for j, axis in enumerate(AXES):
-            coefs, squares = {}, {}
-            for k in range(max_order + 1):
-                coefs[k], squares[k] = [], []
-                for h, (held, fold) in enumerate(zip(poses, folds)):
-                    fit = fold["fit"]
-                    coef = fit_term(
-                        [blocks[p][0] for p in fit],
-                        [blocks[p][1][s][:, j] for p in fit],
-                        k,
-                        fold["reference_c"],
-                    )
-                    inside = fold["inside"]
-                    r = held.values[s][inside, j] - _predict(
-                        coef, held.temp_c[inside], fold["reference_c"]
-                    )
-                    coefs[k].append(coef)
-                    squares[k].append(_block_sums(_centred(r) ** 2, held.t_s[inside], block_s))
-            order, heldout = choose_order(squares)
-            orders.append({"sensor": s, "axis": axis, "order": order, "heldout_rms": heldout})
+            outer = {k: [] for k in range(max_order + 1)}
+            group = []
             for h, (held, fold) in enumerate(zip(poses, folds)):
-                cells.append(_cell(held, blocks[h], fold, s, j, order, coefs[order][h], block_s))
+                order, inner = nested_order(
+                    poses, blocks, fold["fit"], s, j, max_order=max_order, margin_c=margin_c,
+                    se_block_s=se_block_s,
+                )  # fmt: skip
+                inside = fold["inside"]
+                for k in outer:
+                    r = _residual(poses, blocks, fold["fit"], held, inside, s, j, k, margin_c)[0]
+                    outer[k].append(_block_sums(_centred(r) ** 2, held.t_s[inside], se_block_s))
+                fitted = _residual(poses, blocks, fold["fit"], held, inside, s, j, order, margin_c)
+                cell, boot = _cell(held, blocks[h], fold, s, j, order, fitted)
+                cells.append({**cell, "inner_rms": inner})
+                group.append((cell, boot))
+            orders.append({
+                "sensor": s, "axis": axis,
+                "by_pose": {c["held_out"]: c["order"] for c, _ in group},
+                "outer_rms": choose_order(outer)[1],
+            })  # fmt: skip
+            summary.append(_summary(group))
     return {
         "poses": [
             {
@@ -347,65 +487,53 @@ def hold_out_poses(
         ],  # fmt: skip
         "orders": orders,
         "cells": cells,
-        "summary": _summary(cells),
+        "summary": summary,
     }
 
 
 def _cell(
-    held: PoseSeries,
-    block: tuple,
-    fold: Mapping,
-    sensor: str,
-    j: int,
-    order: int,
-    coef: np.ndarray,
-    block_s: float,
-) -> dict:
-    """One held-out pose, sensor and axis: the three methods' residual RMS."""
-    inside, reference_c, slope = fold["inside"], fold["reference_c"], fold["slopes"][sensor][j]
+    held: PoseSeries, block: tuple, fold: Mapping, sensor: str, j: int, order: int, fitted: tuple
+) -> tuple[dict, dict]:
+    """One held-out pose, sensor and axis: the three methods' residual RMS, and the bootstrap
+    replicates of their mean squares (method -> (replicates,))."""
+    residual, coef, reference_c = fitted
+    inside, slope = fold["inside"], fold["slopes"][sensor][j]
     y, temp = held.values[sensor][inside, j], held.temp_c[inside]
     block_t, block_v = block
     yb, tb = block_v[sensor][fold["block_in"], j], block_t[fold["block_in"]]
-    r_term = _centred(y - _predict(coef, temp, reference_c))
-    r_reg = _centred(y - slope * temp)
-    sums, counts = _block_sums(r_term**2 - r_reg**2, held.t_s[inside], block_s)
-    diff = sums.sum() / counts.sum() if len(y) else float("nan")
+    r = {"none": _centred(y), "term": _centred(residual), "regression": _centred(y - slope * temp)}
+    point = {m: _rms(v) for m, v in r.items()}
+    boot = {m: _boot_mean_square(v, fold["starts"], fold["block"]) for m, v in r.items()}
     return {
         "held_out": held.label, "sensor": sensor, "axis": AXES[j], "unit": SI_UNITS[sensor],
         "samples": int(inside.sum()), "fraction": float(inside.mean()),
-        "rms_none": _rms(_centred(y)), "rms_term": _rms(r_term), "rms_regression": _rms(r_reg),
+        **{f"rms_{m}": v for m, v in point.items()}, **_uncertainty(point, boot),
         "blocks": int(fold["block_in"].sum()),
         "blocks_none": _rms(_centred(yb)),
         "blocks_term": _rms(_centred(yb - _predict(coef, tb, reference_c))),
         "blocks_regression": _rms(_centred(yb - slope * tb)),
         "order": order, "coef": coef.tolist(), "reference_c": reference_c,
         "regression_slope": float(slope),
-        "paired": {
-            "mean": float(diff),
-            "se": float(np.sqrt(np.sum((sums - diff * counts) ** 2)) / counts.sum())
-            if len(y) else float("nan"),
-        },
+    }, boot  # fmt: skip
+
+
+def _summary(group: Sequence[tuple[Mapping, Mapping]]) -> dict:
+    """One sensor and axis over every held-out sample of its poses: each method's RMS, its
+    standard error and the ratios' intervals (each pose's bootstrap drawn apart)."""
+    group = [g for g in group if g[0]["samples"]] or group
+    cells = [c for c, _ in group]
+    n = np.array([c["samples"] for c in cells], dtype=float)
+    methods = ("none", "term", "regression")
+    point = {
+        m: float(np.sqrt(np.sum(n * np.array([c[f"rms_{m}"] for c in cells]) ** 2) / n.sum()))
+        for m in methods
+    }
+    boot = {m: sum(w * b[m] for w, (_, b) in zip(n, group)) / n.sum() for m in methods}
+    return {
+        "sensor": cells[0]["sensor"], "axis": cells[0]["axis"], "unit": cells[0]["unit"],
+        **{f"rms_{m}": v for m, v in point.items()}, **_uncertainty(point, boot),
+        "orders": [c["order"] for c in cells],
     }  # fmt: skip
-
-
-def _summary(cells: Sequence[Mapping]) -> list[dict]:
-    """Per sensor and axis, the RMS over every held-out sample of each method."""
-    out = []
-    keys = dict.fromkeys((c["sensor"], c["axis"]) for c in cells)
-    for sensor, axis in keys:
-        group = [c for c in cells if c["sensor"] == sensor and c["axis"] == axis]
-        n = np.array([c["samples"] for c in group], dtype=float)
-        pooled = {
-            m: float(np.sqrt(np.sum(n * np.array([c[f"rms_{m}"] for c in group]) ** 2) / n.sum()))
-            for m in ("none", "term", "regression")
-        }
-        out.append({
-            "sensor": sensor, "axis": axis, "unit": group[0]["unit"], **{f"rms_{m}": v for m, v in pooled.items()},
-            "term_ratio": pooled["term"] / pooled["none"],
-            "regression_ratio": pooled["regression"] / pooled["none"],
-            "orders": [c["order"] for c in group],
-        })  # fmt: skip
-    return out
 
 
 def holdout_recording(dataset) -> str | None:
@@ -442,6 +570,9 @@ def hold_out_recording(
     settle_s: float,
     max_order: int,
     margin_c: float,
+    se_block_s: float,
+    replicates: int,
+    seed: int,
 ) -> dict:
     """:func:`hold_out_poses` on the static poses of one ingested recording, with its settings.
 
@@ -453,7 +584,7 @@ def hold_out_recording(
         The session's segments table; the recording's ``position`` and ``static`` rows are the
         poses.
     recording : str
-    block_s, settle_s, max_order, margin_c : float, float, int, float
+    block_s, settle_s, max_order, margin_c, se_block_s, replicates, seed
         See :func:`pose_series` and :func:`hold_out_poses`.
 
     Returns
@@ -464,7 +595,8 @@ def hold_out_recording(
     sensors = [s for s in SENSORS if all(c in table.columns for c in SENSOR_COLUMNS[s])]
     rows = rows_of(segments, recording, *POSE_KINDS)
     poses = pose_series(table, rows, settle_s=settle_s, sensors=sensors)
-    result = hold_out_poses(poses, block_s=block_s, max_order=max_order, margin_c=margin_c)
     settings = {"block_s": block_s, "settle_s": settle_s, "max_order": max_order,
-                "margin_c": margin_c}  # fmt: skip
+                "margin_c": margin_c, "se_block_s": se_block_s, "replicates": replicates,
+                "seed": seed}  # fmt: skip
+    result = hold_out_poses(poses, **{k: v for k, v in settings.items() if k != "settle_s"})
     return {"recording": recording, "sensors": sensors, "settings": settings, **result}
