@@ -31,9 +31,10 @@ def holdout_section(path: str | Path | None) -> dict | None:
     -------
     dict or None
         ``reason`` (the stage did not run) or ``rows`` (per held-out pose, sensor and axis:
-        the three residual RMS in display units, their ratios to none, the order and the
-        compared fraction), ``summary`` (the same over all held-out poses), ``units``,
-        ``settings``, ``poses``.
+        the three residual RMS in display units with their bootstrap standard errors, the
+        ratios to none and of the term to the regression with their 95 % intervals, the
+        verdict, the order and the compared fraction), ``summary`` (the same over all held-out
+        poses), ``units``, ``settings``, ``poses``.
     """
     if path is None:
         return None
@@ -46,17 +47,27 @@ def holdout_section(path: str | Path | None) -> dict | None:
 
     def row(c: Mapping, label: str) -> dict:
         factor = DISPLAY_UNITS[c["sensor"]][1]
-        none = c["rms_none"]
+
+        def rms(method: str) -> str:
+            value = _number(factor * c[f"rms_{method}"], 2)
+            return f"{value} ± {_number(factor * c[f'rms_{method}_se'], 2)}"
+
+        def ratio(name: str, digits: int = 3) -> str:
+            lo, hi = c[f"{name}_ci95"]
+            return f"{_number(c[name], digits)} ({_number(lo, digits)}-{_number(hi, digits)})"
+
         return {
             "pose": label,
             "sensor": c["sensor"],
             "axis": c["axis"],
             "order": c.get("order", ", ".join(str(o) for o in c.get("orders", []))),
-            "none": _number(factor * none, 2),
-            "term": _number(factor * c["rms_term"], 2),
-            "regression": _number(factor * c["rms_regression"], 2),
-            "term_ratio": _number(c["rms_term"] / none, 3),
-            "regression_ratio": _number(c["rms_regression"] / none, 3),
+            "none": rms("none"),
+            "term": rms("term"),
+            "regression": rms("regression"),
+            "term_ratio": ratio("term_ratio"),
+            "regression_ratio": ratio("regression_ratio"),
+            "term_vs_regression": ratio("term_vs_regression", 4),
+            "verdict": c["verdict"],
             "fraction": _number(c.get("fraction", math.nan), 2),
         }
 

@@ -24,8 +24,8 @@ The held-out pose is compared on its samples within the fit poses' temperature s
 refuses), all three on the same samples. The term is fitted to block means of ``block_s`` (the
 drift; the white noise averages out), the regression to the samples as ``IMUcalibrate`` does;
 the comparison is on every sample and on the block means. The residuals of a drift are
-correlated over hours, so the RMS's uncertainty comes from a circular block bootstrap with
-blocks of ``se_block_s`` (each pose resampled apart): a standard error per RMS and a 95 %
+correlated over hours, so the uncertainty counts blocks of ``se_block_s`` as the independent
+observations (an effective sample size of one per block): a standard error per RMS and a 95 %
 interval per ratio, which says whether the term is resolvably better or worse than the
 regression or within the noise.
 """
@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy.stats import t as student_t
 
 from imucal.columns import (
     AXES,
@@ -328,35 +329,53 @@ def nested_order(
     return choose_order(squares)
 
 
-def _block_starts(n: int, block: int, replicates: int, rng: np.random.Generator) -> np.ndarray:
-    """Starts (replicates, ceil(n / block)) of a circular block bootstrap of ``n`` samples."""
-    return rng.integers(0, max(n, 1), size=(replicates, -(-max(n, 1) // block)))
+def _spread(squares: Mapping[str, tuple]) -> dict:
+    """Standard errors of the RMS and 95 % intervals of their ratios over long blocks.
 
+    Each block of ``se_block_s`` counts as one independent observation (the residuals are
+    correlated within it, little across): the standard error of a mean square ``m`` is
+    ``sqrt(B / (B - 1) sum_b (s_b - m n_b)^2) / N`` over the ``B`` blocks (``s_b`` the sum of
+    squares, ``n_b`` the samples, ``N`` all samples), that of the RMS half of it relative; the
+    interval of a ratio of two RMS on the same samples is the delta method on the log of the
+    mean squares with the same clusters and Student's t with ``B - 1`` degrees of freedom.
 
-def _boot_mean_square(r: np.ndarray, starts: np.ndarray, block: int) -> np.ndarray:
-    """Mean square of ``r`` (n,) about its mean in each circular block-bootstrap replicate."""
-    if not len(r):
-        return np.full(len(starts), np.nan)
-    block = min(block, len(r))
-    size = starts.shape[1] * block
-    moments = []
-    for x in (r, r**2):
-        c = np.concatenate([[0.0], np.cumsum(np.concatenate([x, x[:block]]))])
-        moments.append((c[starts + block] - c[starts]).sum(axis=1) / size)
-    return moments[1] - moments[0] ** 2
+    Parameters
+    ----------
+    squares : mapping of str to (ndarray, ndarray)
+        Method (``none``, ``term``, ``regression``) -> block sums of its squared residuals and
+        the samples per block, each shape (B,).
 
-
-def _uncertainty(point: Mapping, boot: Mapping) -> dict:
-    """Bootstrap standard errors of the three RMS and 95 % intervals of the ratios."""
-    rms = {m: np.sqrt(v) for m, v in boot.items()}
-    out = {f"rms_{m}_se": float(np.std(v, ddof=1)) for m, v in rms.items()}
-    for name, a, b in (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
+    Returns
+    -------
+    dict
+        ``rms_<method>_se``; ``term_ratio``, ``regression_ratio`` (to none) and
+        ``term_vs_regression``, each with ``..._ci95``; ``verdict`` (the term ``better``,
+        ``worse`` or ``within noise`` against the regression); ``clusters`` (B).
+    """
+    counts = next(iter(squares.values()))[1]
+    n, b = counts.sum(), len(counts)
+    if b < 2 or not n:
+        nan = float("nan")
+        out = {f"rms_{m}_se": nan for m in squares} | {"clusters": b, "verdict": "within noise"}
+        for name in ("term_ratio", "regression_ratio", "term_vs_regression"):
+            out |= {name: nan, f"{name}_ci95": [nan, nan]}
+        return out
+    inflate, q = np.sqrt(b / (b - 1)), float(student_t.ppf(0.975, b - 1))
+    ms = {m: sums.sum() / n for m, (sums, _) in squares.items()}
+    dev = {m: squares[m][0] - ms[m] * counts for m in squares}
+    out = {
+        f"rms_{m}_se": float(inflate * np.sqrt(np.sum(dev[m] ** 2)) / n / (2 * np.sqrt(ms[m])))
+        for m in squares
+    }
+    for name, a, c in (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
                        ("term_vs_regression", "term", "regression")):  # fmt: skip
-        out[name] = point[a] / point[b]
-        out[f"{name}_ci95"] = [float(q) for q in np.percentile(rms[a] / rms[b], [2.5, 97.5])]
+        log_ratio = np.log(ms[a] / ms[c])
+        se = inflate * np.sqrt(np.sum((dev[a] / ms[a] - dev[c] / ms[c]) ** 2)) / n
+        out[name] = float(np.exp(0.5 * log_ratio))
+        out[f"{name}_ci95"] = [float(np.exp(0.5 * (log_ratio + k * q * se))) for k in (-1, 1)]
     lo, hi = out["term_vs_regression_ci95"]
     out["verdict"] = "better" if hi < 1.0 else "worse" if lo > 1.0 else "within noise"
-    return out
+    return out | {"clusters": b}
 
 
 def hold_out_poses(
@@ -366,8 +385,6 @@ def hold_out_poses(
     max_order: int,
     margin_c: float,
     se_block_s: float,
-    replicates: int,
-    seed: int,
 ) -> dict:
     """Held-out residual RMS per pose x sensor x axis: no term, the project's term, regression.
 
@@ -382,12 +399,8 @@ def hold_out_poses(
     margin_c : float
         How far beyond the fit poses' temperature span (K) a held-out sample is compared.
     se_block_s : float
-        Block length (s) of the order's standard error and of the circular block bootstrap of
-        the held-out RMS: longer than the correlation of the residuals.
-    replicates : int
-        Bootstrap replicates.
-    seed : int
-        Seed of the bootstrap's block draws.
+        Block length (s) of the standard errors (the order's, the RMS's and the ratios'):
+        longer than the correlation of the residuals.
 
     Returns
     -------
@@ -395,7 +408,7 @@ def hold_out_poses(
         ``cells``: one per held-out pose, sensor and axis, with ``held_out``, ``sensor``,
         ``axis``, ``unit``, ``samples`` (compared), ``fraction`` (of the pose's samples within
         the span), ``rms_none``, ``rms_term``, ``rms_regression`` (samples, constant removed)
-        and their bootstrap standard errors (``rms_none_se`` ...), the ratios ``term_ratio``,
+        and their standard errors (``rms_none_se`` ...), the ratios ``term_ratio``,
         ``regression_ratio`` (to none) and ``term_vs_regression`` each with its 95 % interval
         (``..._ci95``), ``verdict`` (the term ``better``, ``worse`` or ``within noise`` against
         the regression: the interval below, above or around 1), the same RMS of the block means
@@ -406,7 +419,7 @@ def hold_out_poses(
         RMS over all held-out samples of every order (for comparison only: choosing on it
         would choose on the reported residuals). ``summary``: per sensor and axis, the RMS
         over all held-out samples of each method, its standard error and the ratios with their
-        intervals (the bootstrap resamples each pose apart). ``poses``: label, samples,
+        intervals (the blocks of all poses as clusters). ``poses``: label, samples,
         temperature span.
 
     Raises
@@ -431,7 +444,6 @@ def hold_out_poses(
         raise ValueError(f"max_order must be >= 1, got {max_order}")
     sensors = list(poses[0].values)
     blocks = [_blocks(p, block_s) for p in poses]
-    rng = np.random.default_rng(seed)
     folds = []
     for h, held in enumerate(poses):
         fit = [p for p in range(len(poses)) if p != h]
@@ -444,13 +456,9 @@ def hold_out_poses(
             )[0][1]
             for s in sensors
         }
-        inside = _inside(poses, fit, h, margin_c)
-        step = float(np.median(np.diff(held.t_s))) if len(held.t_s) > 1 else se_block_s
-        block = max(1, int(round(se_block_s / step)))
         folds.append({
-            "fit": fit, "inside": inside, "block_in": (blocks[h][0] >= lo) & (blocks[h][0] <= hi),
-            "slopes": slopes, "block": block,
-            "starts": _block_starts(int(inside.sum()), block, replicates, rng),
+            "fit": fit, "inside": _inside(poses, fit, h, margin_c), "slopes": slopes,
+            "block_in": (blocks[h][0] >= lo) & (blocks[h][0] <= hi), "se_block_s": se_block_s,
         })  # fmt: skip
     cells, orders, summary = [], [], []
     for s in sensors:
@@ -467,9 +475,9 @@ def hold_out_poses(
                     r = _residual(poses, blocks, fold["fit"], held, inside, s, j, k, margin_c)[0]
                     outer[k].append(_block_sums(_centred(r) ** 2, held.t_s[inside], se_block_s))
                 fitted = _residual(poses, blocks, fold["fit"], held, inside, s, j, order, margin_c)
-                cell, boot = _cell(held, blocks[h], fold, s, j, order, fitted)
+                cell, squares = _cell(held, blocks[h], fold, s, j, order, fitted)
                 cells.append({**cell, "inner_rms": inner})
-                group.append((cell, boot))
+                group.append((cell, squares))
             orders.append({
                 "sensor": s, "axis": axis,
                 "by_pose": {c["held_out"]: c["order"] for c, _ in group},
@@ -494,45 +502,42 @@ def hold_out_poses(
 def _cell(
     held: PoseSeries, block: tuple, fold: Mapping, sensor: str, j: int, order: int, fitted: tuple
 ) -> tuple[dict, dict]:
-    """One held-out pose, sensor and axis: the three methods' residual RMS, and the bootstrap
-    replicates of their mean squares (method -> (replicates,))."""
+    """One held-out pose, sensor and axis: the three methods' residual RMS with their spread,
+    and per method the block sums of the squared residuals and the samples per block."""
     residual, coef, reference_c = fitted
     inside, slope = fold["inside"], fold["slopes"][sensor][j]
     y, temp = held.values[sensor][inside, j], held.temp_c[inside]
     block_t, block_v = block
     yb, tb = block_v[sensor][fold["block_in"], j], block_t[fold["block_in"]]
     r = {"none": _centred(y), "term": _centred(residual), "regression": _centred(y - slope * temp)}
-    point = {m: _rms(v) for m, v in r.items()}
-    boot = {m: _boot_mean_square(v, fold["starts"], fold["block"]) for m, v in r.items()}
+    squares = {m: _block_sums(v**2, held.t_s[inside], fold["se_block_s"]) for m, v in r.items()}
     return {
         "held_out": held.label, "sensor": sensor, "axis": AXES[j], "unit": SI_UNITS[sensor],
         "samples": int(inside.sum()), "fraction": float(inside.mean()),
-        **{f"rms_{m}": v for m, v in point.items()}, **_uncertainty(point, boot),
+        **{f"rms_{m}": _rms(v) for m, v in r.items()}, **_spread(squares),
         "blocks": int(fold["block_in"].sum()),
         "blocks_none": _rms(_centred(yb)),
         "blocks_term": _rms(_centred(yb - _predict(coef, tb, reference_c))),
         "blocks_regression": _rms(_centred(yb - slope * tb)),
         "order": order, "coef": coef.tolist(), "reference_c": reference_c,
         "regression_slope": float(slope),
-    }, boot  # fmt: skip
+    }, squares  # fmt: skip
 
 
 def _summary(group: Sequence[tuple[Mapping, Mapping]]) -> dict:
     """One sensor and axis over every held-out sample of its poses: each method's RMS, its
-    standard error and the ratios' intervals (each pose's bootstrap drawn apart)."""
-    group = [g for g in group if g[0]["samples"]] or group
+    standard error and the ratios' intervals (the blocks of every pose as clusters)."""
     cells = [c for c, _ in group]
-    n = np.array([c["samples"] for c in cells], dtype=float)
-    methods = ("none", "term", "regression")
-    point = {
-        m: float(np.sqrt(np.sum(n * np.array([c[f"rms_{m}"] for c in cells]) ** 2) / n.sum()))
-        for m in methods
+    squares = {
+        m: tuple(np.concatenate([sq[m][i] for _, sq in group]) for i in (0, 1))
+        for m in ("none", "term", "regression")
     }
-    boot = {m: sum(w * b[m] for w, (_, b) in zip(n, group)) / n.sum() for m in methods}
+    n = squares["none"][1].sum()
     return {
         "sensor": cells[0]["sensor"], "axis": cells[0]["axis"], "unit": cells[0]["unit"],
-        **{f"rms_{m}": v for m, v in point.items()}, **_uncertainty(point, boot),
-        "orders": [c["order"] for c in cells],
+        **{f"rms_{m}": float(np.sqrt(v[0].sum() / n)) if n else float("nan")
+           for m, v in squares.items()},
+        **_spread(squares), "orders": [c["order"] for c in cells],
     }  # fmt: skip
 
 
@@ -571,8 +576,6 @@ def hold_out_recording(
     max_order: int,
     margin_c: float,
     se_block_s: float,
-    replicates: int,
-    seed: int,
 ) -> dict:
     """:func:`hold_out_poses` on the static poses of one ingested recording, with its settings.
 
@@ -584,7 +587,7 @@ def hold_out_recording(
         The session's segments table; the recording's ``position`` and ``static`` rows are the
         poses.
     recording : str
-    block_s, settle_s, max_order, margin_c, se_block_s, replicates, seed
+    block_s, settle_s, max_order, margin_c, se_block_s
         See :func:`pose_series` and :func:`hold_out_poses`.
 
     Returns
@@ -596,7 +599,6 @@ def hold_out_recording(
     rows = rows_of(segments, recording, *POSE_KINDS)
     poses = pose_series(table, rows, settle_s=settle_s, sensors=sensors)
     settings = {"block_s": block_s, "settle_s": settle_s, "max_order": max_order,
-                "margin_c": margin_c, "se_block_s": se_block_s, "replicates": replicates,
-                "seed": seed}  # fmt: skip
+                "margin_c": margin_c, "se_block_s": se_block_s}  # fmt: skip
     result = hold_out_poses(poses, **{k: v for k, v in settings.items() if k != "settle_s"})
     return {"recording": recording, "sensors": sensors, "settings": settings, **result}

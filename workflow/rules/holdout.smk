@@ -1,7 +1,8 @@
 # Temperature terms held out across the declared static poses of a recording with a
 # temperature channel (imucal.terms.poseholdout): per pose, sensor and axis, the held-out
 # residual with no term, with the project's term (order chosen on the fit poses alone) and with a
-# pooled linear regression, each with its block-bootstrap uncertainty.
+# pooled linear regression, each with its uncertainty over
+# blocks of hours.
 
 
 rule temperature_holdout:
@@ -21,8 +22,6 @@ rule temperature_holdout:
         block_s=config["temperature_holdout"]["block_s"],
         settle_s=config["temperature_holdout"]["settle_s"],
         se_block_s=config["temperature_holdout"]["se_block_s"],
-        replicates=config["temperature_holdout"]["replicates"],
-        seed=config["temperature_holdout"]["seed"],
         max_order=config["terms"]["temperature_max_order"],
         margin_c=config["terms"]["temperature_margin_c"],
         imucal_version=IMUCAL_VERSION,

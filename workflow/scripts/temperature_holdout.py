@@ -18,6 +18,6 @@ with stage_guard("temperature_holdout", snakemake.output):
     result = hold_out_recording(
         table, read_segments(snakemake.input.segments), recording=p.recording,
         block_s=p.block_s, settle_s=p.settle_s, max_order=p.max_order, margin_c=p.margin_c,
-        se_block_s=p.se_block_s, replicates=p.replicates, seed=p.seed,
+        se_block_s=p.se_block_s,
     )  # fmt: skip
     write_json(result, snakemake.output.holdout)
