@@ -12,9 +12,10 @@ the residual RMS per pose, sensor and axis for
 * ``term``: this project's temperature term, a polynomial ``sum_k c_k dT^k`` per axis with one
   constant per fit pose as a nuisance (the constants absorb the orientation), its order
   ``0 .. max_order`` chosen per axis and held-out pose on the fit poses alone, each predicted
-  from the others (:func:`nested_order`, the one-standard-error rule of
-  :func:`imucal.terms.temperature.select_model`), so an axis where no polynomial carries over
-  from one fit pose to another gets no term;
+  from the others (:func:`nested_order`): an order has to beat no term on every fit pose, and
+  among those that do, the one-standard-error rule of
+  :func:`imucal.terms.temperature.select_model` picks, so an axis where no polynomial carries
+  over from one fit pose to another gets no term;
 * ``regression``: the approach of scikit-diveMove's ``IMUcalibrate`` (Luque): per axis, a
   linear regression of the static signal on temperature with one intercept, pooled over the
   fit poses' samples.
@@ -411,7 +412,8 @@ def hold_out_poses(
         and their standard errors (``rms_none_se`` ...), the ratios ``term_ratio``,
         ``regression_ratio`` (to none) and ``term_vs_regression`` each with its 95 % interval
         (``..._ci95``), ``verdict`` (the term ``better``, ``worse`` or ``within noise`` against
-        the regression: the interval below, above or around 1), the same RMS of the block means
+        the regression: the interval below, above or around 1), ``clusters`` (the blocks of
+        ``se_block_s`` behind them), the same RMS of the block means
         (``blocks_none`` ...), ``order`` (chosen on the fit poses alone, :func:`nested_order`),
         ``inner_rms`` (order -> RMS of the fit poses predicted from each other), ``coef``
         (``c_1 .. c_order``, unit per K^k), ``reference_c``, ``regression_slope`` (unit per K).
