@@ -121,6 +121,7 @@ def detection_plan(
     factors: Sequence[float],
     seeds_per_level: int,
     effects: Sequence[str] | None = None,
+    n_clean: int = 0,
 ) -> list[dict]:
     """The detection sweep's sessions, deterministic from ``seed``.
 
@@ -135,6 +136,9 @@ def detection_plan(
         changes with its factor, not with a new draw of truths).
     effects : sequence of str, optional
         See :func:`library_effects`.
+    n_clean : int
+        Sessions without any effect (``effect`` None, no magnitude), shuffled among the others:
+        the false-positive rate on clean sessions.
 
     Returns
     -------
@@ -151,8 +155,10 @@ def detection_plan(
     ValueError
         If ``seeds_per_level`` < 1, or as :func:`detection_levels`.
     """
-    if seeds_per_level < 1:
-        raise ValueError(f"seeds_per_level must be >= 1, got {seeds_per_level}")
+    if seeds_per_level < 1 or n_clean < 0:
+        raise ValueError(
+            f"expected seeds_per_level >= 1 and n_clean >= 0, got {seeds_per_level}, {n_clean}"
+        )
     specs = []
     for name, levels in detection_levels(factors, effects).items():
         seeds = [
@@ -171,6 +177,12 @@ def detection_plan(
                     "effects": [{"effect": name, "params": effect.params()}], "exclude": [],
                     "description": "detection session (answer key sealed)",
                 })  # fmt: skip
+    for j in range(n_clean):
+        specs.append({
+            "seed": int(stream_rng(seed, f"detection/clean/{j}").integers(2**31)),
+            "effect": None, "factor": None, "magnitude": None, "magnitude_si": None,
+            "effects": [], "exclude": [], "description": "detection session (answer key sealed)",
+        })  # fmt: skip
     order = stream_rng(seed, "detection/plan").permutation(len(specs))
     width = max(3, len(str(len(specs) - 1)))
     return [{"name": f"d{i:0{width}d}", **specs[j]} for i, j in enumerate(order)]
@@ -272,7 +284,8 @@ def score_detection(
 
     A session **names** its effect when :func:`imucal.gap.stress.is_named` (explained, or
     noted for ``large_misalignment``, which opens no gap under the exact rotation); a crash
-    names nothing. It is a **false positive** when another effect is explained.
+    names nothing. It is a **false positive** when another effect is explained, and on a clean
+    session (``effect`` None) when any effect is.
 
     Parameters
     ----------
@@ -297,18 +310,26 @@ def score_detection(
         ``median_magnitude_rel_error`` (|est - true| / true) over the sessions that name the
         effect, None without any; ``limit``: the :func:`detection_limit` level or None, and
         ``limit_note``: why there is none, '' with one),
-        ``false_positive`` ([k, n] sessions in which another effect is explained),
+        ``false_positive`` ([k, n] effect sessions in which another effect is explained),
+        ``clean_explained`` and ``clean_noted`` ([k, n] clean sessions in which any effect is
+        explained, noted: the false-positive rate on clean sessions), ``clean_sessions``,
         ``false_noted`` ([k, n] sessions in which another effect is noted: the false alarms of
         a ``large_misalignment`` named by ``noted``; ``other_noted`` per level),
         ``crashes``, ``n``, ``sessions`` (the detail).
     """
     if not 0 < rate <= 1 or not 0 < confidence < 1:
         raise ValueError(f"expected 0 < rate <= 1 and 0 < confidence < 1; got {rate}, {confidence}")
-    rows, groups, first_key = [], {}, {}
+    rows, groups, first_key, clean = [], {}, {}, []
     for name in sorted(keys):
         spec, diag = keys[name]["spec"], diagnoses[name]
         effect = spec["effect"]
         crashed = diag.get("failed") is not None
+        if effect is None:
+            clean.append({
+                "name": name, "crashed": crashed, "explained": list(diag.get("explained", [])),
+                "noted": list(diag.get("noted", [])),
+            })  # fmt: skip
+            continue
         named = not crashed and is_named(effect, diag)
         shrink, est = effect_estimate(diag, effect)
         true = keys[name]["magnitude"]["value"]
@@ -340,7 +361,10 @@ def score_detection(
     return {
         "criterion": {"rate": rate, "confidence": confidence},
         "n": len(rows),
-        "crashes": sum(r["crashed"] for r in rows),
+        "crashes": sum(r["crashed"] for r in rows) + sum(r["crashed"] for r in clean),
+        "clean_explained": [sum(bool(r["explained"]) for r in clean), len(clean)],
+        "clean_noted": [sum(bool(r["noted"]) for r in clean), len(clean)],
+        "clean_sessions": clean,
         "false_positive": [sum(bool(r["other_explained"]) for r in rows), len(rows)],
         "false_noted": [sum(bool(r["other_noted"]) for r in rows), len(rows)],
         "effects": {e: effects[e] for e in order},

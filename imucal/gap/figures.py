@@ -235,6 +235,7 @@ def render_detection_page(score: Mapping) -> str:
         )
     rate, confidence = score["criterion"]["rate"], score["criterion"]["confidence"]
     fp, n = score["false_positive"]
+    clean, n_clean = score.get("clean_explained", [0, 0])
     seconds = score.get("diagnosis_seconds")
     timing = (
         f" Diagnosis time per session: median {seconds['median']:.0f} s, max "
@@ -251,7 +252,8 @@ name the effect (explained; large misalignment, which opens no gap, noted). The 
 is the least harsh level detected together with every harsher one (for saturation, whose
 magnitude is the gyro clip level, the largest). Sessions in which another effect was explained:
 <b>{fp} of {n}</b>; another effect noted: <b>{score["false_noted"][0]} of {n}</b> (a large
-misalignment named by noted is to be read against it). Crashes (named nothing):
+misalignment named by noted is to be read against it). Clean sessions (no effect) in which an
+effect was explained: <b>{clean} of {n_clean}</b>. Crashes (named nothing):
 {score["crashes"]}.{timing}</p>
 <h2>Detection limits</h2><table><tr><th>effect</th><th>factor</th><th>magnitude</th>
 <th>SI</th><th>named</th><th>rate, {confidence:.0%} lower bound</th></tr>{limits}</table>

@@ -201,3 +201,24 @@ def test_saturation_magnitude_in_si_is_the_gyro_clip_rate(plan):
     assert s["magnitude"]["unit"] == "counts"
     assert s["magnitude_si"]["unit"] == "rad/s"
     assert s["magnitude_si"]["value"] == pytest.approx(16375 * SENSITIVITY["gyr"])
+
+
+def test_clean_sessions_are_shuffled_in_and_their_false_positives_counted():
+    plan = detection_plan(8, FACTORS, 1, ["lever_arm"], n_clean=4)
+    clean = [s for s in plan if s["effect"] is None]
+    assert len(clean) == 4 and all(s["effects"] == [] and s["magnitude"] is None for s in clean)
+    assert len({s["seed"] for s in clean}) == 4
+    assert [s["effect"] for s in plan][-4:] != [None] * 4  # not appended in a block
+    diagnoses = {
+        "c0": _diag(),
+        "c1": _diag(["lever_arm"]),
+        "c2": _diag(noted=["large_misalignment"]),
+        "c3": failed_diagnosis("c3", "ValueError: no static interval"),
+        "d0": _diag(["lever_arm"]),
+    }
+    keys = {n: {"spec": {"effect": None, "factor": None}, "magnitude": None} for n in diagnoses}
+    keys["d0"] = _key("lever_arm", 1, 0.01)
+    score = score_detection(diagnoses, keys, rate=0.9, confidence=0.95)
+    assert score["clean_explained"] == [1, 4] and score["clean_noted"] == [1, 4]
+    assert score["crashes"] == 1 and score["n"] == 1
+    assert score["effects"]["lever_arm"]["levels"][0]["named"] == 1

@@ -548,6 +548,7 @@ def check_plan(check):
         settings["factors"],
         settings["seeds_per_level"],
         settings["effects"] or None,
+        settings["n_clean"],
     )
 
 
