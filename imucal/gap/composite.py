@@ -13,7 +13,8 @@ Which parts a partial session is scored on is decided in one place, :func:`parti
 for the workflow's inputs and for the diagnosis alike. A session with neither part nor declared
 static poses is scored on its rests (:func:`diagnose_rests_scope`): its longest rest as its
 static recording when the rest is long enough for the static statistics
-(:func:`rest_as_static`), else its shorter rests pooled (:mod:`imucal.gap.rests`).
+(:func:`rest_as_static`), else its shorter rests pooled (:mod:`imucal.gap.rests`), else, for a
+magnetometer turned without any rest, the residual of its field fit (:mod:`imucal.gap.fieldfit`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 import pandas as pd
 
 from imucal.gap.effects import EffectModel
+from imucal.gap.fieldfit import diagnose_field_fit, field_fit_part
 from imucal.gap.motion import MOTION_NOT_OBSERVABLE, motion_library
 from imucal.gap.motionstats import MotionRecording, motion_statistics
 from imucal.gap.motiontwin import MotionTwin
@@ -186,7 +188,9 @@ def diagnose_rests_scope(
     Its longest rest is its static recording when it lasts :data:`MIN_REST_S`
     (:func:`rest_as_static`; scope ``static``); else its rests of at least
     :data:`imucal.gap.rests.MIN_SHORT_REST_S` are pooled (:func:`imucal.gap.rests.diagnose_rests`;
-    scope ``rests``); else nothing is scored and ``reason`` says why (scope ``none``).
+    scope ``rests``); else, with a calibrated magnetometer, the residual of its field fit
+    (:func:`imucal.gap.fieldfit.diagnose_field_fit`; scope ``field_fit``); else nothing is
+    scored and ``reason`` says why (scope ``none``).
 
     Parameters
     ----------
@@ -212,7 +216,15 @@ def diagnose_rests_scope(
     rests, short = session_rests(tables, segments)
     if rests:
         return diagnose_rests(rests, rests_source=f"{short}; {source}", **common)
-    return diagnose_partial_session(None, static_source=f"{source}; {short}", **common)
+    if short != "no rest was found":
+        source = f"{source}; {short}"
+    part = field_fit_part(tables, calibration, dict(sensitivity or {}))
+    if not isinstance(part, str):
+        return diagnose_field_fit(
+            *part, source=f"{source}; the magnetometer's field fit is scored instead",
+            dataset=dataset, settings=settings,
+        )  # fmt: skip
+    return diagnose_partial_session(None, static_source=f"{source}; field fit: {part}", **common)
 
 
 def diagnose_partial_session(

@@ -41,6 +41,8 @@ TWIN_SHORTFALLS = (
     ("reference", ("resid_rms", "rate2", "rate3", "ref_scale", "ori_median_rad"),
      "the reference's error beyond white noise (smoothing, latency, glitches)"),
     ("reference", ("dir_resid_rad",), "a uniform magnetic field"),
+    ("field_fit", ("fit_resid_rms", "fit_resid_slow", "fit_resid_direction"),
+     "the field's constancy and the magnetometer's response beyond white noise about its fit"),
 )  # fmt: skip
 #: Library effects that model the reference rather than the sensor or the world: accepted,
 #: they name what the twin's reference lacks.

@@ -128,6 +128,14 @@ REST_STATISTICS = {
 }
 
 
+#: Statistics of a magnetometer's field-fit residual (:mod:`imucal.gap.fieldfit`).
+FIELD_FIT_STATISTICS = {
+    "fit_resid_rms": StatisticInfo("1", log=True, floor=0.02),
+    "fit_resid_slow": StatisticInfo("log ratio", floor=0.02),
+    "fit_resid_direction": StatisticInfo("1", log=True, floor=0.02),
+}
+
+
 #: Statistics that only recordings with an orientation reference have (:mod:`imucal.gap.motion`;
 #: it also measures ``resid_rms``, ``rate2``, ``rate3`` and ``dir_resid_rad``). The floors of
 #: the slopes are what a calibration against a reference can resolve: a scale of 1e-4, a
@@ -148,6 +156,7 @@ CATALOGUE = {
     **PROTOCOL_STATISTICS,
     **STATIC_STATISTICS,
     **REST_STATISTICS,
+    **FIELD_FIT_STATISTICS,
     **MOTION_STATISTICS,
 }
 

@@ -11,10 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from scipy.spatial.transform import Rotation
 
+from imucal import errormodel
 from imucal.columns import SEGMENT_COLUMNS, SENSOR_COLUMNS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_rests_scope, partial_scope
+from imucal.gap.fieldfit import moving_white
 from imucal.gap.rests import pooled_white, session_rests
 from imucal.gap.statictwin import StaticTwin, render_static
 from imucal.noise.process import quantised_variance
@@ -128,4 +131,52 @@ def test_a_session_without_rests_says_why():
     tables, segments = _session(6)
     d = _diagnose(tables, segments.iloc[:0])
     assert d["scope"] == "none"
-    assert d["static_source"].endswith("no rest was found")
+    assert d["static_source"].startswith("no rest was found; a rest is scored from 40 s")
+    assert d["static_source"].endswith("field fit: the session has no magnetometer calibration")
+
+
+def _tumble(seed: int, slow_field: float = 0.0) -> tuple[dict, dict]:
+    """A magnetometer turned by hand for 200 s at 50 Hz without a rest (a smooth random
+    rotation of about 1 rad/s), through a hard- and soft-iron calibration, white noise of 2.5e-3
+    of the field per axis, rounded to 5e-4; with ``slow_field`` the field's norm varies by that
+    fraction over 20 s (an ambient field that changes)."""
+    rng = np.random.default_rng(seed)
+    rate, n = 50.0, 10001
+    t = np.arange(n) / rate
+    omega = np.cumsum(rng.normal(0.0, 0.05, (n, 3)), axis=0)
+    omega = 1.0 * omega / np.sqrt(np.mean(np.sum(omega**2, axis=1)))
+    rot = Rotation.identity()
+    directions = np.empty((n, 3))
+    field = np.array([0.6, 0.0, -0.8])
+    for k in range(n):
+        directions[k] = rot.inv().apply(field)
+        rot = rot * Rotation.from_rotvec(omega[k] / rate)
+    norm = 1.0 + slow_field * np.sin(2 * np.pi * t / 20.0)
+    matrix = np.array([[1.8, 0.05, -0.02], [0.0, 2.2, 0.04], [0.0, 0.0, 1.6]])
+    bias = np.array([0.3, -0.1, 0.2])
+    raw = errormodel.invert(matrix, bias, directions * norm[:, None])
+    raw = 5e-4 * np.round((raw + rng.normal(0.0, 2.5e-3, raw.shape)) / 5e-4)
+    table = pd.DataFrame({TIME: t, **{c: raw[:, j] for j, c in enumerate(SENSOR_COLUMNS["mag"])}})
+    calibration = {"mag": {"matrix": matrix.tolist(), "bias": bias.tolist(), "method": "sim"}}
+    return {"tumble": table}, calibration
+
+
+def test_a_magnetometer_tumble_without_rests_gets_the_null_of_its_field_fit():
+    """No rest at all: the fit residual is scored. The noise from the second differences is
+    found within 5 % (the motion's second difference is about 1e-4 of the field against
+    noise of 2.5e-3 x 1.6-2.2 per reading); a clean tumble leaves nothing in the gap, a field
+    whose norm varies by 2 % is in the gap at the residual's slow part and no effect is named."""
+    tables, calibration = _tumble(8)
+    empty = pd.DataFrame(columns=list(SEGMENT_COLUMNS))
+    raw = tables["tumble"][list(SENSOR_COLUMNS["mag"])].to_numpy()
+    white = np.sqrt(np.maximum(moving_white(raw) ** 2 - (5e-4) ** 2 / 12, 0.0))
+    np.testing.assert_allclose(white, 2.5e-3, rtol=0.05)
+    kw = dict(dataset="sim", calibration=calibration, sensitivity={"mag": 5e-4},
+              gravity_m_s2=9.81, settings=DiagnosisSettings(replicas=REPLICAS, seed=700))  # fmt: skip
+    clean = diagnose_rests_scope(tables, empty, **kw)
+    assert clean["scope"] == "field_fit"
+    assert clean["gap"]["null_p95"] > 0
+    assert clean["verdict"]["outcome"] == "nothing beyond the model"
+    varying = diagnose_rests_scope(_tumble(8, slow_field=0.02)[0], empty, **kw)
+    assert "fit_resid_slow" in {loc["statistic"] for loc in varying["locations"]}
+    assert varying["verdict"]["outcome"] == "twin lacks" and varying["explained"] == []
