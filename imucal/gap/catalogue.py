@@ -3,8 +3,10 @@ diagnosis does with it and the model term it feeds.
 
 A scope is a kind of session the diagnosis can score: ``protocol`` (the paper's whole protocol,
 :data:`imucal.gap.effects.LIBRARY`), ``static`` (a static recording, or the rest or pose that
-stands in for one, :data:`imucal.gap.static.STATIC_LIBRARY`) and ``motion`` (recordings with an
-orientation reference, :func:`imucal.gap.motion.motion_library`). In every scope an effect has
+stands in for one, :data:`imucal.gap.static.STATIC_LIBRARY`), ``motion`` (recordings with an
+orientation reference, :func:`imucal.gap.motion.motion_library`) and ``rests`` (a session's
+short rests pooled, :data:`imucal.gap.rests.REST_LIBRARY`) and ``field_fit`` (a magnetometer
+turned without any rest: no effect, :data:`imucal.gap.fieldfit.FIELD_FIT_NOT_OBSERVABLE`). In every scope an effect has
 either an estimator (its :class:`~imucal.gap.effects.EffectModel` there, with the statistics it
 moves) or the reason that scope cannot observe it (the scope's not-observable table, which the
 diagnosis writes into ``diagnosis.json``); :func:`contract_violations` lists every effect that
@@ -19,7 +21,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 #: The scopes of the diagnosis, in the order the report lists them.
-SCOPES = ("protocol", "static", "motion")
+SCOPES = ("protocol", "static", "motion", "rests", "field_fit")
 
 #: Effects the full protocol's diagnosis cannot show, and why.
 PROTOCOL_NOT_OBSERVABLE = {
@@ -77,13 +79,17 @@ def scope_libraries() -> dict[str, tuple[Mapping, Mapping]]:
     """Scope -> (its library: effect -> EffectModel, its not-observable table: effect ->
     reason)."""
     from imucal.gap.effects import LIBRARY
+    from imucal.gap.fieldfit import FIELD_FIT_NOT_OBSERVABLE
     from imucal.gap.motion import MOTION_NOT_OBSERVABLE, motion_library
+    from imucal.gap.rests import REST_LIBRARY, REST_NOT_OBSERVABLE
     from imucal.gap.static import NOT_OBSERVABLE, STATIC_LIBRARY
 
     return {
         "protocol": (LIBRARY, PROTOCOL_NOT_OBSERVABLE),
         "static": (STATIC_LIBRARY, NOT_OBSERVABLE),
         "motion": (motion_library(), MOTION_NOT_OBSERVABLE),
+        "rests": (REST_LIBRARY, REST_NOT_OBSERVABLE),
+        "field_fit": ({}, FIELD_FIT_NOT_OBSERVABLE),
     }
 
 

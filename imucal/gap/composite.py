@@ -9,8 +9,12 @@ them together (:func:`diagnose_partial_session`): a replica of the composite is 
 statistics the union of theirs. An effect is rendered in the part whose library holds it (the
 part whose locations can show it), and its estimator reads that part of the session.
 
-A session with neither has its longest rest scored as its static recording when the rest is
-long enough for the static statistics (:func:`rest_as_static`).
+Which parts a partial session is scored on is decided in one place, :func:`partial_scope`,
+for the workflow's inputs and for the diagnosis alike. A session with neither part nor declared
+static poses is scored on its rests (:func:`diagnose_rests_scope`): its longest rest as its
+static recording when the rest is long enough for the static statistics
+(:func:`rest_as_static`), else its shorter rests pooled (:mod:`imucal.gap.rests`), else, for a
+magnetometer turned without any rest, the residual of its field fit (:mod:`imucal.gap.fieldfit`).
 """
 
 from __future__ import annotations
@@ -23,10 +27,12 @@ from dataclasses import dataclass
 import pandas as pd
 
 from imucal.gap.effects import EffectModel
+from imucal.gap.fieldfit import diagnose_field_fit, field_fit_part
 from imucal.gap.motion import MOTION_NOT_OBSERVABLE, motion_library
 from imucal.gap.motionstats import MotionRecording, motion_statistics
 from imucal.gap.motiontwin import MotionTwin
 from imucal.gap.null import run_replicas
+from imucal.gap.rests import diagnose_rests, session_rests
 from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
 from imucal.gap.static import (
     NOT_OBSERVABLE,
@@ -135,6 +141,90 @@ def rest_as_static(
     t = table["t_s"].to_numpy(dtype=float)
     part = table[(t >= float(row.start_s)) & (t <= float(row.end_s))].reset_index(drop=True)
     return part, f"the rest {row.label} of recording {name} ({duration:.1f} s)"
+
+
+def partial_scope(*, static: bool, references: bool, poses: bool) -> str:
+    """Which parts of a partial session its gap diagnosis scores: the one choice that the
+    workflow's inputs and the diagnosis both read.
+
+    Parameters
+    ----------
+    static : bool
+        The session has a ``static`` recording.
+    references : bool
+        It declares recordings with an orientation reference.
+    poses : bool
+        It declares static poses on a recording with a temperature channel
+        (:func:`imucal.terms.poseholdout.holdout_recording` is not None).
+
+    Returns
+    -------
+    str
+        ``static+reference`` or ``reference`` with recordings with a reference (with or
+        without the static recording); ``static`` with a static recording alone; ``poses``
+        for the poses (:mod:`imucal.gap.poses`); else ``rests``: the rests the segmentation
+        finds in its recordings (:func:`diagnose_rests_scope`).
+    """
+    if references:
+        return "static+reference" if static else "reference"
+    if static:
+        return "static"
+    return "poses" if poses else "rests"
+
+
+def diagnose_rests_scope(
+    tables: Mapping[str, pd.DataFrame],
+    segments: pd.DataFrame,
+    *,
+    dataset: str,
+    calibration: Mapping | None,
+    sensitivity: Mapping[str, float],
+    gravity_m_s2: float,
+    settings: DiagnosisSettings,
+) -> dict:
+    """The gap diagnosis of a session scored on its rests (scope ``rests`` of
+    :func:`partial_scope`).
+
+    Its longest rest is its static recording when it lasts :data:`MIN_REST_S`
+    (:func:`rest_as_static`; scope ``static``); else its rests of at least
+    :data:`imucal.gap.rests.MIN_SHORT_REST_S` are pooled (:func:`imucal.gap.rests.diagnose_rests`;
+    scope ``rests``); else, with a calibrated magnetometer, the residual of its field fit
+    (:func:`imucal.gap.fieldfit.diagnose_field_fit`; scope ``field_fit``); else nothing is
+    scored and ``reason`` says why (scope ``none``).
+
+    Parameters
+    ----------
+    tables : mapping of str to DataFrame
+        The session's ingested recordings by name.
+    segments : DataFrame
+        Its segments table.
+    dataset, calibration, sensitivity, gravity_m_s2, settings
+        As in :func:`diagnose_partial_session`.
+
+    Returns
+    -------
+    dict
+        diagnosis.json with ``static_source`` naming the rest(s) scored, or why none is.
+    """
+    common = dict(
+        dataset=dataset, calibration=calibration, sensitivity=sensitivity,
+        gravity_m_s2=gravity_m_s2, settings=settings,
+    )  # fmt: skip
+    static, source = rest_as_static(tables, segments)
+    if static is not None:
+        return diagnose_partial_session(static, static_source=source, **common)
+    rests, short = session_rests(tables, segments)
+    if rests:
+        return diagnose_rests(rests, rests_source=f"{short}; {source}", **common)
+    if short != "no rest was found":
+        source = f"{source}; {short}"
+    part = field_fit_part(tables, calibration, dict(sensitivity or {}))
+    if not isinstance(part, str):
+        return diagnose_field_fit(
+            *part, source=f"{source}; the magnetometer's field fit is scored instead",
+            dataset=dataset, settings=settings,
+        )  # fmt: skip
+    return diagnose_partial_session(None, static_source=f"{source}; field fit: {part}", **common)
 
 
 def diagnose_partial_session(

@@ -35,11 +35,14 @@ LOCATION_FIELDS = ("stage", "sensor", "axis", "segment", "statistic")
 TWIN_SHORTFALLS = (
     ("ingest", ("loss_fraction", "stamp_scatter_s", "stamp_wander_s", "burst_fraction",
                 "long_gap_fraction"), "the host's receive timing"),
-    ("noise", ("adev_10s_excess", "adev_long_excess", "trend_per_s"),
-     "the sensor's slow bias drift"),
+    ("noise", ("adev_10s_excess", "adev_long_excess", "trend_per_s", "rest_adev_excess",
+               "rest_trend_per_s"), "the sensor's slow bias drift"),
+    ("noise", ("rest_noise", "rest_still_fraction"), "the sensor's white noise and quantisation"),
     ("reference", ("resid_rms", "rate2", "rate3", "ref_scale", "ori_median_rad"),
      "the reference's error beyond white noise (smoothing, latency, glitches)"),
     ("reference", ("dir_resid_rad",), "a uniform magnetic field"),
+    ("field_fit", ("fit_resid_rms", "fit_resid_slow", "fit_resid_direction"),
+     "the field's constancy and the magnetometer's response beyond white noise about its fit"),
 )  # fmt: skip
 #: Library effects that model the reference rather than the sensor or the world: accepted,
 #: they name what the twin's reference lacks.

@@ -118,6 +118,24 @@ STATIC_STATISTICS = {
 }
 
 
+#: Statistics of a session's pooled short rests (:mod:`imucal.gap.rests`; it also measures
+#: ``stamp_scatter_s``, ``burst_fraction`` and ``long_gap_fraction``).
+REST_STATISTICS = {
+    "rest_noise": StatisticInfo("SI", log=True, floor=0.02),
+    "rest_still_fraction": StatisticInfo("1", floor=2e-3),
+    "rest_adev_excess": StatisticInfo("log ratio", floor=0.02),
+    "rest_trend_per_s": StatisticInfo("SI/s"),
+}
+
+
+#: Statistics of a magnetometer's field-fit residual (:mod:`imucal.gap.fieldfit`).
+FIELD_FIT_STATISTICS = {
+    "fit_resid_rms": StatisticInfo("1", log=True, floor=0.02),
+    "fit_resid_slow": StatisticInfo("log ratio", floor=0.02),
+    "fit_resid_direction": StatisticInfo("1", log=True, floor=0.02),
+}
+
+
 #: Statistics that only recordings with an orientation reference have (:mod:`imucal.gap.motion`;
 #: it also measures ``resid_rms``, ``rate2``, ``rate3`` and ``dir_resid_rad``). The floors of
 #: the slopes are what a calibration against a reference can resolve: a scale of 1e-4, a
@@ -134,7 +152,13 @@ MOTION_STATISTICS = {
 
 
 #: Every statistic a diagnosis scores: name -> scoring info.
-CATALOGUE = {**PROTOCOL_STATISTICS, **STATIC_STATISTICS, **MOTION_STATISTICS}
+CATALOGUE = {
+    **PROTOCOL_STATISTICS,
+    **STATIC_STATISTICS,
+    **REST_STATISTICS,
+    **FIELD_FIT_STATISTICS,
+    **MOTION_STATISTICS,
+}
 
 
 Key = tuple  # (stage, sensor, axis, segment, statistic)

@@ -12,6 +12,7 @@ import imucal
 from imucal.constants import IMU_RECORDINGS, RECORDING_NAMES
 from imucal.terms import TermSettings
 from imucal.fleet import read_sample_sheet
+from imucal.gap.composite import partial_scope
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.options import pipeline_settings
 from imucal.pipeline.registry import full_protocol_artifacts, is_full_protocol
@@ -182,25 +183,33 @@ def diagnosis_for_terms(wildcards):
     return []
 
 
+def gap_partial_scope(wildcards):
+    """Which parts of a partial session the gap diagnosis scores (imucal.gap.composite.partial_scope)."""
+    return partial_scope(
+        static=has_recording(wildcards, "static"),
+        references=bool(dataset_info(wildcards).orientation_references),
+        poses=holdout_recording(wildcards.dataset) is not None,
+    )
+
+
 def gap_partial_inputs(wildcards):
-    """A partial session's calibration, its static recording when it has one, and its
-    recordings with an orientation reference (with the references and the segments); with
-    neither, its declared static poses with a temperature channel (the longest pose stands in for
-    a static recording), else its recordings and segments, whose longest rest does."""
+    """A partial session's calibration and the recordings of its diagnosis's scope
+    (gap_partial_scope): its static recording, its recordings with an orientation reference
+    (with the references and the segments), its declared static poses with a temperature
+    channel, or all its recordings and segments, whose rests are scored."""
     d = wildcards.dataset
+    scope = gap_partial_scope(wildcards)
     inputs = {"calibration": f"results/{d}/partial/calibration.json"}
-    if has_recording(wildcards, "static"):
+    if "static" in scope:
         inputs["static"] = f"results/{d}/ingest/static.parquet"
-    if dataset_info(wildcards).orientation_references:
+    if "reference" in scope:
         inputs |= {f"moving_{n}": p for n, p in orientation_recordings(wildcards).items()}
         inputs["orientation"] = orientation_references(wildcards)
-        inputs["segments"] = f"results/{d}/segments.parquet"
-    elif "static" not in inputs and holdout_recording(d) is not None:
-        # declared static poses with a temperature channel: the longest pose is its static part
+    elif scope == "poses":
         inputs["poses"] = holdout_input(wildcards)
-        inputs["segments"] = f"results/{d}/segments.parquet"
-    elif "static" not in inputs:
+    elif scope == "rests":
         inputs |= {f"rest_{n}": p for n, p in ingested_imu_all(wildcards).items()}
+    if scope != "static":
         inputs["segments"] = f"results/{d}/segments.parquet"
     return inputs
 

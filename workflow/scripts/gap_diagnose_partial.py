@@ -5,7 +5,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.gap import DiagnosisSettings
-from imucal.gap.composite import diagnose_partial_session, rest_as_static
+from imucal.gap.composite import diagnose_partial_session, diagnose_rests_scope, partial_scope
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.gap.motion import reference_part
 from imucal.gap.poses import diagnose_poses
@@ -18,10 +18,15 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 info = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 inputs = dict(snakemake.input.items())
+scope = partial_scope(
+    static="static" in info.recordings,
+    references=bool(info.orientation_references),
+    poses=snakemake.params.poses_recording is not None,
+)
 calibration = read_json(snakemake.input.calibration)
-motion = not_scored = static_source = None
-static = read_recording(inputs["static"])[0] if "static" in inputs else None
-if "orientation" in inputs:
+motion = not_scored = None
+static = read_recording(inputs["static"])[0] if "static" in scope else None
+if "reference" in scope:
     references = {}
     for path in snakemake.input.orientation:
         table, metadata = read_recording(path)
@@ -36,31 +41,26 @@ if "orientation" in inputs:
         gravity_m_s2=info.gravity_m_s2,
         windows_s=snakemake.params.windows_s,
     )
-elif static is None and "poses" not in inputs:
-    static, static_source = rest_as_static(
-        {
-            k.removeprefix("rest_"): read_recording(p)[0]
-            for k, p in inputs.items()
-            if k.startswith("rest_")
-        },
-        read_segments(snakemake.input.segments),
-    )
 common = dict(
-    motion=motion,
-    reference_not_scored=not_scored,
     dataset=snakemake.wildcards.dataset,
     calibration=calibration,
     sensitivity=info.sensitivity,
     gravity_m_s2=info.gravity_m_s2,
     settings=DiagnosisSettings.from_config(snakemake.params.settings),
 )
-if "poses" in inputs:  # static poses with a temperature channel, no static recording
+if scope == "poses":  # static poses with a temperature channel, no static recording
     result = diagnose_poses(
         read_recording(inputs["poses"])[0], read_segments(snakemake.input.segments),
         recording=snakemake.params.poses_recording, settle_s=snakemake.params.settle_s, **common,
     )  # fmt: skip
+elif scope == "rests":  # the longest rest as the static recording, else the short ones pooled
+    tables = {k.removeprefix("rest_"): read_recording(p)[0]
+              for k, p in inputs.items() if k.startswith("rest_")}  # fmt: skip
+    result = diagnose_rests_scope(tables, read_segments(snakemake.input.segments), **common)
 else:
-    result = diagnose_partial_session(static, static_source=static_source, **common)
+    result = diagnose_partial_session(
+        static, motion=motion, reference_not_scored=not_scored, **common
+    )
 write_json(result, snakemake.output.diagnosis)
 plot_gap_map(result).savefig(snakemake.output.gap_map, dpi=110)
 plot_effects(result).savefig(snakemake.output.effects, dpi=110)
