@@ -52,7 +52,12 @@ class GSensitivity(ModelTerm):
     def correct(self, values: Mapping[str, np.ndarray], samples: Samples) -> dict:
         return {**values, "gyr": values["gyr"] - values["acc"] @ self.matrix.T}
 
-    def variance(self, values, brackets, samples: Samples) -> dict:
+    def variance(
+        self,
+        values: Mapping[str, np.ndarray],
+        brackets: Mapping[str, np.ndarray],
+        samples: Samples,
+    ) -> dict:
         """Variance of ``matrix @ a_B`` from the entries' standard deviations (first order,
         independent) for the specific force of ``values``."""
         return {"gyr": np.asarray(values["acc"]) ** 2 @ (self.std**2).T}

@@ -137,7 +137,12 @@ class LeverArm(ModelTerm):
         rate = rate_per_sample(samples.t_s, values["gyr"], samples.source)
         return {**values, "acc": values["acc"] - self.acceleration(*rate)}
 
-    def variance(self, values, brackets, samples: Samples) -> dict:
+    def variance(
+        self,
+        values: Mapping[str, np.ndarray],
+        brackets: Mapping[str, np.ndarray],
+        samples: Samples,
+    ) -> dict:
         """Variance of :meth:`acceleration` from ``std_m`` (independent axes): it is linear in
         ``r``, its column j that of ``e_j``."""
         t_s, omega = rate_per_sample(samples.t_s, values["gyr"], samples.source)

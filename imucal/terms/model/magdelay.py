@@ -55,7 +55,12 @@ class MagDelay(ModelTerm):
             "mag": values["mag"] - self.delay_s * np.cross(values["gyr"], values["mag"]),
         }
 
-    def variance(self, values, brackets, samples: Samples) -> dict:
+    def variance(
+        self,
+        values: Mapping[str, np.ndarray],
+        brackets: Mapping[str, np.ndarray],
+        samples: Samples,
+    ) -> dict:
         return {"mag": (self.std_s * np.cross(values["gyr"], values["mag"])) ** 2}
 
     def to_dict(self) -> dict:

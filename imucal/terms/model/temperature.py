@@ -316,7 +316,12 @@ class TemperatureTerm(ModelTerm, Mapping):
         poly = self.polynomials.get(sensor)
         return bracket if poly is None else poly.correct(bracket, samples.temp_c)
 
-    def variance(self, values, brackets, samples: Samples) -> dict:
+    def variance(
+        self,
+        values: Mapping[str, np.ndarray],
+        brackets: Mapping[str, np.ndarray],
+        samples: Samples,
+    ) -> dict:
         return {
             s: poly.variance(samples.calibration[s].matrix, brackets[s], samples.temp_c)
             for s, poly in self.polynomials.items()
