@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from imucal import errormodel
-from imucal.columns import SENSORS, SI_UNITS, TEMPERATURE_COLUMNS
+from imucal.columns import SENSORS, SI_UNITS
 from imucal.modelterms import ModelTerms
+from imucal.terms.term import Samples
 from imucal.uncertainty import PARAMETERS, calibrated_covariance
 
 #: Version of the calibration file format written by this package (2: optional ``terms``).
@@ -168,33 +169,6 @@ class SensorCalibration:
         )
 
 
-def _rate_per_sample(
-    t_s: np.ndarray | None, omega: np.ndarray, source: str
-) -> tuple[np.ndarray, np.ndarray]:
-    """Times and the calibrated rate at every sample for the lever arm (rows without a gyro
-    reading interpolated in time from their neighbours)."""
-    if t_s is None:
-        raise ValueError(
-            f"{source}: the calibration has a lever arm; its tangential term needs the sample "
-            "times (t_s), none were given"
-        )
-    t = np.asarray(t_s, dtype=float)
-    ok = np.all(np.isfinite(omega), axis=1)
-    if t.shape != (len(omega),) or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
-        raise ValueError(
-            f"{source}: the lever arm needs a finite, increasing time per sample "
-            f"({len(omega)}), got shape {t.shape}"
-        )
-    if ok.sum() < 2:
-        raise ValueError(
-            f"{source}: the calibration has a lever arm, which needs the gyroscope's rate in "
-            f"the same recording; {int(ok.sum())} of {len(omega)} samples have a gyro reading"
-        )
-    if ok.all():
-        return t, omega
-    return t, np.column_stack([np.interp(t, t[ok], omega[ok, j]) for j in range(3)])
-
-
 @dataclass(frozen=True)
 class ImuCalibration:
     """Calibration of accelerometer, gyroscope and magnetometer, all in frame B.
@@ -262,42 +236,22 @@ class ImuCalibration:
             farther outside the calibrated temperature span than its margin, or a lever arm
             without ``t_s`` or without a gyroscope reading in the recording.
         """
-        terms = self.terms
-        flags: dict = {}
-        out = {}
+        samples = Samples(readings, self._sensors(), temp_c, t_s, source)
         for s in SENSORS:
             cal = self.sensor(s)
             if units[s] != cal.unit:
                 raise ValueError(
                     f"{source}: {s} calibration expects readings in {cal.unit!r}, got {units[s]!r}"
                 )
-            values = np.asarray(readings[s], dtype=float)
-            poly = terms.temperature.get(s)
-            if poly is None:
-                out[s] = errormodel.apply(cal.matrix, cal.bias, values)
-                continue
-            if temp_c is None:
-                raise ValueError(
-                    f"{source}: the calibration has a temperature term for {s}; the recording "
-                    f"has no temperature column (expected one of {list(TEMPERATURE_COLUMNS)})"
-                )
-            temp = np.asarray(temp_c, dtype=float)
-            if temp.shape != (len(values),) or not np.all(np.isfinite(temp)):
-                raise ValueError(
-                    f"{source}: the temperature must be a finite value per sample "
-                    f"({len(values)}), got shape {temp.shape}"
-                )
-            flags.setdefault("temperature", {})[s] = poly.check_span(temp, source)
-            out[s] = errormodel.apply(cal.matrix, np.zeros(3), poly.correct(values, cal.bias, temp))
-        if terms.g_sensitivity is not None:
-            out["gyr"] = out["gyr"] - out["acc"] @ terms.g_sensitivity.matrix.T
-        if terms.lever_arm is not None:
-            out["acc"] = out["acc"] - terms.lever_arm.acceleration(
-                *_rate_per_sample(t_s, out["gyr"], source)
-            )
-        if terms.mag_delay is not None:
-            out["mag"] = out["mag"] - terms.mag_delay.correction(out["gyr"], out["mag"])
-        return out, flags
+        flags = {}
+        for term in self.terms.values():
+            flag = term.check(samples)
+            if flag:
+                flags[term.name] = flag
+        values, _ = self._paper(samples)
+        for term in self.terms.values():
+            values = term.correct(values, samples)
+        return values, flags
 
     def parameter_variance(
         self,
@@ -328,31 +282,35 @@ class ImuCalibration:
             Sensor -> variance (SI^2), for the sensors with a covariance or a term; others
             are left out.
         """
-        terms = self.terms
-        out, paper = {}, {}
+        samples = Samples(readings, self._sensors(), temp_c, t_s)
+        values, brackets = self._paper(samples)
+        out = {}
         for s in SENSORS:
             cal = self.sensor(s)
-            values = np.asarray(readings[s], dtype=float)
-            poly = terms.temperature.get(s)
-            corrected = (
-                values - cal.bias if poly is None else poly.correct(values, cal.bias, temp_c)
-            )
-            paper[s] = corrected @ cal.matrix.T
             if cal.covariance is not None:
-                cov = calibrated_covariance(cal.matrix, np.zeros(3), cal.covariance, corrected)
+                cov = calibrated_covariance(cal.matrix, np.zeros(3), cal.covariance, brackets[s])
                 out[s] = np.clip(np.diagonal(cov, axis1=1, axis2=2), 0, None)
-            if poly is not None:
-                out[s] = out.get(s, 0.0) + poly.variance(cal.matrix, corrected, temp_c)
-        omega = paper["gyr"]
-        if terms.g_sensitivity is not None:
-            out["gyr"] = out.get("gyr", 0.0) + terms.g_sensitivity.variance(paper["acc"])
-            omega = omega - paper["acc"] @ terms.g_sensitivity.matrix.T
-        if terms.lever_arm is not None:
-            t, rate = _rate_per_sample(t_s, omega, "the recording")
-            out["acc"] = out.get("acc", 0.0) + terms.lever_arm.variance(t, rate)
-        if terms.mag_delay is not None:
-            out["mag"] = out.get("mag", 0.0) + terms.mag_delay.variance(omega, paper["mag"])
+        for term in self.terms.values():
+            for s, variance in term.variance(values, brackets, samples).items():
+                out[s] = out.get(s, 0.0) + variance
+            values = term.correct(values, samples)
         return out
+
+    def _sensors(self) -> dict[str, SensorCalibration]:
+        return {s: self.sensor(s) for s in SENSORS}
+
+    def _paper(self, samples: Samples) -> tuple[dict, dict]:
+        """The values by eq. 11 with the terms' corrections of the readings, and the brackets
+        they are made of (sensor -> (n, 3) each)."""
+        values, brackets = {}, {}
+        for s in SENSORS:
+            cal = self.sensor(s)
+            bracket = np.asarray(samples.readings[s], dtype=float) - cal.bias
+            for term in self.terms.values():
+                bracket = term.correct_reading(s, bracket, samples)
+            brackets[s] = bracket
+            values[s] = bracket @ cal.matrix.T
+        return values, brackets
 
     def with_terms(self, terms: ModelTerms) -> ImuCalibration:
         """The same bias and matrices with ``terms``."""

@@ -77,6 +77,7 @@ def _with_terms(rng=None):
         MagDelay,
         ModelTerms,
         TemperaturePolynomial,
+        TemperatureTerm,
     )
 
     def draw(value, std):
@@ -92,12 +93,25 @@ def _with_terms(rng=None):
     g_std = np.full((3, 3), 5e-6)
     r_std = np.array([2e-4, 3e-4, 1e-4])
     terms = ModelTerms(
-        temperature=temp,
+        temperature=TemperatureTerm(temp),
         g_sensitivity=GSensitivity(draw(np.diag([2e-4, -1e-4, 1e-4]), g_std), g_std),
         lever_arm=LeverArm(draw([0.03, 0.02, 0.0], r_std), r_std),
         mag_delay=MagDelay(float(draw(0.02, 1e-3)), 1e-3),
     )
     return make_calibration().with_terms(terms)
+
+
+def test_every_registered_term_round_trips_through_the_json():
+    """A calibration with an example of every registered term (a new term adds its example to
+    :func:`_with_terms`) is the same text after ``to_dict -> JSON -> from_dict -> to_dict``."""
+    import json
+
+    from imucal.terms.registry import term_names
+
+    cal = _with_terms(np.random.default_rng(3))
+    assert cal.terms.names() == list(term_names())
+    text = json.dumps(cal.to_dict())
+    assert json.dumps(ImuCalibration.from_dict(json.loads(text)).to_dict()) == text
 
 
 def test_parameter_variance_of_the_terms_matches_their_spread():

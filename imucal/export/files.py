@@ -72,7 +72,7 @@ def export_files(
     if fmt == "ros":
         head = [source, "sensor_msgs/Imu covariances of one calibrated sample, row major x, y, z;",
                 "(rad/s)^2 and (m/s^2)^2; per-sample white noise only, NOT inflated.",
-                *terms_not_written(calibration)]  # fmt: skip
+                *terms_not_written(calibration, "ros")]  # fmt: skip
         return {FORMATS["ros"][0]: _yaml(ros_imu_covariances(cal, noise), head)}
     params = noise_parameters(noise)
     g = g_sensitivity(calibration)
@@ -80,7 +80,7 @@ def export_files(
         imu, chain = FORMATS["kalibr"]
         chain_head = [source, "Kalibr scale-misalignment model: a_m = M_a a_i + b_a,",
                       "w_m = M_g C_gyro_i w_i + A C_gyro_i a_i + b_g; v_i = imucal_R_i_B v_B.",
-                      *terms_not_written(calibration, ("g_sensitivity",)),
+                      *terms_not_written(calibration, "kalibr"),
                       *noise_header(params)]  # fmt: skip
         return {
             imu: _yaml(kalibr_imu(params, rostopic=rostopic), [source, *noise_header(params)]),
@@ -90,7 +90,7 @@ def export_files(
         }
     head = [source, "OpenVINS model 'kalibr': w_I = R_IMUtoGYRO^T Tw^-1 (w_m - Tg a_I - b_g),",
             "a_I = R_IMUtoACC^T Ta^-1 (a_m - b_a); frame I is imucal's platform frame B.",
-            *terms_not_written(calibration, ("g_sensitivity",)),
+            *terms_not_written(calibration, "openvins"),
             *noise_header(params)]  # fmt: skip
     return {FORMATS["openvins"][0]: _yaml(openvins_imu_chain(cal, params, g_sensitivity=g,
                                                               rostopic=rostopic),

@@ -85,19 +85,19 @@ def inertial_calibration(calibration: Mapping) -> dict[str, SensorCalibration]:
 def g_sensitivity(calibration: Mapping) -> np.ndarray:
     """The gyroscope's g-sensitivity ``G`` (rad/s per m/s^2, frame B; ``w_B = K (w_m - b) -
     G a_B``) of a calibration.json content, zeros when its model has none (3, 3)."""
+    term = ModelTerms.from_dict(calibration.get("terms", {})).get("g_sensitivity")
+    return np.zeros((3, 3)) if term is None else term.matrix
+
+
+def terms_not_written(calibration: Mapping, fmt: str) -> list[str]:
+    """Header lines naming the model terms of a calibration.json content that the export
+    format ``fmt`` cannot carry (each term's :meth:`~imucal.terms.term.ModelTerm.export_note`);
+    empty when there are none."""
     terms = ModelTerms.from_dict(calibration.get("terms", {}))
-    return np.zeros((3, 3)) if terms.g_sensitivity is None else terms.g_sensitivity.matrix
-
-
-def terms_not_written(calibration: Mapping, written: tuple = ()) -> list[str]:
-    """Header lines naming the model terms of a calibration.json content that an export
-    cannot carry (all but ``written``); empty when there are none."""
-    names = [
-        n for n in ModelTerms.from_dict(calibration.get("terms", {})).names() if n not in written
-    ]
-    if not names:
+    notes = [note for note in (term.export_note(fmt) for term in terms.values()) if note]
+    if not notes:
         return []
-    return [f"NOT in this file: the model terms {', '.join(names)} of calibration.json (the tool",
+    return [f"NOT in this file: the model terms {', '.join(notes)} of calibration.json (the tool",
             "has no place for them); calibrate with `imucal apply` to keep them (docs/exports.md)."]  # fmt: skip
 
 

@@ -11,14 +11,16 @@ either an estimator (its :class:`~imucal.gap.effects.EffectModel` there, with th
 moves) or the reason that scope cannot observe it (the scope's not-observable table, which the
 diagnosis writes into ``diagnosis.json``); :func:`contract_violations` lists every effect that
 has neither or both, and the tests walk it. The effect behind each model term of the closed
-loop (:mod:`imucal.terms`) is defined here, so a term's effect is always one the protocol's
-diagnosis can estimate.
+loop is the term's own (:mod:`imucal.terms.registry`); the contract checks that it is one the
+protocol's diagnosis can estimate.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+
+from imucal.terms.registry import registered_terms
 
 #: The scopes of the diagnosis, in the order the report lists them.
 SCOPES = ("protocol", "static", "motion", "rests", "field_fit")
@@ -38,13 +40,8 @@ PROTOCOL_NOT_OBSERVABLE = {
     "raises the noise the static detector's threshold is set from",
 }
 
-#: The effect each optional model term of the closed loop answers.
-TERM_OF_EFFECT = {
-    "temperature_drift": "temperature",
-    "g_sensitivity": "g_sensitivity",
-    "mag_latency": "mag_delay",
-    "lever_arm": "lever_arm",
-}
+#: The effect each optional model term of the closed loop answers (each term states its own).
+TERM_OF_EFFECT = {term.effect: term.name for term in registered_terms()}
 #: The same map from the term's side.
 EFFECT_OF_TERM = {term: effect for effect, term in TERM_OF_EFFECT.items()}
 

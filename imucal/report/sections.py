@@ -15,6 +15,7 @@ import pandas as pd
 
 from imucal.columns import AXES
 from imucal.constants import REFERENCE
+from imucal.modelterms import ModelTerms
 from imucal.report.artifacts import _load_json
 from imucal.report.figures import embed_figure
 from imucal.report.numbers import format_number, format_value
@@ -272,25 +273,9 @@ def _terms_section(
         }
         for name, r in summary["terms"].items()
     ]
-    model = (summary.get("calibration") or {}).get("terms", {})
-    values = []
-    for sensor, poly in model.get("temperature", {}).items():
-        for kind in ("bias", "scale"):
-            for k, (c, sd) in enumerate(zip(poly[kind], poly[f"{kind}_std"], strict=True), 1):
-                values.append({"term": f"temperature {sensor} {kind} dT^{k}",
-                               "value": _plus_minus(c, sd), "unit": poly[f"{kind}_unit"]})  # fmt: skip
-    if "g_sensitivity" in model:
-        g = model["g_sensitivity"]
-        values.append({"term": "g-sensitivity G", "value": _plus_minus(g["matrix"], g["std"]),
-                       "unit": g["unit"]})  # fmt: skip
-    if "lever_arm" in model:
-        r = model["lever_arm"]
-        values.append({"term": "lever arm r", "value": _plus_minus(r["r_m"], r["std_m"]),
-                       "unit": r["unit"]})  # fmt: skip
-    if "mag_delay" in model:
-        m = model["mag_delay"]
-        values.append({"term": "magnetometer delay", "value": _plus_minus(m["delay_s"], m["std_s"]),
-                       "unit": m["unit"]})  # fmt: skip
+    model = ModelTerms.from_dict((summary.get("calibration") or {}).get("terms", {}))
+    values = [{"term": row.name, "value": _plus_minus(row.value, row.std), "unit": row.unit}
+              for term in model.values() for row in term.report_rows()]  # fmt: skip
     heldout = [_heldout_row(name, r["heldout"]) for name, r in summary["terms"].items()
                if r.get("heldout")]  # fmt: skip
     p2p = summary.get("heldout_pose_to_pose")

@@ -1,11 +1,13 @@
-"""The closed loop: optional model terms estimated where the gap diagnosis accepts their effect.
+"""The optional model terms and the closed loop that estimates them where the gap diagnosis
+accepts their effect.
 
-Temperature polynomials (:mod:`.temperature`), the gyroscope's g-sensitivity
-(:mod:`.gsensitivity`), the accelerometer's lever arm on the rate table (:mod:`.leverarm`), the
-magnetometer's delay (:mod:`.magdelay`), the temperature terms held out across static poses
-(:mod:`.poseholdout`), the switch per term
-(:mod:`.selection`) and the loop that folds them into the calibration (:mod:`.loop`). The
-terms themselves (data, units, evaluation) are :mod:`imucal.modelterms`.
+The contract of a term (:mod:`.term`), the terms themselves, one module each (:mod:`.model`:
+correction, variance, dict form, report rows, export note), and their registry
+(:mod:`.registry`). Their estimators: temperature polynomials (:mod:`.temperature`), the
+gyroscope's g-sensitivity (:mod:`.gsensitivity`), the accelerometer's lever arm on the rate
+table (:mod:`.leverarm`), the magnetometer's delay (:mod:`.magdelay`); the temperature terms
+held out across static poses (:mod:`.poseholdout`), the switch per term (:mod:`.selection`) and
+the loop that folds them into the calibration (:mod:`.loop`).
 """
 
 import lazy_loader

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from imucal.gap import session as st
-from imucal.modelterms import GSensitivity
 from imucal.pipeline.full import SessionFit
+from imucal.terms.model.gsensitivity import GSensitivity
 from imucal.terms.temperature import heldout_residuals, select_model
 
 

@@ -22,12 +22,9 @@ from imucal.io import to_jsonable
 from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration
-from imucal.terms.gsensitivity import fit_g_sensitivity
 from imucal.terms.heldout import heldout_comparison, pose_to_pose_comparison
-from imucal.terms.leverarm import fit_lever_arm
-from imucal.terms.magdelay import fit_mag_delay
+from imucal.terms.registry import term_class
 from imucal.terms.selection import TermSettings, decide
-from imucal.terms.temperature import fit_temperature
 
 
 def corrected_session(
@@ -139,30 +136,18 @@ def _estimate(imu, reference, options, segments, record: dict, settings: TermSet
     each term's evidence goes into ``record``."""
     fit = base = calibrate_session(imu, reference, options, segments)
     found: dict = {}
-    if record["temperature"]["included"]:
-        polys, evidence = fit_temperature(
-            fit,
-            max_order=settings.temperature_max_order,
-            min_span_c=settings.temperature_min_span_c,
-            margin_c=settings.temperature_margin_c,
-        )
-        record["temperature"]["evidence"] = evidence
-        if polys:
-            found["temperature"] = polys
-            # the other terms are estimated on the session without the drift
-            fixed = corrected_session(imu, base.calibration, ModelTerms(polys))
+    for name, r in record.items():
+        if not r["included"]:
+            continue
+        term = term_class(name)
+        value, r["evidence"] = term.estimate(fit, settings)
+        if value is None:
+            continue
+        found[name] = value
+        if term.refits_session:
+            # the later terms are estimated on the session without this term's effect
+            fixed = corrected_session(imu, base.calibration, ModelTerms(**found))
             fit = calibrate_session(fixed, reference, options, segments)
-    estimators = {
-        "g_sensitivity": fit_g_sensitivity,
-        "lever_arm": fit_lever_arm,
-        "mag_delay": fit_mag_delay,
-    }
-    for term, estimator in estimators.items():
-        if record[term]["included"]:
-            value, evidence = estimator(fit)
-            record[term]["evidence"] = evidence
-            if value is not None:
-                found[term] = value
     return found, base
 
 

@@ -16,7 +16,7 @@ from imucal.calibration import ImuCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, SI_COLUMN_UNITS
 from imucal.gap import session as st
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
-from imucal.modelterms import LeverArm, ModelTerms, TemperaturePolynomial
+from imucal.modelterms import LeverArm, ModelTerms, TemperaturePolynomial, TemperatureTerm
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration, calibration_of_what_ran
 from imucal.sim import ProtocolConfig, make_effect, make_truth
@@ -199,7 +199,7 @@ def test_settings_defaults_are_the_schemas():
 def _with_temperature(calibration: ImuCalibration, margin_c: float = 1.0) -> ImuCalibration:
     poly = TemperaturePolynomial("gyr", 25.0, (22.0, 28.0), margin_c, [[1e-3, 2e-3, 3e-3]],
                                  [[1e-4, 0, 0]], [[1e-5] * 3], [[1e-5, 0, 0]])  # fmt: skip
-    return calibration.with_terms(ModelTerms({"gyr": poly}))
+    return calibration.with_terms(ModelTerms(temperature=TemperatureTerm({"gyr": poly})))
 
 
 def _recording(n=50, temp=None):

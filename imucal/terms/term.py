@@ -1,0 +1,175 @@
+"""The contract every optional model term keeps, and what its correction sees of a recording.
+
+A term of the calibration model (``docs/model-terms.md``) is one class deriving from
+:class:`ModelTerm`, registered once (:mod:`imucal.terms.registry`). The class states its name
+(its key in ``calibration.json`` and in the config's ``terms``), the effect of the catalogue it
+answers (:mod:`imucal.gap.catalogue`), and the export formats that carry it; an instance is a
+fitted term: its correction, the variance its coefficients give the calibrated values, its dict
+form, its report rows and what an export says of it. :class:`imucal.calibration.ImuCalibration`,
+the report and the exports loop over the registered terms; none of them names one.
+
+The model's chain (eq. 11 with the terms, :mod:`imucal.modelterms`): the bracket of each sensor
+(``reading - bias``, corrected by the terms that act on the reading before the matrix), the
+matrix, then the terms that act on the calibrated values, in the registry's order.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Samples:
+    """What a term's correction sees of one recording besides the calibrated values.
+
+    Attributes
+    ----------
+    readings : dict of str to ndarray, shape (n, 3)
+        Sensor -> readings in SI units (sensor frame), rows of one sample.
+    calibration : dict of str to SensorCalibration
+        Sensor -> the paper's bias and matrix (the terms' reference).
+    temp_c : ndarray, shape (n,), or None
+        Temperature of each sample (deg C).
+    t_s : ndarray, shape (n,), or None
+        Time of each sample (s).
+    source : str
+        What the readings come from (a file name), named in errors.
+    """
+
+    readings: Mapping[str, np.ndarray]
+    calibration: Mapping[str, Any]
+    temp_c: np.ndarray | None = None
+    t_s: np.ndarray | None = None
+    source: str = "the recording"
+
+
+@dataclass(frozen=True)
+class ReportRow:
+    """One coefficient (or block of them) of a term as the report shows it.
+
+    Attributes
+    ----------
+    name : str
+        What it is ('g-sensitivity G').
+    value, std : float or nested list of float
+        The value and its standard deviation, same shape.
+    unit : str
+    """
+
+    name: str
+    value: Any
+    std: Any
+    unit: str
+
+
+class ModelTerm(ABC):
+    """An optional term of the calibration model: a frozen dataclass deriving from this.
+
+    Class attributes
+    ----------------
+    name : str
+        Key of the term in ``calibration.json``'s ``terms`` and in the config's ``terms``.
+    effect : str
+        The effect of the catalogue (:mod:`imucal.gap.catalogue`) the term answers.
+    exported_by : frozenset of str
+        Export formats (:data:`imucal.export.FORMATS`) that carry the term; the others name it
+        among the terms they leave out (:meth:`export_note`).
+    refits_session : bool
+        Whether the closed loop estimates the later terms on the session corrected by this one
+        and calibrated again (a term on the readings, such as a temperature drift, changes the
+        bias and matrices the later terms are estimated against).
+    """
+
+    name: ClassVar[str]
+    effect: ClassVar[str]
+    exported_by: ClassVar[frozenset] = frozenset()
+    refits_session: ClassVar[bool] = False
+
+    @classmethod
+    @abstractmethod
+    def estimate(cls, fit: Any, settings: Any) -> tuple[ModelTerm | None, dict]:
+        """The term fitted on a session calibrated with the paper's model.
+
+        Parameters
+        ----------
+        fit : imucal.pipeline.full.SessionFit
+        settings : imucal.terms.selection.TermSettings
+
+        Returns
+        -------
+        term : ModelTerm or None
+            None when the data do not support it (``evidence['refused']`` says why).
+        evidence : dict
+            JSON-ready record of the estimate (held-out RMS, what was used, or the refusal).
+        """
+
+    def check(self, samples: Samples) -> dict:
+        """Refuse samples the term cannot calibrate; say what it flags (JSON-ready, empty for
+        nothing). Called once per recording before :meth:`correct_reading`.
+
+        Raises
+        ------
+        ValueError
+            Naming ``samples.source`` and what the term needs.
+        """
+        return {}
+
+    def correct_reading(self, sensor: str, bracket: np.ndarray, samples: Samples) -> np.ndarray:
+        """The bracket of eq. 11 of ``sensor`` (n, 3; ``reading - bias`` and the corrections
+        of the terms before) with this term's correction on the reading; unchanged by
+        default."""
+        return bracket
+
+    def correct(self, values: Mapping[str, np.ndarray], samples: Samples) -> dict:
+        """The calibrated values (sensor -> (n, 3), frame B, SI; by the model up to this term)
+        with this term's correction; unchanged by default."""
+        return dict(values)
+
+    @abstractmethod
+    def variance(
+        self,
+        values: Mapping[str, np.ndarray],
+        brackets: Mapping[str, np.ndarray],
+        samples: Samples,
+    ) -> dict:
+        """Variance (sensor -> (n, 3), SI^2) the term's coefficients give the calibrated
+        values, first order, from their standard deviations.
+
+        Parameters
+        ----------
+        values : dict of str to ndarray, shape (n, 3)
+            Calibrated by the model up to this term (what :meth:`correct` receives).
+        brackets : dict of str to ndarray, shape (n, 3)
+            Each sensor's bracket with every term's reading correction (what the matrix
+            multiplies).
+        samples : Samples
+        """
+
+    @abstractmethod
+    def to_dict(self) -> dict:
+        """The term's entry in ``calibration.json`` (JSON-ready, with units)."""
+
+    @classmethod
+    @abstractmethod
+    def from_dict(cls, d: Mapping) -> ModelTerm:
+        """The term from its entry in ``calibration.json``.
+
+        Raises
+        ------
+        ValueError
+            Naming the term and the missing or malformed key.
+        """
+
+    @abstractmethod
+    def report_rows(self) -> list[ReportRow]:
+        """The term's coefficients with their standard deviations and units, for the report."""
+
+    def export_note(self, fmt: str) -> str | None:
+        """What an export file of format ``fmt`` says of the term it leaves out (listed in its
+        header), None when the format carries it."""
+        return None if fmt in self.exported_by else self.name
