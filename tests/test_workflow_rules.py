@@ -1,10 +1,10 @@
 """The workflow's rules keep to the habits of the Snakemake workflows catalogue.
 
 Read as text: no ``lambda`` in a rule (input and param functions have names and docstrings in
-``common.smk``), no whole ``config`` handed to a rule (a changed setting would rerun every rule
-that takes it), no git call and no planning of the checks' sessions when the workflow is parsed
-(both are done where they are needed), and every script that reads ``dataset.yaml`` declares it
-as an input.
+``workflow/rules/{datasets,inputs,targets,checks}.smk``), no whole ``config`` handed to a rule
+(a changed setting would rerun every rule that takes it), no git call and no planning of the
+checks' sessions when the workflow is parsed (both are done where they are needed), and every
+script that reads ``dataset.yaml`` declares it as an input.
 """
 
 import re

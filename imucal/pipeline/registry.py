@@ -1,7 +1,7 @@
 """The stages of the calibration, defined once: name, sensor, what each does, its artifact.
 
 The partial path (:mod:`imucal.pipeline.partial`) runs them in this order, the stage-per-rule
-workflow names its artifacts from here (``workflow/rules/common.smk``), and ``stages.json``
+workflow names its artifacts from here (``workflow/rules/inputs.smk``), and ``stages.json``
 lists them in this order. Which of the two paths a dataset takes is decided here too, from its
 ``dataset.yaml`` alone (:func:`is_full_protocol`).
 """

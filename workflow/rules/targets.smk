@@ -1,0 +1,129 @@
+# What a run produces: each dataset's final targets, its report's inputs and the fleet's
+# calibrations. No rules here.
+from imucal.export.formats import FORMATS as EXPORT_FORMATS
+
+EXPORT_FILES = [f"{fmt}/{name}" for fmt, names in EXPORT_FORMATS.items() for name in names]
+
+
+def noise_targets(name):
+    """noise.json, its figure and the exports of a dataset with a static recording."""
+    if not has_noise_recording(name):
+        return []
+    exports = [f"results/{name}/export/{f}" for f in EXPORT_FILES]
+    return [f"results/{name}/noise.json", *exports]
+
+
+def holdout_report_inputs(name):
+    """The temperature hold-out section's input when the dataset has one."""
+    if holdout_recording(name) is None:
+        return {}
+    return {"temperature_holdout": f"results/{name}/temperature_holdout.json"}
+
+
+def dataset_targets(name):
+    """Final outputs of one dataset: its report, calibration, stage listing and plots."""
+    recordings = dataset_of(name).recordings
+    targets = [f"results/{name}/ingest/summary.json", f"reports/{name}.html"]
+    targets += [f"results/{name}/stages.json"]
+    if full_protocol(name):
+        targets += [f"results/{name}/calibration.json", f"results/{name}/tables.csv"]
+        targets += [f"results/{name}/gap/diagnosis.json"]
+    else:
+        targets += [f"results/{name}/partial/calibration.json"]
+        targets += [f"results/{name}/gap/diagnosis.json"]
+        if has_orientation_reference(name):
+            targets += [f"results/{name}/reference/validation.json"]
+    targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
+    targets += noise_targets(name)
+    targets += list(holdout_report_inputs(name).values())
+    return targets
+
+
+def all_targets(wildcards):
+    """Final outputs of every configured dataset (read lazily, only when `all` is requested)."""
+    return [t for name in DATASETS for t in dataset_targets(name)]
+
+
+def real_targets(wildcards):
+    """Final outputs of every public recording of config/real."""
+    if not REAL_DATASETS:
+        raise ValueError("config/real holds no dataset configs")
+    return [t for name in sorted(REAL_DATASETS) for t in dataset_targets(name)]
+
+
+def ingest_benchmarks(name, info):
+    """Run times of the ingest of every recording, and of the noise stage where it runs: the
+    report's run-time table lists every rule behind it."""
+    paths = [f"results/{name}/benchmarks/ingest/{r}.tsv" for r in info.recordings]
+    if has_noise_recording(name):
+        paths.append(f"results/{name}/benchmarks/noise.tsv")
+    return paths
+
+
+def noise_report_inputs(name):
+    """The noise section's inputs (noise.json, then its figure) when the dataset has one."""
+    if not has_noise_recording(name):
+        return {}
+    figure = f"results/{name}/figures/noise_allan.png"
+    return {"noise": [f"results/{name}/noise.json", figure]}
+
+
+def report_inputs(wildcards):
+    """Artifacts, figures and run-time benchmarks of a dataset's report, by the path it took."""
+    d = wildcards.dataset
+    info = dataset_info(wildcards)
+    inputs = {"summary": f"results/{d}/ingest/summary.json", "stages": f"results/{d}/stages.json"}
+    figures = [f"results/{d}/segments/{r}.png" for r in info.recordings if r != "reference"]
+    if not full_protocol(d):
+        inputs.update({k: f"results/{d}/partial/{k}.json" for k in ("mag", "acc", "gyr")})
+        inputs["calibration"] = f"results/{d}/partial/calibration.json"
+        benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
+        benchmarks += ingest_benchmarks(d, info)
+        inputs["figure_dir"] = f"results/{d}/partial/figures"
+        benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
+        if has_orientation_reference(d):
+            inputs["validation"] = f"results/{d}/reference/validation.json"
+            figures.append(f"results/{d}/figures/reference_orientation.png")
+            benchmarks.append(f"results/{d}/benchmarks/validate_references.tsv")
+            benchmarks += [
+                f"results/{d}/benchmarks/reference/ingest_{r}.tsv"
+                for r in info.orientation_references
+            ]
+        gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
+        noise = noise_report_inputs(d) | holdout_report_inputs(d)
+        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
+    inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
+    inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
+    figures += [
+        f"results/{d}/figures/{name}.png"
+        for name in ("mag_raw", "mag_step1", "mag_phases", "mag_step2", "acc_cube", "acc_phases")
+        + ("gyr_bias", "gyr_phases")
+    ]
+    benchmarks = [
+        f"results/{d}/benchmarks/{rule}.tsv"
+        for rule in ("segment", "mag_step1", "mag_step2", "acc_cube", "acc_align")
+        + ("gyr_bias", "gyr_align", "gyr_scale", "validate", "gap_diagnose", "model_terms")
+        + ("lowpass/rotation3d",)
+    ]
+    benchmarks += ingest_benchmarks(d, info)
+    if "ratetable" in info.recordings:
+        figures.append(f"results/{d}/figures/gyr_table.png")
+        benchmarks += [f"results/{d}/benchmarks/{r}.tsv" for r in ("gyr_table", "gyr_table_align")]
+    if "reference" in info.recordings:
+        figures += [
+            f"results/{d}/figures/validation_magnitudes.png",
+            f"results/{d}/figures/validation_xcorr.png",
+        ]
+    gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
+    inputs.update(terms=f"results/{d}/terms.json", gap_after=f"results/{d}/gap/after.json")
+    noise = noise_report_inputs(d)
+    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
+
+
+def fleet_calibrations(wildcards):
+    """The calibration of every session of the fleet's sample sheet, by dataset."""
+    if FLEET_SHEET is None:
+        raise ValueError(
+            "the fleet target needs a sample sheet: set config fleet.sessions (docs/fleet.md)"
+        )
+    return {name: calibration_path(name) for name in FLEET_SHEET["dataset"]}
