@@ -1,7 +1,7 @@
 """Calibration parameters of the three sensors, as frozen dataclasses with a versioned dict form.
 
 ``calibrated = matrix @ (reading - bias)`` with ``reading = counts * sensitivity`` in SI units
-(the magnetometer normalised), plus the optional model terms of :mod:`imucal.modelterms`
+(the magnetometer normalised), plus the optional model terms of :mod:`imucal.terms.modelterms`
 (temperature polynomials, g-sensitivity, magnetometer delay). Files are written and read by
 :mod:`imucal.io`. Format 2 adds the key ``terms`` (present only when a term is in the model);
 format 1 files are read as calibrations without terms.
@@ -17,7 +17,7 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.columns import SENSORS, SI_UNITS
-from imucal.modelterms import ModelTerms
+from imucal.terms.modelterms import ModelTerms
 from imucal.terms.term import Samples
 from imucal.uncertainty import PARAMETERS, calibrated_covariance
 
@@ -204,7 +204,7 @@ class ImuCalibration:
         """Calibrate the readings of the three sensors with the whole model.
 
         The paper's ``matrix @ (reading - bias)`` (eq. 11) with every term the model has, in the
-        order of :mod:`imucal.modelterms`.
+        order of :mod:`imucal.terms.modelterms`.
 
         Parameters
         ----------
@@ -264,7 +264,7 @@ class ImuCalibration:
         parameters, first order: the bias and matrix through their covariance
         (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal) plus each term's
         coefficients through their standard deviations (taken as independent of each other
-        and of the bias and matrix; :mod:`imucal.modelterms`). Left out: the reading's own
+        and of the bias and matrix; :mod:`imucal.terms.modelterms`). Left out: the reading's own
         noise, and one sensor's parameters reaching another through a term (the gyroscope's
         through the lever arm's and the magnetometer delay's rate, the accelerometer's through
         the g-sensitivity): second order in the small terms.

@@ -71,7 +71,7 @@ def test_non_finite_refused():
 def _with_terms(rng=None):
     """The calibration of :func:`make_calibration` with every model term; with ``rng`` each
     coefficient drawn about its value with its standard deviation."""
-    from imucal.modelterms import (
+    from imucal.terms.modelterms import (
         GSensitivity,
         LeverArm,
         MagDelay,
@@ -157,7 +157,7 @@ def test_temperature_variance_uses_the_bias_covariance_round_trip():
     """An axis's correlated bias coefficients: the calibrated variance is ``d^T C d`` with
     ``d = (dT, dT^2)``, as the spread of calibrations with coefficients drawn from ``C``; the
     covariance survives the dict."""
-    from imucal.modelterms import TemperaturePolynomial
+    from imucal.terms.modelterms import TemperaturePolynomial
 
     rng = np.random.default_rng(5)
     cov = np.array([[1e-10, -0.9e-11], [-0.9e-11, 1e-12]])  # strongly anti-correlated

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from imucal.calibration import SensorCalibration
-from imucal.modelterms import ModelTerms
 from imucal.noise import sensor_noise
+from imucal.terms.modelterms import ModelTerms
 
 #: The IMU topic written when none is given (the one in Kalibr's and OpenVINS's examples).
 ROSTOPIC = "/imu0"

@@ -122,7 +122,7 @@ def heldout_comparison(term: str, evidence: Mapping, diagnosis: Mapping | None) 
     Parameters
     ----------
     term : str
-        One of :data:`imucal.modelterms.TERMS`.
+        One of :data:`imucal.terms.modelterms.TERMS`.
     evidence : dict
         The term's evidence from its estimator.
     diagnosis : dict or None

@@ -19,10 +19,10 @@ from imucal import errormodel
 from imucal.calibration import ImuCalibration
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_COLUMN_UNITS
 from imucal.io import to_jsonable
-from imucal.modelterms import TERMS, ModelTerms
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration
 from imucal.terms.heldout import heldout_comparison, pose_to_pose_comparison
+from imucal.terms.modelterms import TERMS, ModelTerms
 from imucal.terms.registry import term_class
 from imucal.terms.selection import TermSettings, decide
 

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 from imucal.gap.catalogue import EFFECT_OF_TERM
-from imucal.modelterms import TERMS
+from imucal.terms.modelterms import TERMS
 
 SWITCHES = ("off", "on", "auto")
 
@@ -77,7 +77,7 @@ def decide(term: str, settings: TermSettings, diagnosis: Mapping | None) -> tupl
     Parameters
     ----------
     term : str
-        One of :data:`imucal.modelterms.TERMS`.
+        One of :data:`imucal.terms.modelterms.TERMS`.
     settings : TermSettings
     diagnosis : dict or None
         diagnosis.json of the session (needed for 'auto').

@@ -8,7 +8,7 @@ fitted term: its correction, the variance its coefficients give the calibrated v
 form, its report rows and what an export says of it. :class:`imucal.calibration.ImuCalibration`,
 the report and the exports loop over the registered terms; none of them names one.
 
-The model's chain (eq. 11 with the terms, :mod:`imucal.modelterms`): the bracket of each sensor
+The model's chain (eq. 11 with the terms, :mod:`imucal.terms.modelterms`): the bracket of each sensor
 (``reading - bias``, corrected by the terms that act on the reading before the matrix), the
 matrix, then the terms that act on the calibrated values, in the registry's order.
 """

@@ -8,8 +8,8 @@ import pytest
 
 from imucal.gap import catalogue
 from imucal.gap.static import NOT_OBSERVABLE
-from imucal.modelterms import TERMS
 from imucal.sim.effects import EFFECTS
+from imucal.terms.modelterms import TERMS
 from imucal.terms.selection import EFFECT_OF_TERM
 
 

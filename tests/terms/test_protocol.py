@@ -16,7 +16,7 @@ from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import ACC, GYR, TIME
 from imucal.gap.catalogue import EFFECT_OF_TERM, contract_violations
-from imucal.modelterms import ModelTerms
+from imucal.terms.modelterms import ModelTerms
 from imucal.terms.registry import register, registered_terms, unregister
 from imucal.terms.selection import TermSettings
 from imucal.terms.term import ModelTerm, ReportRow

@@ -16,7 +16,6 @@ from imucal.calibration import ImuCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, SI_COLUMN_UNITS
 from imucal.gap import session as st
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
-from imucal.modelterms import LeverArm, ModelTerms, TemperaturePolynomial, TemperatureTerm
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration, calibration_of_what_ran
 from imucal.sim import ProtocolConfig, make_effect, make_truth
@@ -30,6 +29,7 @@ from imucal.terms import (
     final_calibration,
     terms_summary,
 )
+from imucal.terms.modelterms import LeverArm, ModelTerms, TemperaturePolynomial, TemperatureTerm
 
 SHORT = ProtocolConfig(static_s=120.0, run_plateau_s=3.0, run_pause_s=1.5)
 RANGE = {"acc": 32767, "gyr": 32767, "mag": 32767}
