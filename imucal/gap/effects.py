@@ -32,6 +32,7 @@ from imucal.columns import (
 from imucal.constants import EARTH_RATE_RAD_S
 from imucal.gap import locations as loc
 from imucal.gap import session as ses
+from imucal.gap.temperature import linear_drift
 from imucal.pipeline.full import SessionFit, calibrated
 from imucal.sim.effects import EFFECTS, make_effect
 
@@ -244,14 +245,12 @@ def _warm_up(fit: SessionFit) -> tuple[float, float, float]:
 def estimate_temperature_drift(fit: SessionFit, half) -> Estimate | None:
     """Drift per kelvin of each axis, either sign, from the resting segments of the whole
     session against their temperature: the model term's estimators at order 1
-    (:func:`imucal.terms.temperature.linear_drift`: gyro bias from the raw resting means with
+    (:func:`imucal.gap.temperature.linear_drift`: gyro bias from the raw resting means with
     a constant and the calibrated specific force in the same regression, so that a
     g-sensitivity is not taken for a drift; gyro scale from the rate-table runs; accelerometer
     bias and scale from ``|a| - g``), with the warm-up curve of the temperature channel.
     Detection: the norm of the gyro bias drift over the axes (rad/s/K). None without a
     temperature channel or with fewer than 6 resting segments that have a reading."""
-    from imucal.terms.temperature import linear_drift
-
     if not any(temperature_column(t) for t in fit.imu.values()):
         return None
     drift = linear_drift(fit, half)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from imucal.gap import session as st
+from imucal.gap.temperature import heldout_residuals, select_model
 from imucal.pipeline.full import SessionFit
 from imucal.terms.model.gsensitivity import GSensitivity
-from imucal.terms.temperature import heldout_residuals, select_model
 
 
 def fit_g_sensitivity(fit: SessionFit) -> tuple[GSensitivity | None, dict]:
@@ -19,7 +19,7 @@ def fit_g_sensitivity(fit: SessionFit) -> tuple[GSensitivity | None, dict]:
     temperatures is the competing explanation of orientation-dependent gyro means, and the
     two are decided in one regression. The term is included only when the joint model
     predicts held-out segments better than the model without ``G``
-    (:func:`imucal.terms.temperature.select_model`: leave-one-out residuals, the
+    (:func:`imucal.gap.temperature.select_model`: leave-one-out residuals, the
     one-standard-error rule). The standard deviations are those of least squares.
 
     Parameters

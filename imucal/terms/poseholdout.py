@@ -14,7 +14,7 @@ the residual RMS per pose, sensor and axis for
   ``0 .. max_order`` chosen per axis and held-out pose on the fit poses alone, each predicted
   from the others (:func:`nested_order`): an order has to beat no term on every fit pose, and
   among those that do, the one-standard-error rule of
-  :func:`imucal.terms.temperature.select_model` picks, so an axis where no polynomial carries
+  :func:`imucal.gap.temperature.select_model` picks, so an axis where no polynomial carries
   over from one fit pose to another gets no term;
 * ``regression``: the approach of scikit-diveMove's ``IMUcalibrate`` (Luque): per axis, a
   linear regression of the static signal on temperature with one intercept, pooled over the
@@ -208,7 +208,7 @@ def choose_order(
     white noise and the pose's own drift); with no admissible order the axis gets none (0).
     Among the admissible orders the choice is the smallest whose mean squared held-out residual
     (over the samples of every held-out pose) is within one standard error of the best's, the
-    one-standard-error rule of :func:`imucal.terms.temperature.select_model`. The residuals of
+    one-standard-error rule of :func:`imucal.gap.temperature.select_model`. The residuals of
     a drift are correlated over hours, so each standard error is that of a ratio over long
     blocks (clusters): ``sqrt(sum_b (s_b - m n_b)^2) / sum_b n_b`` with ``s_b`` the block's
     sum (of squares, or of their difference), ``n_b`` its samples and ``m`` the mean.

@@ -5,7 +5,7 @@
 ``s(dT) = sum_k scale[k-1] dT^k`` (k = 1 .. order; the constant term is the paper's bias and
 matrix, which hold at ``reference_c``). Per sensor (accelerometer, gyroscope) and axis; a
 sample farther outside the calibrated span than the margin is refused. The estimator is
-:func:`imucal.terms.temperature.fit_temperature`.
+:func:`imucal.gap.temperature.fit_temperature`.
 """
 
 from __future__ import annotations
@@ -273,7 +273,7 @@ class TemperatureTerm(ModelTerm, Mapping):
 
     @classmethod
     def estimate(cls, fit: Any, settings: Any) -> tuple[TemperatureTerm | None, dict]:
-        from imucal.terms.temperature import fit_temperature
+        from imucal.gap.temperature import fit_temperature
 
         polys, evidence = fit_temperature(
             fit,

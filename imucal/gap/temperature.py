@@ -1,5 +1,9 @@
 """Temperature polynomials of bias and scale per axis, with the order chosen on held-out data.
 
+One estimator for the diagnosis (its order-1 fit, :func:`linear_drift`, is the effect
+``temperature_drift``'s estimate) and the model term (:func:`fit_temperature`, which the term
+``temperature`` calls), so that both read one parameterisation.
+
 The estimators work on the session's resting segments (:func:`imucal.gap.session.resting_rows`:
 rotation3d rests, cube positions, rate-table rest runs, the static recording in blocks) and on
 the rate-table runs, each reduced to its raw mean reading and mean temperature:
