@@ -543,7 +543,11 @@ def estimate_platform_magnetic(fit: SessionFit, half) -> Estimate | None:
 def estimate_placement_error(fit: SessionFit, half) -> Estimate | None:
     """Placement std per axis (deg) from the cube positions' tilts about their nominal
     directions (2 tilt components per position, 3 dof of the common rotation; white noise of
-    the position means removed) and the rate-table mountings' tilts (their rest runs)."""
+    the position means removed) and the rate-table mountings' tilts (their rest runs). None
+    for a cube held by hand: its poses are the hand's, and the session has no direction
+    statistic (:func:`imucal.gap.locations.cube_direction_residuals` is not scored there)."""
+    if "cube" in fit.extra["options"].held_by_hand:
+        return None
     res, noise, _ = loc.cube_direction_residuals(fit, half)
     if len(res) < 3:
         return None

@@ -235,3 +235,17 @@ def test_g_sensitivity_test_of_the_resting_means():
     base = np.ones((n, 1))
     assert not gap_effects._shows_g_sensitivity(rest(white), base)
     assert gap_effects._shows_g_sensitivity(rest(white + acc @ (2e-4 * np.eye(3)).T), base)
+
+
+def test_placement_error_is_not_estimated_on_a_cube_held_by_hand(base):
+    """A cube held by hand has no direction statistic (its poses are the hand's): the
+    placement estimator, which reads the same directions, says the session cannot show it
+    rather than take the hand's tilts for a placement error."""
+    import dataclasses
+
+    fit = _fit(base, 12, (make_effect("placement_error", cube_sigma_deg=0.5),))
+    assert gap_effects.LIBRARY["placement_error"].estimate(fit, None) is not None
+    extra = {**fit.extra, "options": dataclasses.replace(
+        fit.extra["options"], held_by_hand=("cube",))}  # fmt: skip
+    held = dataclasses.replace(fit, extra=extra)
+    assert gap_effects.LIBRARY["placement_error"].estimate(held, None) is None
