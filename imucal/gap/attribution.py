@@ -19,6 +19,14 @@ whose joint model without it holds the held-out gap within ``min_heldout_shrink`
 with it, and reports it as confusable with the others. An effect whose estimate fails
 its physics gate (e.g. a rate the Earth cannot have) or that the exact model absorbs
 (``opens_gap`` False) is never evaluated.
+
+The gap is significant when a location is in it (Holm over all locations). An effect whose
+signature spreads over several locations (the Earth's rate over the north and up components
+of the world-fixed rate) can be far beyond its null in its own estimator while no single
+location passes Holm; in the full protocol's diagnosis (``own_evidence``) such an effect, and
+only it, is evaluated without a location in the gap when its own detection statistic is beyond
+its null (:func:`evident_on_its_own`: one-sided, Bonferroni over the library's estimates), and
+accepted by the same held-out rule.
 """
 
 from __future__ import annotations
@@ -54,6 +62,7 @@ class Candidate:
     evaluated: bool = False
     note: str = ""
     blocked: str = ""
+    evident: bool = False
 
     @property
     def shrink(self):
@@ -76,6 +85,23 @@ def detection_z(value: float, null_values) -> float:
     spread = np.std(vals, ddof=1) * np.sqrt(1 + 1 / len(vals)) if len(vals) > 2 else np.inf
     spread = max(spread, 1e-9 * max(abs(np.mean(vals)), abs(value)), 1e-300)
     return float(np.clip((value - np.mean(vals)) / spread, -1e6, 1e6))
+
+
+def evident_on_its_own(z: float, n_null: int, n_tests: int, alpha: float, detect_z: float) -> bool:
+    """Whether an effect's detection statistic is beyond its null on its own, corrected for the
+    library: one-sided (an effect raises its statistic), Bonferroni over the ``n_tests``
+    estimates scored, with the prediction interval's ``t(n_null - 1)`` (:func:`detection_z`),
+    and at least ``detect_z``.
+
+    An effect whose signature spreads over several locations (the Earth's rate over the north
+    and up components of the world-fixed rate) can be far beyond its null in its own estimator
+    while no single location passes Holm over all of them; its own test is the stronger one.
+    """
+    from scipy import stats as sps
+
+    if not np.isfinite(z) or n_null < 3 or n_tests < 1 or z < detect_z:
+        return False
+    return bool(sps.t.sf(z, df=n_null - 1) < alpha / n_tests)
 
 
 def statistic_shift(pairs) -> dict:
@@ -137,6 +163,7 @@ def attribute(
     n_seeds: int,
     detect_z: float,
     cannot_show: str = "the session cannot show this effect",
+    own_evidence: bool = False,
 ) -> tuple[list[Candidate], list[str], dict, dict]:
     """Forward selection of effects (see the module docstring).
 
@@ -157,6 +184,10 @@ def attribute(
         Replica seeds an effect is rendered with.
     cannot_show : str
         Note of an effect whose estimator finds nothing to estimate from.
+    own_evidence : bool
+        Whether an effect whose own detection statistic is beyond its null
+        (:func:`evident_on_its_own`) is evaluated without a location in the gap (the full
+        protocol's diagnosis, where the blind and stress sets check it).
 
     Returns
     -------
@@ -169,6 +200,7 @@ def attribute(
         Total null shift of the accepted effects (full statistics, half B).
     """
     cands = []
+    n_null: dict = {}
     for name, model in models.items():
         try:
             est = model.estimate(session, None)
@@ -182,12 +214,17 @@ def attribute(
             continue
         z = detection_z(est.detect, [e.detect for e in null_detect if e is not None])
         cand = Candidate(name, est.params, est_a.params if est_a else None, est.detect, z)
+        n_null[name] = sum(e is not None for e in null_detect)
         if not model.opens_gap:
             cand.blocked = "reported, not attributed: the pipeline's exact model absorbs it"
         elif model.gate is not None and abs(z) >= detect_z:
             cand.blocked = model.gate(est, null_detect, detect_z)
         cand.note = cand.blocked
         cands.append(cand)
+    if own_evidence:
+        scored = [c for c in cands if np.isfinite(c.detect_z) and models[c.name].opens_gap]
+        for c in scored:
+            c.evident = evident_on_its_own(c.detect_z, n_null[c.name], len(scored), alpha, detect_z)
 
     def shifts_of_group(group: Sequence[Candidate]) -> tuple[dict, dict]:
         full = tuple(models[c.name].simulator_effect(c.params) for c in group)
@@ -237,6 +274,8 @@ def select_forward(
         ``candidate -> (shift, shift_b)``: the null shift of the effect at its estimate (all
         statistics) and at its half-A estimate (half B); called once per evaluated candidate.
     alpha, min_heldout_shrink, detect_z : float
+        Without a location in the gap (Holm at ``alpha``) only the candidates whose own
+        statistic is beyond its null (``Candidate.evident``) are evaluated.
     joint_shifts : callable, optional
         ``candidates -> (shift, shift_b)``: the null shift of several effects rendered
         together (each at its estimate; at its half-A estimate on half B). A candidate is then
@@ -264,7 +303,9 @@ def select_forward(
         t_now = null_full.t(stats[None], shift)
         significant = bool(holm(null_full.p_values(t_now), alpha).any())
         open_ = [c for c in cands if not c.accepted and c.params is not None]
-        if not significant or not open_:
+        if not significant:  # only effects whose own statistic is beyond its null
+            open_ = [c for c in open_ if c.evident]
+        if not open_:
             break
         gap_now, gap_b_now = null_full.gap(stats[None], shift), null_b.gap(stats["B"], shift_b)
         best = None

@@ -102,7 +102,9 @@ def diagnose(
         return result
     t_null = time.perf_counter()
     models = library(settings.exclude)
-    result = scored_diagnosis(twin, fit, stats, reps, models, dataset=dataset, settings=settings)
+    result = scored_diagnosis(
+        twin, fit, stats, reps, models, dataset=dataset, settings=settings, own_evidence=True
+    )
     misalignment = (
         misalignment_report(fit, [r.session for r in reps], settings.detect_z)
         if "large_misalignment" in models

@@ -137,6 +137,7 @@ def _effect_record(c: Candidate, model: EffectModel, keys, reject) -> dict:
         "accepted": c.accepted,
         "detect": _finite_or_none(c.detect),
         "detect_z": _finite_or_none(c.detect_z),
+        "evident": c.evident,
         "evaluated": c.evaluated,
         "signature_hits": [
             dict(zip(LOCATION_FIELDS, k, strict=True))
@@ -276,6 +277,7 @@ def scored_diagnosis(
     dataset: str,
     settings: DiagnosisSettings,
     cannot_show: str = "the session cannot show this effect",
+    own_evidence: bool = False,
 ) -> dict:
     """Score a session against its twin's replicas and attribute its gap: the part of
     diagnosis.json that the full and the static diagnosis share.
@@ -296,6 +298,8 @@ def scored_diagnosis(
         Its ``alpha``, ``min_heldout_shrink``, ``crn_seeds`` and ``detect_z``.
     cannot_show : str
         Note of an effect whose estimator finds nothing to estimate from.
+    own_evidence : bool
+        As :func:`imucal.gap.attribution.attribute`.
 
     Returns
     -------
@@ -315,7 +319,7 @@ def scored_diagnosis(
     cands, explained, shift, _, rounds = attribute(
         twin, session, stats, replicas, null_full, null_b, models,
         alpha=alpha, min_heldout_shrink=settings.min_heldout_shrink, n_seeds=settings.crn_seeds,
-        detect_z=settings.detect_z, cannot_show=cannot_show,
+        detect_z=settings.detect_z, cannot_show=cannot_show, own_evidence=own_evidence,
     )  # fmt: skip
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
@@ -325,7 +329,8 @@ def scored_diagnosis(
         "gap": {
             "total": null_full.gap(stats[None]),
             "null_p95": float(np.percentile(loo, 95)),
-            "significant": bool(reject.any()),
+            # a location in the gap, or an accepted effect beyond its null on its own
+            "significant": bool(reject.any()) or any(c.accepted and c.evident for c in cands),
         },
         "locations": _locations(keys, t_real, reject, True),
         "effects": [

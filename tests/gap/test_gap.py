@@ -118,6 +118,52 @@ def test_a_candidate_is_evaluated_as_the_joint_model_with_the_accepted_ones():
     assert len(explained) == 1 and shift == together
 
 
+def test_an_effect_beyond_its_null_on_its_own_is_evaluated_without_a_location_in_the_gap():
+    """The Earth's rate spreads over the north and up components of the world-fixed rate: each
+    is about 3.5 null std out, which Holm over 60 locations does not flag (t(11) needs about
+    4.6), while the effect's own estimator (their norm) is 6 null std out. The candidate whose
+    own statistic is beyond its null (one-sided, corrected for the library) is evaluated and,
+    as it closes the gap held out, accepted; one that is not is never evaluated, and neither
+    is any candidate when no statistic is beyond its null."""
+    from imucal.gap.attribution import Candidate, evident_on_its_own, select_forward
+
+    keys = [("s", "gyr", f"a{i}", "rest", "world_rate") for i in range(60)]
+    rng = np.random.default_rng(4)
+    null = NullModel.from_values(keys, rng.normal(0.0, 1.0, (12, len(keys))))
+    spread = null.scale
+    # the other locations at |t| = 1.2, a little above the null's mean t^2 of 11/9
+    signs = np.where(np.arange(len(keys)) % 2, 1.0, -1.0)
+    values = dict(zip(keys, null.mean + 1.2 * signs * spread, strict=True))
+    values[keys[0]] = null.mean[0] + 3.5 * spread[0]
+    values[keys[1]] = null.mean[1] + 3.5 * spread[1]
+    stats = {h: dict(values) for h in (None, "A", "B")}
+    assert not holm(null.p_values(null.t(stats[None])), 0.05).any()
+
+    def shifts_of(c):
+        shift = {k: (3.5 * spread[i], 0.0) for i, k in enumerate(keys[:2])}
+        return shift, shift
+
+    def run(evident):
+        c = Candidate("earth_rotation", {"p": 1}, {"p": 1}, 1.0, 6.0, evident=evident)
+        out = select_forward(
+            [c], stats, null, null, shifts_of, alpha=0.05, min_heldout_shrink=0.3,
+            detect_z=4.0,
+        )  # fmt: skip
+        return out[0], c
+
+    explained, c = run(True)
+    assert explained == ["earth_rotation"] and c.heldout_shrink > 0.5
+    explained, c = run(False)
+    assert explained == [] and not c.evaluated
+    # one-sided (an effect raises its statistic), Bonferroni over 12 estimates, t(11)
+    assert evident_on_its_own(6.0, 12, 12, 0.05, 4.0)
+    assert not evident_on_its_own(-10.0, 12, 12, 0.05, 4.0)
+    assert not evident_on_its_own(3.9, 12, 12, 0.05, 4.0)
+    assert evident_on_its_own(3.1, 12, 1, 0.05, 3.0)
+    assert not evident_on_its_own(3.1, 12, 12, 0.05, 3.0)  # t(11) at 0.05 / 12 is 3.2
+    assert not evident_on_its_own(float("nan"), 12, 12, 0.05, 4.0)
+
+
 def test_lever_arm_signature_is_centripetal_only(twin):
     """A lever arm moves the acc rate^2 statistics and not the gyro resting statistics."""
     tw, _ = twin

@@ -180,3 +180,72 @@ def test_world_fixed_rate_points_north_and_up(base, null_fits):
     expected = 3e-3 * np.array([np.cos(lat), 0.0, np.sin(lat)])
     spread = np.std([world_fixed_rate(f, None) for f in null_fits], axis=0, ddof=1)
     np.testing.assert_array_less(np.abs(world_fixed_rate(fit, None) - expected), NULL_Z * spread)
+
+
+def test_wander_statistic_is_standard_under_white_noise_and_sees_a_wander():
+    """The variogram's excess over white noise, over its standard deviation under white noise
+    alone, is about N(0, 1) for white means whatever the design taken out (a constant and three
+    regressors here, as the specific force); a Gauss-Markov wander at the size of a realistic
+    gyro (1e-4 rad/s, 100 s, against means of 6e-5 rad/s white noise over 800 s) puts it far
+    out, and its variance estimate is of the wander's size."""
+    rng = np.random.default_rng(5)
+    n = 56
+    t = np.sort(rng.uniform(0.0, 800.0, n))
+    var = rng.uniform(2e-9, 6e-9, n)
+    design = np.column_stack([np.ones(n), rng.normal(0.0, 5.0, (n, 3))])
+    c = np.exp(-np.abs(t[:, None] - t[None, :]) / gap_effects.BIAS_TAU_S)
+    chol = np.linalg.cholesky(c + 1e-12 * np.eye(n))
+
+    def z(gm):
+        y = rng.normal(0.0, np.sqrt(var)) + gm * chol @ rng.normal(size=n) + design @ [1, 2, 3, 4]
+        gm2, excess, excess_var = gap_effects._wander_variance(
+            t, y, var, design, gap_effects.BIAS_TAU_S
+        )
+        return excess / np.sqrt(excess_var), gm2
+
+    white = np.array([z(0.0)[0] for _ in range(400)])
+    # mean within 4 standard errors of 0; std within 15 % of 1 (a quadratic form is skewed)
+    assert abs(white.mean()) < 4 / np.sqrt(len(white))
+    assert white.std() == pytest.approx(1.0, rel=0.15)
+    wander = [z(1e-4) for _ in range(40)]
+    assert np.median([w[0] for w in wander]) > 6
+    assert np.sqrt(np.median([w[1] for w in wander])) == pytest.approx(1e-4, rel=0.5)
+
+
+def test_g_sensitivity_test_of_the_resting_means():
+    """The specific force is taken out of the wander's regression when the resting gyro means
+    depend on it (a realistic g-sensitivity, 2e-4 rad/s per m/s^2, is hundreds of white-noise
+    std over the poses), and not for white means alone."""
+    from imucal.gap.session import RestingMeans
+
+    rng = np.random.default_rng(6)
+    n = 29
+    acc = 9.81 * rng.choice([-1.0, 1.0], (n, 1)) * np.eye(3)[rng.integers(0, 3, n)]
+    var = np.full((n, 3), 4e-9)
+
+    def rest(gyr):
+        nan = np.full((n, 3), np.nan)
+        return RestingMeans(
+            recording=["cube"] * n, mid_s=np.arange(n, dtype=float), gyr=gyr, gyr_var=var,
+            acc=acc, acc_var=np.full(n, 1e-6), north=nan, east=nan, up=nan,
+            temp=np.full(n, np.nan),
+        )  # fmt: skip
+
+    white = rng.normal(0.0, np.sqrt(var))
+    base = np.ones((n, 1))
+    assert not gap_effects._shows_g_sensitivity(rest(white), base)
+    assert gap_effects._shows_g_sensitivity(rest(white + acc @ (2e-4 * np.eye(3)).T), base)
+
+
+def test_placement_error_is_not_estimated_on_a_cube_held_by_hand(base):
+    """A cube held by hand has no direction statistic (its poses are the hand's): the
+    placement estimator, which reads the same directions, says the session cannot show it
+    rather than take the hand's tilts for a placement error."""
+    import dataclasses
+
+    fit = _fit(base, 12, (make_effect("placement_error", cube_sigma_deg=0.5),))
+    assert gap_effects.LIBRARY["placement_error"].estimate(fit, None) is not None
+    extra = {**fit.extra, "options": dataclasses.replace(
+        fit.extra["options"], held_by_hand=("cube",))}  # fmt: skip
+    held = dataclasses.replace(fit, extra=extra)
+    assert gap_effects.LIBRARY["placement_error"].estimate(held, None) is None
