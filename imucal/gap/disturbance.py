@@ -175,14 +175,45 @@ def _field_fit(parts: list) -> tuple:
     return one_hot @ coef[: len(parts)], coef[len(parts) :], tau * turn, field, orientation
 
 
+def static_field_part(coef: np.ndarray) -> np.ndarray:
+    """The part of :func:`_field_fit`'s ``C`` that a static field fixed in the world can give.
+
+    A field about the pivot, ``G R r``, has ``C_jk,i = G_ij r_k``: for each arm component
+    ``k`` the matrix ``(i, j)`` is a gradient, symmetric (curl-free) and traceless
+    (divergence-free) in free space. The rest of ``C`` is not a field in the world:
+
+    * the trace, ``delta_ij b_k`` (``R b`` in the world): a hard iron that moves with the
+      sensor (a magnet on the board, a residual of the calibration's bias);
+    * the antisymmetric part, ``-[m_0]x_ij q_k`` (``(R q) x m_0``): the magnetometer's axes
+      turned by ``q`` against the reference's (a calibration that leaves the magnetometer
+      misaligned to the gyroscope).
+
+    Parameters
+    ----------
+    coef : ndarray, shape (9, 3)
+        ``C``, rows the entries of ``R`` (row-major ``jk``), columns the field's ``i``.
+
+    Returns
+    -------
+    ndarray, shape (9, 3)
+        ``C`` with each ``(i, j)`` slice projected onto the symmetric traceless matrices.
+    """
+    c = np.transpose(coef.reshape(3, 3, 3), (2, 0, 1))  # [i, j, k]
+    sym = 0.5 * (c + np.transpose(c, (1, 0, 2)))
+    sym -= np.einsum("iik->k", sym)[None, None, :] / 3.0 * np.eye(3)[:, :, None]
+    return np.transpose(sym, (1, 2, 0)).reshape(9, 3)
+
+
 def field_position_rms(rec) -> float | None:
     """RMS (normalised field) of the world field's part linear in the orientation's entries
-    (:func:`_field_fit`)."""
+    (:func:`_field_fit`) that a static field fixed in the world can give
+    (:func:`static_field_part`: a hard iron on the board and a magnetometer turned against the
+    reference are left out)."""
     found = world_field(rec)
     if found is None:
         return None
     _, coef, _, field, orientation = _field_fit([found])
-    part = orientation.reshape(len(field), 9) @ coef
+    part = orientation.reshape(len(field), 9) @ static_field_part(coef)
     part -= part.mean(axis=0)
     return float(np.sqrt(np.mean(np.sum(part**2, axis=1))))
 
