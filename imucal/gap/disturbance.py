@@ -175,45 +175,51 @@ def _field_fit(parts: list) -> tuple:
     return one_hot @ coef[: len(parts)], coef[len(parts) :], tau * turn, field, orientation
 
 
-def static_field_part(coef: np.ndarray) -> np.ndarray:
-    """The part of :func:`_field_fit`'s ``C`` that a static field fixed in the world can give.
-
-    A field about the pivot, ``G R r``, has ``C_jk,i = G_ij r_k``: for each arm component
-    ``k`` the matrix ``(i, j)`` is a gradient, symmetric (curl-free) and traceless
-    (divergence-free) in free space. The rest of ``C`` is not a field in the world:
-
-    * the trace, ``delta_ij b_k`` (``R b`` in the world): a hard iron that moves with the
-      sensor (a magnet on the board, a residual of the calibration's bias);
-    * the antisymmetric part, ``-[m_0]x_ij q_k`` (``(R q) x m_0``): the magnetometer's axes
-      turned by ``q`` against the reference's (a calibration that leaves the magnetometer
-      misaligned to the gyroscope).
-
-    Parameters
-    ----------
-    coef : ndarray, shape (9, 3)
-        ``C``, rows the entries of ``R`` (row-major ``jk``), columns the field's ``i``.
-
-    Returns
-    -------
-    ndarray, shape (9, 3)
-        ``C`` with each ``(i, j)`` slice projected onto the symmetric traceless matrices.
-    """
-    c = np.transpose(coef.reshape(3, 3, 3), (2, 0, 1))  # [i, j, k]
-    sym = 0.5 * (c + np.transpose(c, (1, 0, 2)))
-    sym -= np.einsum("iik->k", sym)[None, None, :] / 3.0 * np.eye(3)[:, :, None]
-    return np.transpose(sym, (1, 2, 0)).reshape(9, 3)
+#: Bases of the linear field ``C`` per arm component: what a static field fixed in the world
+#: gives (its gradient, symmetric and traceless: :func:`gradient_matrix`) and what is not a field
+#: in the world (the identity, ``R b``: a hard iron that moves with the board, a magnet on it or
+#: a bias the calibration left; the cross products, ``(R q) x m_0``: the magnetometer's axes
+#: turned by ``q`` against the reference's, a calibration that leaves it misaligned to the
+#: gyroscope).
+GRADIENT_BASIS = tuple(gradient_matrix(*e) for e in np.eye(5))
+BOARD_BASIS = (np.eye(3), *(np.cross(np.eye(3), e) for e in np.eye(3)))
 
 
 def field_position_rms(rec) -> float | None:
-    """RMS (normalised field) of the world field's part linear in the orientation's entries
-    (:func:`_field_fit`) that a static field fixed in the world can give
-    (:func:`static_field_part`: a hard iron on the board and a magnetometer turned against the
-    reference are left out)."""
+    """RMS (normalised field) of the world field's part that a static field fixed in the world
+    gives about a pivot, ``G R r``, beyond what the board's own errors give.
+
+    The world field (:func:`world_field`) is regressed first on what is no field in the world
+    (:data:`BOARD_BASIS` times ``R e_k``: a hard iron, a turned magnetometer), an offset and a
+    lag (the world field turned by ``omega_w``); then what is left on the gradients
+    (:data:`GRADIENT_BASIS` times ``R e_k``, 15 regressors). The second fit's part is the
+    statistic: what a calibration's own errors explain is not credited to a field in the world,
+    also where the motion does not tell the two apart (a short or slow recording).
+    """
     found = world_field(rec)
     if found is None:
         return None
-    _, coef, _, field, orientation = _field_fit([found])
-    part = orientation.reshape(len(field), 9) @ static_field_part(coef)
+    field, orientation, rate = found
+    n = len(field)
+
+    def regressors(bases) -> np.ndarray:
+        # (3 n, len(bases) * 3): basis matrix times the k-th column of R, stacked over samples
+        return np.column_stack(
+            [
+                np.einsum("ij,nj->ni", b, orientation[:, :, k]).ravel()
+                for b in bases
+                for k in range(3)
+            ]
+        )
+
+    board = np.column_stack([
+        np.tile(np.eye(3), (n, 1)), regressors(BOARD_BASIS), np.cross(rate, field).ravel(),
+    ])  # fmt: skip
+    y = field.ravel()
+    left = y - board @ np.linalg.lstsq(board, y, rcond=None)[0]
+    gradient = regressors(GRADIENT_BASIS)
+    gradient = gradient - board @ np.linalg.lstsq(board, gradient, rcond=None)[0]
+    part = (gradient @ np.linalg.lstsq(gradient, left, rcond=None)[0]).reshape(n, 3)
     part -= part.mean(axis=0)
     return float(np.sqrt(np.mean(np.sum(part**2, axis=1))))
 
