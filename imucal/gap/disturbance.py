@@ -175,14 +175,51 @@ def _field_fit(parts: list) -> tuple:
     return one_hot @ coef[: len(parts)], coef[len(parts) :], tau * turn, field, orientation
 
 
+#: Bases of the linear field ``C`` per arm component: what a static field fixed in the world
+#: gives (its gradient, symmetric and traceless: :func:`gradient_matrix`) and what is not a field
+#: in the world (the identity, ``R b``: a hard iron that moves with the board, a magnet on it or
+#: a bias the calibration left; the cross products, ``(R q) x m_0``: the magnetometer's axes
+#: turned by ``q`` against the reference's, a calibration that leaves it misaligned to the
+#: gyroscope).
+GRADIENT_BASIS = tuple(gradient_matrix(*e) for e in np.eye(5))
+BOARD_BASIS = (np.eye(3), *(np.cross(np.eye(3), e) for e in np.eye(3)))
+
+
 def field_position_rms(rec) -> float | None:
-    """RMS (normalised field) of the world field's part linear in the orientation's entries
-    (:func:`_field_fit`)."""
+    """RMS (normalised field) of the world field's part that a static field fixed in the world
+    gives about a pivot, ``G R r``, beyond what the board's own errors give.
+
+    The world field (:func:`world_field`) is regressed first on what is no field in the world
+    (:data:`BOARD_BASIS` times ``R e_k``: a hard iron, a turned magnetometer), an offset and a
+    lag (the world field turned by ``omega_w``); then what is left on the gradients
+    (:data:`GRADIENT_BASIS` times ``R e_k``, 15 regressors). The second fit's part is the
+    statistic: what a calibration's own errors explain is not credited to a field in the world,
+    also where the motion does not tell the two apart (a short or slow recording).
+    """
     found = world_field(rec)
     if found is None:
         return None
-    _, coef, _, field, orientation = _field_fit([found])
-    part = orientation.reshape(len(field), 9) @ coef
+    field, orientation, rate = found
+    n = len(field)
+
+    def regressors(bases) -> np.ndarray:
+        # (3 n, len(bases) * 3): basis matrix times the k-th column of R, stacked over samples
+        return np.column_stack(
+            [
+                np.einsum("ij,nj->ni", b, orientation[:, :, k]).ravel()
+                for b in bases
+                for k in range(3)
+            ]
+        )
+
+    board = np.column_stack([
+        np.tile(np.eye(3), (n, 1)), regressors(BOARD_BASIS), np.cross(rate, field).ravel(),
+    ])  # fmt: skip
+    y = field.ravel()
+    left = y - board @ np.linalg.lstsq(board, y, rcond=None)[0]
+    gradient = regressors(GRADIENT_BASIS)
+    gradient = gradient - board @ np.linalg.lstsq(board, gradient, rcond=None)[0]
+    part = (gradient @ np.linalg.lstsq(gradient, left, rcond=None)[0]).reshape(n, 3)
     part -= part.mean(axis=0)
     return float(np.sqrt(np.mean(np.sum(part**2, axis=1))))
 

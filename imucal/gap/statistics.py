@@ -144,10 +144,13 @@ MOTION_STATISTICS = {
     "ori_median_rad": StatisticInfo("rad", log=True, floor=0.02),
     "ref_scale": StatisticInfo("1", floor=1e-4),
     "ref_g_slope": StatisticInfo("rad/s per m/s^2", floor=2e-5),
-    # the disturbances' (imucal.gap.disturbance): one knock in 200 s; a line of 3 mrad/s
+    # the disturbances' (imucal.gap.disturbance): one knock in 200 s; a line of 3 mrad/s; a
+    # field in the world uniform to 1 % of the Earth's (0.44 uT of 44): what a magnetometer
+    # calibration resolves (its residual is 1-2 % on the BROAD recordings), so the twin, whose
+    # field is the calibration's, cannot tell less from the calibration's own error
     "shock_rate": StatisticInfo("1/s", floor=0.005),
     "line_power": StatisticInfo("(rad/s)^2", floor=1e-5),
-    "field_position_rms": StatisticInfo("1", log=True, floor=0.05),
+    "field_position_rms": StatisticInfo("1", floor=0.01),
 }
 
 
