@@ -30,6 +30,8 @@ from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import ACC, GYR, MAG, QUAT, SENSORS, TIME
 from imucal.gap.disturbance import (
+    SHOCK_ACC_SEPARATION_S,
+    acc_spikes,
     twin_world_turn,
 )
 from imucal.gap.motionstats import (
@@ -108,6 +110,18 @@ def session_noise(parts: Sequence[tuple], step: float) -> NoiseProcess:
     white = np.array([dither_std((1.4826 * m) ** 2 / 2.0, step) for m in mad])
     zero = np.zeros(3)
     return NoiseProcess(white, zero, np.ones(3), zero.copy(), float(step))
+
+
+def _without_spikes(rec: MotionRecording, rest: np.ndarray | None) -> np.ndarray | None:
+    """The rest mask less the samples within :data:`SHOCK_ACC_SEPARATION_S` of an
+    accelerometer spike (:func:`acc_spikes`): a knock at rest is not the sensor's noise (its
+    few samples of tens of m/s^2 would dominate the variance of the first differences)."""
+    if rest is None:
+        return None
+    keep = rest.copy()
+    for t0 in acc_spikes(rec)[0]:
+        keep &= np.abs(rec.t_s - t0) > SHOCK_ACC_SEPARATION_S
+    return keep
 
 
 def slow_residual_variance(rec: MotionRecording) -> tuple[float, float]:
@@ -312,7 +326,8 @@ def build_motion_twin(
         rate = (len(rec.t_s) - 1) / (rec.t_s[-1] - rec.t_s[0])
         raw["gyr"].append((values[ok], rests.get(name), rate))
         if rec.acc is not None:  # the knocks' statistic reads it (imucal.gap.disturbance)
-            raw["acc"].append((table[list(ACC)].to_numpy(dtype=float)[ok], rests.get(name), rate))
+            values = table[list(ACC)].to_numpy(dtype=float)[ok]
+            raw["acc"].append((values, _without_spikes(rec, rests.get(name)), rate))
         if rec.mag is not None:
             mag = table[list(MAG)].to_numpy(dtype=float)[ok]
             fresh = np.all(np.isfinite(mag), axis=1)
