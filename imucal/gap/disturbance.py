@@ -12,16 +12,20 @@ field alone. Each has a statistic of the gap map and an estimator of the simulat
   field's part linear in those entries. A magnetometer lag makes the world field follow the
   rate (fitted beside it, :func:`_field_fit`), the reference's noise and jitter make it
   scatter; neither is linear in the attitude.
-* ``shock``: the gyroscope's angle over three reference intervals against the reference's
-  (the reference's noise telescopes, so the window's noise is one interval's): a knock the
-  reference does not resolve stands out. Statistic ``shock_rate``: outlying windows per second.
-* ``vibration``: the frequency of the gyroscope's narrowest strong line above the motion's
+* ``shock``: a knock is a short, broadband spike in the accelerometer (:func:`acc_spikes`: far
+  above the session's own noise and above what the motion around it does) at a time where the
+  gyroscope's angle over three reference intervals departs from the reference's (the
+  reference's noise telescopes, so the window's noise is one interval's). The residual alone
+  is not enough: against an optical reference it has heavy tails at fast motion, with no
+  knock. Statistic ``shock_rate``: such knocks per second.
+* ``vibration``: the frequency of the gyroscope's strongest narrow line above the motion's
   band (:data:`LINE_MIN_HZ`), and the amplitude at that frequency of the gyroscope's residual
   against the reference, integrated into an angle at the reference's samples (so that a line
   above the reference's Nyquist frequency is measured too). Statistic ``line_power``.
 
 The functions read recordings as :class:`imucal.gap.motionstats.MotionRecording` holds them (module
-times, calibrated gyroscope and magnetometer, reference times and quaternions, alignment, up).
+times, calibrated gyroscope, magnetometer and accelerometer, reference times and quaternions,
+alignment, up).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.ndimage import median_filter
+from scipy.ndimage import maximum_filter, median_filter
 from scipy.signal import welch
 from scipy.spatial.transform import Rotation
 
@@ -45,8 +49,25 @@ SHOCK_WINDOW = 3
 SHOCK_Z = 6.0
 #: Windows over which the spread a knock is scored against is taken (about 2 s).
 SHOCK_SPREAD = 241
-#: Lowest frequency of a vibration line (Hz): above the band of hand and robot motion.
-LINE_MIN_HZ = 5.0
+#: Running median (s) an accelerometer spike is measured from: longer than a knock (a few ms),
+#: shorter than the changes of a hand's or a robot's acceleration.
+SHOCK_ACC_SMOOTH_S = 0.03
+#: Half-width (s) of the neighbourhood a spike is compared with, and of the part about the spike
+#: left out of it; spikes closer than :data:`SHOCK_ACC_SEPARATION_S` are one.
+SHOCK_ACC_NEIGHBOURHOOD_S = 1.0
+SHOCK_ACC_EXCLUDE_S = 0.05
+SHOCK_ACC_SEPARATION_S = 0.1
+#: A knock's spike is this many times the 90th percentile of its neighbourhood's (the motion's
+#: own jerks: at most 37 on the undisturbed BROAD trials, 50-490 for the taps of trials 24/25)
+#: and the session's noise.
+SHOCK_ACC_RATIO = 50.0
+#: Lowest frequency of a vibration line (Hz): above the band of hand and robot motion and of
+#: a hand's tremor (the fast hand rotations of BROAD trial 07 have their strongest "line" at
+#: 5.3 Hz).
+LINE_MIN_HZ = 15.0
+#: Welch segments of the search for a line (s): bins of about 0.5 Hz, so that a line whose
+#: frequency wanders (a phone's vibration motor: 44 Hz on BROAD trial 27) stays in one.
+LINE_SEARCH_S = 2.0
 #: Length of the blocks over which a line keeps its phase (s).
 LINE_BLOCK_S = 5.0
 #: Offsets (Hz) from a line at which the noise's share of its fitted power is measured.
@@ -270,23 +291,95 @@ def estimate_world_magnetic(session: Mapping, half) -> Estimate | None:
 # --------------------------------------------------------------------------- shock
 
 
-def shock_events(rec) -> tuple[np.ndarray, float]:
-    """The knocks of one recording: the gyroscope's angle against the reference's over windows
-    of :data:`SHOCK_WINDOW` contiguous intervals, less its running median and scaled per axis
-    by its running robust (MAD) spread over :data:`SHOCK_SPREAD` windows; windows whose norm
-    exceeds :data:`SHOCK_Z` are knocks, overlapping ones merged into the strongest.
+def acc_noise_floor(acc: np.ndarray) -> float:
+    """The accelerometer's noise (norm over the axes, m/s^2): the robust (MAD) spread of its
+    first differences over sqrt 2, never below its quantisation step (readings rounded to a
+    step coarser than their noise have a spread of 0)."""
+    d = np.diff(acc, axis=0)
+    white = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2.0)
+    steps = np.abs(d[np.abs(d) > 1e-12 * max(float(np.max(np.abs(acc))), 1e-30)])
+    step = float(np.percentile(steps, 5)) if steps.size else 0.0
+    return max(float(np.linalg.norm(white)), step, 1e-12)
+
+
+def acc_spikes(rec) -> tuple[np.ndarray, np.ndarray]:
+    """Short spikes of the accelerometer: what a knock leaves and the motion does not.
+
+    The readings less their running median over :data:`SHOCK_ACC_SMOOTH_S` (the smooth
+    motion, gravity and linear acceleration alike) keep a spike of a few samples whole. A local
+    maximum of its norm (one per :data:`SHOCK_ACC_SEPARATION_S`) is a spike when it exceeds
+    :data:`SHOCK_ACC_RATIO` times both the 90th percentile of the norm over the
+    :data:`SHOCK_ACC_NEIGHBOURHOOD_S` either side (the spike's own
+    :data:`SHOCK_ACC_EXCLUDE_S` left out: fast motion raises its own threshold) and the
+    session's noise (:func:`acc_noise_floor`).
+
+    Returns
+    -------
+    times : ndarray, shape (e,)
+        The spikes' peaks on the module clock, s.
+    impulses : ndarray, shape (e, 3)
+        Their integrals over the running median's span, m/s.
+    """
+    empty = np.zeros(0), np.zeros((0, 3))
+    if rec.acc is None or len(rec.t_s) < 16:
+        return empty
+    t, acc = rec.t_s, rec.acc
+    fs = (len(t) - 1) / (t[-1] - t[0])
+    half = max(1, int(round(SHOCK_ACC_SMOOTH_S * fs / 2)))
+    high = acc - median_filter(acc, size=(2 * half + 1, 1), mode="nearest")
+    norm = np.linalg.norm(high, axis=1)
+    floor = acc_noise_floor(acc)
+    separation = max(1, int(round(SHOCK_ACC_SEPARATION_S * fs)))
+    peak = norm == maximum_filter(norm, size=2 * separation + 1, mode="nearest")
+    around, left_out = (
+        int(round(SHOCK_ACC_NEIGHBOURHOOD_S * fs)),
+        int(round(SHOCK_ACC_EXCLUDE_S * fs)),
+    )
+    times, impulses = [], []
+    for i in np.flatnonzero(peak & (norm > SHOCK_ACC_RATIO * floor)):
+        lo, hi = max(i - around, 0), min(i + around + 1, len(norm))
+        near = np.concatenate(
+            [norm[lo : max(i - left_out, lo)], norm[min(i + left_out + 1, hi) : hi]]
+        )
+        motion = np.percentile(near, 90) if near.size else 0.0
+        if norm[i] > SHOCK_ACC_RATIO * max(motion, floor):
+            span = slice(max(i - half, 0), i + half + 1)
+            times.append(t[i])
+            impulses.append(high[span].sum(axis=0) / fs)
+    if not times:
+        return empty
+    return np.array(times), np.array(impulses)
+
+
+def shock_events(rec) -> tuple[np.ndarray, np.ndarray, float]:
+    """The knocks of one recording: accelerometer spikes (:func:`acc_spikes`) where the
+    gyroscope departs from the reference.
+
+    The gyroscope's angle against the reference's over windows of :data:`SHOCK_WINDOW`
+    contiguous intervals, less its running median and scaled per axis by its running robust
+    (MAD) spread over :data:`SHOCK_SPREAD` windows, is an outlier where its norm exceeds
+    :data:`SHOCK_Z`. A spike is a knock when a window within one reference interval of it is
+    one (the strongest gives the knock's residual angle). A spike in the reference's gaps is
+    not counted; a recording without an accelerometer has none.
 
     Returns
     -------
     impulses : ndarray, shape (e, 3)
         The residual angle of each knock's strongest window, rad.
+    acc_impulses : ndarray, shape (e, 3)
+        The accelerometer's integral over each knock's spike, m/s.
     duration_s : float
         The time the windows cover, s.
     """
+    none = np.zeros((0, 3))
     start, end, contiguous, residual = reference_intervals(rec)
     w = SHOCK_WINDOW
     if len(start) <= w:
-        return np.zeros((0, 3)), 0.0
+        return none, none, 0.0
+    covered = float(np.sum(end - start))
+    times, acc_impulses = acc_spikes(rec)
+    if not len(times):
+        return none, none, covered
     angle = residual * (end - start)[:, None]
     total = np.concatenate([np.zeros((1, 3)), np.cumsum(angle, axis=0)])
     broken = np.concatenate([[0], np.cumsum(~contiguous)])
@@ -301,44 +394,44 @@ def shock_events(rec) -> tuple[np.ndarray, float]:
     # never below half the recording's typical spread (the reference's noise is always there)
     spread = np.maximum(spread, 0.5 * np.median(spread, axis=0) + 1e-300)
     z = np.linalg.norm(deviation / spread, axis=1)
-    impulses = []
-    for i in np.argsort(-z):
-        if z[i] <= SHOCK_Z:
-            break
-        if impulses and np.min(np.abs(k[i] - np.array([j for j, _ in impulses]))) < w:
-            continue
-        impulses.append((k[i], deviation[i]))
-    covered = float(np.sum(end - start))
-    return np.array([v for _, v in impulses]).reshape(-1, 3), covered
+    lo, hi = start[k], end[k + w - 1]
+    slack = float(np.median(end - start))
+    impulses, kept = [], []
+    for j, t0 in enumerate(times):
+        near = np.flatnonzero((hi >= t0 - slack) & (lo <= t0 + slack))
+        if near.size and np.max(z[near]) > SHOCK_Z:
+            impulses.append(deviation[near[np.argmax(z[near])]])
+            kept.append(acc_impulses[j])
+    return np.array(impulses).reshape(-1, 3), np.array(kept).reshape(-1, 3), covered
 
 
 def shock_rate(rec) -> float:
     """Knocks per second of one recording (:func:`shock_events`)."""
-    impulses, covered = shock_events(rec)
+    impulses, _, covered = shock_events(rec)
     return len(impulses) / covered if covered > 0 else 0.0
 
 
 def estimate_shock(session: Mapping, half) -> Estimate | None:
-    """Rate and peak of the knocks: the rate from the knocks found (:func:`shock_events`), the
-    gyroscope's peak from the median residual angle of a knock, which a half-sine of peak
-    ``A`` and duration ``D`` makes ``2 A D / pi`` (``D`` the simulator's realistic 5 ms: the
-    reference's intervals do not resolve it). The accelerometer's peak is not compared with
-    anything here and keeps the realistic ratio to the gyroscope's. Detection: the rate."""
+    """Rate and peaks of the knocks: the rate from the knocks found (:func:`shock_events`); the
+    gyroscope's peak from the median residual angle of a knock and the accelerometer's from the
+    median integral of its spike, which a half-sine of peak ``A`` and duration ``D`` makes
+    ``2 A D / pi`` (``D`` the simulator's realistic 5 ms: neither the reference's intervals nor
+    the samples resolve it). Detection: the rate."""
     found = [shock_events(rec) for rec in _halves(session, half)]
-    covered = sum(c for _, c in found)
+    covered = sum(c for _, _, c in found)
     if covered <= 0:
         return None
-    impulses = np.concatenate([i for i, _ in found])
+    impulses = np.concatenate([i for i, _, _ in found])
+    acc_impulses = np.concatenate([a for _, a, _ in found])
     rate = len(impulses) / covered
     realistic = Shock()
-    peak = 0.0
+    to_peak = np.pi / (2 * realistic.duration_s)
+    peak = acc_peak = 0.0
     if len(impulses):
-        peak = (
-            float(np.median(np.linalg.norm(impulses, axis=1))) * np.pi / (2 * realistic.duration_s)
-        )
-    ratio = realistic.acc_peak_m_s2 / realistic.gyr_peak_rad_s
+        peak = float(np.median(np.linalg.norm(impulses, axis=1))) * to_peak
+        acc_peak = float(np.median(np.linalg.norm(acc_impulses, axis=1))) * to_peak
     params = {
-        "rate_per_s": max(rate, 1.0 / covered), "acc_peak_m_s2": ratio * peak,
+        "rate_per_s": max(rate, 1.0 / covered), "acc_peak_m_s2": acc_peak,
         "gyr_peak_rad_s": peak, "duration_s": realistic.duration_s,
     }  # fmt: skip
     return Estimate(params, rate)
@@ -348,35 +441,43 @@ def estimate_shock(session: Mapping, half) -> Estimate | None:
 
 
 def line_frequency(session: Mapping) -> float | None:
-    """Frequency (Hz) of the gyroscope's strongest narrow line above :data:`LINE_MIN_HZ`:
-    the Welch spectrum (pooled over axes and recordings of one rate) over its running median,
-    at its largest ratio, refined by a parabola through the log spectrum."""
+    """Frequency (Hz) of the gyroscope's strongest narrow line above :data:`LINE_MIN_HZ`.
+
+    Searched in the Welch spectrum of segments of :data:`LINE_SEARCH_S` (summed over axes) over
+    its running median (15 bins either side, about 7 Hz), at its largest ratio over the recordings of the
+    session; then refined in the spectrum of segments of a quarter of that recording: its
+    largest bin within one search bin, by a parabola through the log spectrum."""
     best = None
     for rec in session.values():
         if len(rec.t_s) < 512:
             continue
         fs = (len(rec.t_s) - 1) / (rec.t_s[-1] - rec.t_s[0])
-        # segments of a quarter of the recording (a power of two): a fine frequency grid
-        nperseg = int(2 ** np.floor(np.log2(len(rec.t_s) / 4)))
-        f, p = welch(rec.gyr, fs=fs, nperseg=nperseg, axis=0)
+        coarse = int(2 ** np.round(np.log2(LINE_SEARCH_S * fs)))
+        f, p = welch(rec.gyr, fs=fs, nperseg=min(coarse, len(rec.t_s)), axis=0)
         p = p.sum(axis=1)
         keep = (f >= LINE_MIN_HZ) & (f <= 0.95 * fs / 2)
         if np.count_nonzero(keep) < 8:
             continue
         idx = np.flatnonzero(keep)
-        floor = np.array([np.median(p[max(i - 15, idx[0]) : i + 16]) for i in idx])
+        # a window centred on every bin (a falling spectrum's median is its middle value)
+        floor = np.array([np.median(p[max(i - 15, 0) : i + 16]) for i in idx])
         ratio = p[idx] / np.maximum(floor, 1e-300)
         j = int(np.argmax(ratio))
-        i = idx[j]
-        df = f[1] - f[0]
-        freq = f[i]
-        if idx[0] < i < idx[-1]:
-            y0, y1, y2 = np.log(p[i - 1 : i + 2])
+        if best is not None and ratio[j] <= best[0]:
+            continue
+        # segments of a quarter of the recording (a power of two): a fine frequency grid
+        nperseg = int(2 ** np.floor(np.log2(len(rec.t_s) / 4)))
+        ff, pf = welch(rec.gyr, fs=fs, nperseg=nperseg, axis=0)
+        pf = pf.sum(axis=1)
+        near = np.flatnonzero((np.abs(ff - f[idx[j]]) <= f[1] - f[0]) & (ff >= LINE_MIN_HZ))
+        i = int(near[np.argmax(pf[near])])
+        freq = ff[i]
+        if 0 < i < len(ff) - 1:
+            y0, y1, y2 = np.log(pf[i - 1 : i + 2])
             denom = y0 - 2 * y1 + y2
             if denom < 0:
-                freq += df * 0.5 * (y0 - y2) / denom
-        if best is None or ratio[j] > best[0]:
-            best = (ratio[j], float(freq))
+                freq += (ff[1] - ff[0]) * 0.5 * (y0 - y2) / denom
+        best = (ratio[j], float(freq))
     return None if best is None else best[1]
 
 

@@ -103,7 +103,8 @@ def motion_library(twin: MotionTwin | None = None) -> dict[str, EffectModel]:
             "shock",
             estimate_shock,
             (("reference", "gyr", "shock_rate"), ("reference", "gyr", "resid_rms")),
-            "knocks: gyroscope pulses of a few ms the reference does not follow",
+            "knocks: accelerometer spikes of a few ms where the gyroscope departs from the "
+            "reference",
         ),
         "vibration": EffectModel(
             "vibration",

@@ -71,6 +71,9 @@ class MotionRecording:
         Clock and mounting (reference body -> B).
     up : str
         The reference world's up axis (``+z``...).
+    acc : ndarray, shape (n, 3), or None
+        Calibrated accelerometer in B, m/s^2 (a knock's signature,
+        :func:`imucal.gap.disturbance.acc_spikes`); None when the recording has none.
     """
 
     t_s: np.ndarray
@@ -80,6 +83,7 @@ class MotionRecording:
     quat: np.ndarray
     alignment: OrientationAlignment
     up: str
+    acc: np.ndarray | None = None
 
     def half(self, half: str | None) -> MotionRecording:
         """The first (A) or second (B) half in module time, or the whole (None)."""
@@ -94,6 +98,7 @@ class MotionRecording:
             t_s=self.t_s[keep],
             gyr=self.gyr[keep],
             mag=None if self.mag is None else self.mag[keep],
+            acc=None if self.acc is None else self.acc[keep],
             t_reference=self.t_reference[keep_r],
             quat=self.quat[keep_r],
         )

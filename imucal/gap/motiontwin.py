@@ -6,7 +6,9 @@ orientation, so the true orientation and rate agree exactly; the session's calib
 truth, with the session's own noise per axis (:func:`session_noise`: white noise at the
 recording's rests, else on the whole recording, robustly, with the rounding taken out; bias
 instability and bias random walk from the Allan deviation of the longest rest; readings rounded
-to the quantisation step);
+to the quantisation step); the accelerometer, when the recording has one, reads gravity at the
+true orientation with the session's noise and rounding (the hand's linear acceleration is not
+replayed: the knocks' statistic reads the accelerometer against its own neighbourhood);
 the reference is rendered from the true orientation at the recorded reference times through the
 measured clock and mounting, with white orientation noise from its third differences and the
 recorded gaps. A replica is measured with the clock and mounting the recording was measured with
@@ -26,8 +28,10 @@ from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
-from imucal.columns import GYR, MAG, QUAT, SENSORS, TIME
+from imucal.columns import ACC, GYR, MAG, QUAT, SENSORS, TIME
 from imucal.gap.disturbance import (
+    SHOCK_ACC_SEPARATION_S,
+    acc_spikes,
     twin_world_turn,
 )
 from imucal.gap.motionstats import (
@@ -108,6 +112,18 @@ def session_noise(parts: Sequence[tuple], step: float) -> NoiseProcess:
     return NoiseProcess(white, zero, np.ones(3), zero.copy(), float(step))
 
 
+def _without_spikes(rec: MotionRecording, rest: np.ndarray | None) -> np.ndarray | None:
+    """The rest mask less the samples within :data:`SHOCK_ACC_SEPARATION_S` of an
+    accelerometer spike (:func:`acc_spikes`): a knock at rest is not the sensor's noise (its
+    few samples of tens of m/s^2 would dominate the variance of the first differences)."""
+    if rest is None:
+        return None
+    keep = rest.copy()
+    for t0 in acc_spikes(rec)[0]:
+        keep &= np.abs(rec.t_s - t0) > SHOCK_ACC_SEPARATION_S
+    return keep
+
+
 def slow_residual_variance(rec: MotionRecording) -> tuple[float, float]:
     """Residual variance of the gyroscope against the reference where it turns slowest.
 
@@ -142,6 +158,7 @@ class _Recording:
     alignment: OrientationAlignment
     reference_noise_rad: float
     has_mag: bool
+    has_acc: bool = False
 
 
 @dataclass(frozen=True)
@@ -246,10 +263,15 @@ def recorded_motion(
                 t_mag = table[TIME].to_numpy(dtype=float)[fresh]
                 at_gyr = np.column_stack([np.interp(t, t_mag, raw[fresh][:, k]) for k in range(3)])
                 mag = errormodel.apply(cals["mag"].matrix, cals["mag"].bias, at_gyr)
+        acc = None
+        if set(ACC) <= set(table.columns):
+            raw = table[list(ACC)].to_numpy(dtype=float)[ok]
+            if np.all(np.isfinite(raw)):  # the accelerometer's rows are the gyroscope's
+                acc = errormodel.apply(cals["acc"].matrix, cals["acc"].bias, raw)
         t_ref = reference[TIME].to_numpy(dtype=float)
         quat = reference[list(QUAT)].to_numpy(dtype=float)
         alignment = align_orientation_reference(t, gyr, t_ref, quat, where=where[name])
-        out[name] = MotionRecording(t, gyr, mag, t_ref, quat, alignment, meta["up"])
+        out[name] = MotionRecording(t, gyr, mag, t_ref, quat, alignment, meta["up"], acc)
     return out
 
 
@@ -296,13 +318,16 @@ def build_motion_twin(
     cals = _calibrations(calibration)
     notes = [f"{s}: the session's calibration ({cals[s].method})" for s in SENSORS]
     noise, sens, spec, processes = {}, {}, {}, {}
-    raw = {s: [] for s in ("gyr", "mag")}
+    raw = {s: [] for s in ("gyr", "mag", "acc")}
     for name, rec in recordings.items():
         table = tables[name]
         values = table[list(GYR)].to_numpy(dtype=float)
         ok = np.all(np.isfinite(values), axis=1)
         rate = (len(rec.t_s) - 1) / (rec.t_s[-1] - rec.t_s[0])
         raw["gyr"].append((values[ok], rests.get(name), rate))
+        if rec.acc is not None:  # the knocks' statistic reads it (imucal.gap.disturbance)
+            values = table[list(ACC)].to_numpy(dtype=float)[ok]
+            raw["acc"].append((values, _without_spikes(rec, rests.get(name)), rate))
         if rec.mag is not None:
             mag = table[list(MAG)].to_numpy(dtype=float)[ok]
             fresh = np.all(np.isfinite(mag), axis=1)
@@ -343,6 +368,7 @@ def build_motion_twin(
             alignment=rec.alignment,
             reference_noise_rad=0.0,
             has_mag=rec.mag is not None,
+            has_acc=rec.acc is not None,
         )
     truth = Truth(
         calibration=ImuCalibration(cals["acc"], cals["gyr"], cals["mag"]),
@@ -422,6 +448,7 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
             readings = readings.with_sensor(s, counts * twin.sensitivity[s])
         gyr = errormodel.apply(cal.gyr.matrix, cal.gyr.bias, readings.gyr)
         mag = errormodel.apply(cal.mag.matrix, cal.mag.bias, readings.mag) if r.has_mag else None
+        acc = errormodel.apply(cal.acc.matrix, cal.acc.bias, readings.acc) if r.has_acc else None
         # the reference: body -> world = (B -> world) M, at the instants its samples are
         # taken (the effects' on_reference_times), with its noise
         taken = r.t_reference
@@ -438,5 +465,5 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
         jitter = Rotation.from_rotvec(rng.normal(0.0, r.reference_noise_rad, (len(tau), 3)))
         q_ref = quat_multiply(q_ref, jitter.as_quat()[:, [3, 0, 1, 2]])
         q_ref[r.gaps] = np.nan
-        out[name] = MotionRecording(r.t_s, gyr, mag, r.t_reference, q_ref, r.alignment, "+z")
+        out[name] = MotionRecording(r.t_s, gyr, mag, r.t_reference, q_ref, r.alignment, "+z", acc)
     return out

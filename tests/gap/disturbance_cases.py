@@ -11,10 +11,11 @@ from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
-from imucal.columns import GYR, MAG, QUAT, SEGMENT_COLUMNS, TIME
+from imucal.columns import ACC, GYR, MAG, QUAT, SEGMENT_COLUMNS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session
 from imucal.gap.motion import motion_part
+from imucal.orientation import interpolate_orientation
 from imucal.sim.effects import make_effect
 from imucal.sim.orientation import simulate_orientation_session
 
@@ -25,6 +26,8 @@ MAG_BIAS = np.array([0.2, -0.1, 0.3])
 MOUNTING = Rotation.from_rotvec([0.3, -0.2, 0.8]).as_matrix()
 #: Magnetometer noise, normalised field: 0.6 uT of 48 uT (AK8963 class, effects.md #7).
 MAG_NOISE = 0.0125
+#: Accelerometer noise, m/s^2 (a MEMS of 400 ug/sqrt(Hz) at 100 Hz bandwidth).
+ACC_NOISE = 0.04
 #: The protocols: a hand under optical motion capture (120 Hz, 0.5 mrad, tracking gaps) and a
 #: robot arm reporting its flange's orientation from its encoders (100 Hz, 0.1 mrad, no gaps).
 PROTOCOLS = {
@@ -40,9 +43,27 @@ SETTINGS = DiagnosisSettings(replicas=12, seed=0, crn_seeds=3)
 
 
 #: What the disturbances must not be taken for: the reference's samples off their time stamps
-#: by 0.3 ms RMS (``reference_jitter``, which the library has) and a magnetometer 30 ms late
-#: (``mag_delay``: the field at each packet is the one 30 ms before; the library has no lag).
-CONFOUNDERS = {"reference_jitter": 3e-4, "mag_delay": 0.03}
+#: by 0.3 ms RMS (``reference_jitter``, which the library has), a magnetometer 30 ms late
+#: (``mag_delay``: the field at each packet is the one 30 ms before; the library has no lag)
+#: and glitches of an optical reference (``reference_glitches``: 2 % of its samples 3 ms off
+#: their stamps, either way; the residual against the gyroscope has heavy tails at fast motion
+#: and the accelerometer has no spike).
+CONFOUNDERS = {"reference_jitter": 3e-4, "mag_delay": 0.03, "reference_glitches": 3e-3}
+#: Share of the reference's samples a glitch takes off its stamp.
+GLITCH_FRACTION = 0.02
+
+
+def glitched(t_reference: np.ndarray, quat: np.ndarray, offset_s: float, seed: int) -> np.ndarray:
+    """The reference with :data:`GLITCH_FRACTION` of its samples (those with present
+    neighbours) replaced by the orientation ``offset_s`` before or after their stamp."""
+    rng = np.random.default_rng([seed, 7])
+    present = np.all(np.isfinite(quat), axis=1)
+    inner = np.flatnonzero(present[1:-1] & present[:-2] & present[2:]) + 1
+    picked = rng.choice(inner, size=int(GLITCH_FRACTION * len(inner)), replace=False)
+    tau = t_reference[picked] + offset_s * rng.choice([-1.0, 1.0], size=len(picked))
+    out = quat.copy()
+    out[picked] = interpolate_orientation(t_reference[present], quat[present], tau)
+    return out
 
 
 def case_inputs(protocol: str, effect: str | None, seed: int, duration_s: float = 120.0):
@@ -54,14 +75,21 @@ def case_inputs(protocol: str, effect: str | None, seed: int, duration_s: float 
     s = simulate_orientation_session(
         seed, matrix=MATRIX, bias=BIAS, mounting=MOUNTING, offset_s=0.3, duration_s=duration_s,
         mag_matrix=MAG_MATRIX, mag_bias=MAG_BIAS, mag_noise=MAG_NOISE, effects=effects,
+        acc_noise_m_s2=ACC_NOISE,
         reference_jitter_s=jitter, **PROTOCOLS[protocol],
     )  # fmt: skip
     mag = s.mag
     if effect == "mag_delay":
         late = s.t_module - CONFOUNDERS["mag_delay"]
         mag = np.column_stack([np.interp(late, s.t_module, s.mag[:, k]) for k in range(3)])
-    table = pd.DataFrame({TIME: s.t_module, **dict(zip(GYR, s.gyr.T)), **dict(zip(MAG, mag.T))})
-    reference = pd.DataFrame({TIME: s.t_reference, **dict(zip(QUAT, s.quat_reference.T))})
+    table = pd.DataFrame({
+        TIME: s.t_module, **dict(zip(ACC, s.acc.T)), **dict(zip(GYR, s.gyr.T)),
+        **dict(zip(MAG, mag.T)),
+    })  # fmt: skip
+    quat = s.quat_reference
+    if effect == "reference_glitches":
+        quat = glitched(s.t_reference, quat, CONFOUNDERS[effect], seed)
+    reference = pd.DataFrame({TIME: s.t_reference, **dict(zip(QUAT, quat.T))})
     rests = [
         {"recording": "moves", "label": f"s{k + 1:02d}", "kind": "static", "start_s": lo,
          "end_s": hi, "start_index": 0, "end_index": 0, "axis": "", "rate_dps": np.nan,
