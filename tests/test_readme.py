@@ -111,7 +111,7 @@ PLANS: dict[str, Counter | str] = {
         stress_render=90, stress_diagnose=90, stress_score=1, stress=1
     ),
     "snakemake --cores 2 detection": Counter(
-        detection_render=830, detection_diagnose=830, detection_score=1, detection=1
+        detection_render=840, detection_diagnose=840, detection_score=1, detection=1
     ),
     # 200 simulated sessions in chunks of 20, clean and with simulator effects
     "snakemake --cores 1 uncertainty_benchmark": Counter(
@@ -130,7 +130,7 @@ PLANS: dict[str, Counter | str] = {
 #: with `--configfile config/detection_laptop.yaml`"), as a user puts them together.
 COMPOSED_PLANS: dict[str, Counter | str] = {
     "snakemake --cores 2 detection --configfile config/detection_laptop.yaml": Counter(
-        detection_render=205, detection_diagnose=205, detection_score=1, detection=1
+        detection_render=215, detection_diagnose=215, detection_score=1, detection=1
     ),
 }
 
