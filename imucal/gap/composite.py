@@ -31,9 +31,8 @@ from imucal.gap.fieldfit import diagnose_field_fit, field_fit_part
 from imucal.gap.motion import MOTION_NOT_OBSERVABLE, motion_library
 from imucal.gap.motionstats import MotionRecording, motion_statistics
 from imucal.gap.motiontwin import MotionTwin
-from imucal.gap.null import run_replicas
 from imucal.gap.rests import diagnose_rests, session_rests
-from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
+from imucal.gap.scoring import DiagnosisSettings, scope_diagnosis
 from imucal.gap.static import (
     NOT_OBSERVABLE,
     STATIC_LIBRARY,
@@ -321,20 +320,12 @@ def diagnose_partial_session(
         )
         if streams:
             stats[h].update(static_statistics(streams, h))
-    reps = run_replicas(twin, settings.replicas, settings.seed)
-    t_null = time.perf_counter()
-    result = scored_diagnosis(
-        twin, sessions, stats, reps, composite_library(libraries), dataset=dataset,
-        settings=settings,
-        cannot_show="the session cannot show this effect (no such recording, stream or channel)",
-    )  # fmt: skip
     shown = set().union(*(set(lib) for lib in libraries.values()))
     reasons = {**MOTION_NOT_OBSERVABLE, **NOT_OBSERVABLE} if streams else MOTION_NOT_OBSERVABLE
-    return {
-        **result,
-        "scope": "static+reference" if streams else "reference",
-        "not_observable": {k: v for k, v in reasons.items() if k not in shown},
-        "twin": twin.describe(),
-        "settings": settings.describe(),
-        "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
-    }
+    return scope_diagnosis(
+        twin, sessions, stats, composite_library(libraries),
+        scope="static+reference" if streams else "reference",
+        not_observable={k: v for k, v in reasons.items() if k not in shown},
+        cannot_show="the session cannot show this effect (no such recording, stream or channel)",
+        dataset=dataset, settings=settings, started=t0,
+    )  # fmt: skip

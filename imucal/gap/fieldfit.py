@@ -33,8 +33,7 @@ import pandas as pd
 
 from imucal import errormodel
 from imucal.columns import SENSOR_COLUMNS, TIME
-from imucal.gap.null import run_replicas
-from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
+from imucal.gap.scoring import DiagnosisSettings, scope_diagnosis
 from imucal.gap.static import NOT_OBSERVABLE
 from imucal.gap.statictwin import quantum
 from imucal.gap.statistics import HALVES
@@ -309,18 +308,9 @@ def diagnose_field_fit(
     """
     t0 = time.perf_counter()
     stats = {h: field_fit_statistics(fit, h, twin.name) for h in HALVES}
-    reps = run_replicas(twin, settings.replicas, settings.seed)
-    t_null = time.perf_counter()
-    result = scored_diagnosis(
-        twin, {twin.name: fit}, stats, reps, {}, dataset=dataset, settings=settings,
+    return scope_diagnosis(
+        twin, {twin.name: fit}, stats, {}, scope="field_fit", static_source=source,
+        not_observable=FIELD_FIT_NOT_OBSERVABLE,
         cannot_show="the fit residual cannot show this effect",
+        dataset=dataset, settings=settings, started=t0,
     )  # fmt: skip
-    return {
-        **result,
-        "scope": "field_fit",
-        "static_source": source,
-        "not_observable": dict(FIELD_FIT_NOT_OBSERVABLE),
-        "twin": twin.describe(),
-        "settings": settings.describe(),
-        "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
-    }

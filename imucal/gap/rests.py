@@ -45,8 +45,7 @@ from imucal.columns import AXES, SENSOR_COLUMNS
 from imucal.constants import STANDARD_GRAVITY_M_S2
 from imucal.gap.effects import Estimate
 from imucal.gap.locations import allan_deviation
-from imucal.gap.null import run_replicas
-from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
+from imucal.gap.scoring import DiagnosisSettings, scope_diagnosis
 from imucal.gap.static import NOT_OBSERVABLE, STATIC_LIBRARY
 from imucal.gap.statictwin import build_static_twin, quantum, render_static
 from imucal.gap.statistics import HALVES
@@ -514,19 +513,9 @@ def diagnose_rests(
     twin = build_rests_twin(rests, calibration, dict(sensitivity or {}), gravity_m_s2)
     session = flat_streams(rests)
     stats = {h: rests_statistics(session, h) for h in HALVES}
-    reps = run_replicas(twin, settings.replicas, settings.seed)
-    t_null = time.perf_counter()
-    models = {k: m for k, m in REST_LIBRARY.items() if k not in settings.exclude}
-    result = scored_diagnosis(
-        twin, session, stats, reps, models, dataset=dataset, settings=settings,
+    return scope_diagnosis(
+        twin, session, stats, REST_LIBRARY, scope="rests", static_source=rests_source,
+        not_observable=REST_NOT_OBSERVABLE,
         cannot_show="the rests cannot show this effect (no such stream)",
+        dataset=dataset, settings=settings, started=t0,
     )  # fmt: skip
-    return {
-        **result,
-        "scope": "rests",
-        "static_source": rests_source,
-        "not_observable": dict(REST_NOT_OBSERVABLE),
-        "twin": twin.describe(),
-        "settings": settings.describe(),
-        "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
-    }

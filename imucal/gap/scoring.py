@@ -11,6 +11,7 @@ held out and writes ``diagnosis.json`` (``format_version``, ``dataset``, ``gap``
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from imucal.gap.attribution import Candidate, attribute, confusable
 from imucal.gap.effects import EffectModel
-from imucal.gap.null import build_null, holm
+from imucal.gap.null import build_null, holm, run_replicas
 from imucal.gap.statictwin import StaticTwin
 from imucal.gap.twin import Replica, Twin
 
@@ -357,3 +358,63 @@ def scored_diagnosis(
         },
     }
     return {**result, "verdict": verdict_of(result)}
+
+
+def scope_diagnosis(
+    twin: Twin | StaticTwin,
+    session,
+    stats: Mapping,
+    library: Mapping[str, EffectModel],
+    *,
+    scope: str,
+    not_observable: Mapping[str, str],
+    cannot_show: str,
+    dataset: str,
+    settings: DiagnosisSettings,
+    started: float,
+    **described,
+) -> dict:
+    """diagnosis.json of one scope: the twin's replicas run, the session scored against them
+    (:func:`scored_diagnosis`, the library less ``settings.exclude``) and the scope's record.
+
+    Parameters
+    ----------
+    twin, session, stats
+        As in :func:`scored_diagnosis`.
+    library : dict of str to EffectModel
+        The scope's effects.
+    scope : str
+        The scope's name in the record.
+    not_observable : dict of str to str
+        Effect -> why the scope cannot show it.
+    cannot_show : str
+        As in :func:`scored_diagnosis`.
+    dataset : str
+    settings : DiagnosisSettings
+    started : float
+        ``time.perf_counter()`` when the diagnosis began (``timing_s`` counts from it).
+    **described
+        Further entries of the record, placed after ``scope`` (e.g. ``static_source``).
+
+    Returns
+    -------
+    dict
+        :func:`scored_diagnosis`'s result with ``scope``, the ``described`` entries,
+        ``not_observable``, ``twin``, ``settings`` and ``timing_s`` (``null``, ``total``; s).
+    """
+    replicas = run_replicas(twin, settings.replicas, settings.seed)
+    t_null = time.perf_counter()
+    models = {k: m for k, m in library.items() if k not in settings.exclude}
+    result = scored_diagnosis(
+        twin, session, stats, replicas, models, dataset=dataset, settings=settings,
+        cannot_show=cannot_show,
+    )  # fmt: skip
+    return {
+        **result,
+        "scope": scope,
+        **described,
+        "not_observable": dict(not_observable),
+        "twin": twin.describe(),
+        "settings": settings.describe(),
+        "timing_s": {"null": t_null - started, "total": time.perf_counter() - started},
+    }

@@ -28,8 +28,7 @@ from imucal.columns import SENSORS
 from imucal.constants import STANDARD_GRAVITY_M_S2
 from imucal.gap.effects import EffectModel, Estimate
 from imucal.gap.locations import allan_deviation
-from imucal.gap.null import run_replicas
-from imucal.gap.scoring import FORMAT_VERSION, DiagnosisSettings, scored_diagnosis
+from imucal.gap.scoring import FORMAT_VERSION, DiagnosisSettings, scope_diagnosis
 from imucal.gap.statictwin import build_static_twin
 from imucal.gap.statistics import HALVES
 from imucal.gap.streams import (
@@ -256,24 +255,8 @@ def diagnose_static(
         )
     stats = {h: static_statistics(streams, h) for h in HALVES}
     twin = build_static_twin(streams, calibration, dict(sensitivity or {}), gravity_m_s2)
-    reps = run_replicas(twin, settings.replicas, settings.seed)
-    t_null = time.perf_counter()
-    models = {k: m for k, m in STATIC_LIBRARY.items() if k not in settings.exclude}
-    result = scored_diagnosis(
-        twin,
-        streams,
-        stats,
-        reps,
-        models,
-        dataset=dataset,
-        settings=settings,
+    return scope_diagnosis(
+        twin, streams, stats, STATIC_LIBRARY, scope="static", not_observable=NOT_OBSERVABLE,
         cannot_show="the session cannot show this effect (no such stream or channel)",
-    )
-    return {
-        **result,
-        "scope": "static",
-        "not_observable": dict(NOT_OBSERVABLE),
-        "twin": twin.describe(),
-        "settings": settings.describe(),
-        "timing_s": {"null": t_null - t0, "total": time.perf_counter() - t0},
-    }
+        dataset=dataset, settings=settings, started=t0,
+    )  # fmt: skip
