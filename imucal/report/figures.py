@@ -30,31 +30,22 @@ FIGURE_SECTION_BY_PREFIX = {
 }
 
 
+#: Folder of the figure captions, one reStructuredText file per figure stem. Snakemake's report
+#: (``report(caption=...)`` in the workflow's rules) and the lab report read the same files.
+CAPTIONS_DIR = Path(__file__).with_name("captions")
+
+
+def _read_captions(folder: Path) -> dict[str, str]:
+    """File stem -> caption as plain text (reStructuredText's backslash escapes removed)."""
+    return {
+        path.stem: " ".join(path.read_text(encoding="utf-8").split()).replace("\\", "")
+        for path in sorted(folder.glob("*.rst"))
+    }
+
+
 #: Default captions of the figures the stage rules are expected to write (file stem -> text).
 #: Any other figure gets a caption made from its file name unless one is passed in.
-DEFAULT_CAPTIONS = {
-    "mag_raw": "Magnetometer readings before calibration (paper Fig. 4).",
-    "mag_step1": "Magnetometer after step 1, the ellipsoid fit (paper Fig. 5).",
-    "mag_phases": "Magnetometer phases x, y, z with the extreme points used by eqs. 25-27 "
-    "(paper Fig. 6).",
-    "mag_step2": "Magnetometer after step 2, the alignment T_R (paper Fig. 7).",
-    "acc_cube": "Accelerometer |a| - g per cube position before and after the cube fit "
-    "(paper Fig. 10).",
-    "acc_phases": "Low-pass filtered accelerometer phases before and after alignment "
-    "(paper Figs. 11-13).",
-    "gyr_bias": "Gyroscope before and after bias removal (paper Figs. 16-17).",
-    "gyr_phases": "Gyroscope phases before and after alignment (paper Figs. 18-19).",
-    "gyr_table": "Rate-table magnitude errors |w| - |w_true| per run before and after "
-    "calibration (paper Fig. 15).",
-    "validation": "Magnitudes of the calibrated module and of the reference (paper Fig. 20).",
-    "validation_magnitudes": "Magnitudes of the calibrated module and of the reference after "
-    "time alignment and mounting (paper Fig. 20).",
-    "validation_xcorr": "Cross-correlation of the rate magnitudes of module and reference: its "
-    "peak gives the time offset of the reference's clock.",
-    "reference_orientation": "Orientation error integrated from the gyroscope against the "
-    "declared orientation reference, raw, with the bias only and calibrated.",
-    "noise_allan": "Allan deviation per axis with confidence bars and the fitted noise model.",
-}
+DEFAULT_CAPTIONS = _read_captions(CAPTIONS_DIR)
 
 
 _MIME = {".png": "image/png", ".svg": "image/svg+xml"}

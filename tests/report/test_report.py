@@ -570,3 +570,44 @@ def test_workflow_commit_is_the_checkout_head_or_unknown(tmp_path) -> None:
     )
     if head.returncode == 0:
         assert workflow_commit(here) == head.stdout.strip()
+
+
+RULES_DIR = Path(__file__).resolve().parents[2] / "workflow" / "rules"
+
+
+def _report_outputs_of_rules() -> list[tuple[str, str]]:
+    """(output path, caption path relative to the rule file) of every ``report(...)`` output."""
+    import re
+
+    pairs = []
+    for rules in sorted(RULES_DIR.glob("*.smk")):
+        text = rules.read_text(encoding="utf-8")
+        pairs += re.findall(r'report\(\s*"([^"]+)",\s*caption="([^"]+)"', text)
+    return pairs
+
+
+def test_every_figure_of_the_rules_has_the_lab_reports_caption_file():
+    """One caption per figure: Snakemake's report reads the file the lab report reads."""
+    from docutils.core import publish_parts
+
+    from imucal.report.figures import CAPTIONS_DIR, DEFAULT_CAPTIONS
+
+    pairs = _report_outputs_of_rules()
+    figures = [(out, cap) for out, cap in pairs if out.endswith((".png", ".svg"))]
+    assert len(figures) >= 11
+    for out, caption in pairs:
+        path = (RULES_DIR / caption).resolve()
+        assert path.is_file(), f"{out}: caption {caption} not found"
+        html = publish_parts(
+            path.read_text(encoding="utf-8"),
+            writer_name="html",
+            settings_overrides={"report_level": 2, "halt_level": 2},
+        )["body"]
+        assert html.strip(), f"{caption} renders empty"
+    for out, caption in figures:
+        if "/gap/" in out:
+            continue  # the diagnosis's figures share the diagnosis's caption
+        stem = Path(out).stem
+        assert (RULES_DIR / caption).resolve() == CAPTIONS_DIR / f"{stem}.rst", out
+        assert stem in DEFAULT_CAPTIONS
+        assert "\\" not in DEFAULT_CAPTIONS[stem]

@@ -9,7 +9,7 @@ rule acc_cube:
         fit="results/{dataset}/acc_step1.json",
         figure=report(
             "results/{dataset}/figures/acc_cube.png",
-            caption="../report/acc_cube.rst",
+            caption="../../imucal/report/captions/acc_cube.rst",
             category="Accelerometer",
         ),
     log:

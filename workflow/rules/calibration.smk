@@ -80,12 +80,12 @@ rule phase_figures:
     output:
         acc=report(
             "results/{dataset}/figures/acc_phases.png",
-            caption="../report/phases.rst",
+            caption="../../imucal/report/captions/acc_phases.rst",
             category="Accelerometer",
         ),
         gyr=report(
             "results/{dataset}/figures/gyr_phases.png",
-            caption="../report/phases.rst",
+            caption="../../imucal/report/captions/gyr_phases.rst",
             category="Gyroscope",
         ),
     log:

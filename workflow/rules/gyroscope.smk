@@ -11,7 +11,7 @@ rule gyr_bias:
         bias="results/{dataset}/gyr_bias.json",
         figure=report(
             "results/{dataset}/figures/gyr_bias.png",
-            caption="../report/gyr_bias.rst",
+            caption="../../imucal/report/captions/gyr_bias.rst",
             category="Gyroscope",
         ),
     log:
@@ -80,7 +80,7 @@ rule gyr_table:
         fit="results/{dataset}/gyr_table.json",
         figure=report(
             "results/{dataset}/figures/gyr_table.png",
-            caption="../report/gyr_table.rst",
+            caption="../../imucal/report/captions/gyr_table.rst",
             category="Gyroscope",
         ),
     log:

@@ -30,22 +30,22 @@ rule mag_step2:
         mag="results/{dataset}/mag.json",
         mag_raw=report(
             "results/{dataset}/figures/mag_raw.png",
-            caption="../report/magnetometer.rst",
+            caption="../../imucal/report/captions/mag_raw.rst",
             category="Magnetometer",
         ),
         mag_step1=report(
             "results/{dataset}/figures/mag_step1.png",
-            caption="../report/magnetometer.rst",
+            caption="../../imucal/report/captions/mag_step1.rst",
             category="Magnetometer",
         ),
         mag_phases=report(
             "results/{dataset}/figures/mag_phases.png",
-            caption="../report/magnetometer.rst",
+            caption="../../imucal/report/captions/mag_phases.rst",
             category="Magnetometer",
         ),
         mag_step2=report(
             "results/{dataset}/figures/mag_step2.png",
-            caption="../report/magnetometer.rst",
+            caption="../../imucal/report/captions/mag_step2.rst",
             category="Magnetometer",
         ),
     log:

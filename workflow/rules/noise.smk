@@ -14,7 +14,7 @@ rule noise:
         ),
         figure=report(
             "results/{dataset}/figures/noise_allan.png",
-            caption="../report/noise.rst",
+            caption="../../imucal/report/captions/noise_allan.rst",
             category="Noise and exports",
         ),
     log:

@@ -35,7 +35,7 @@ rule validation_figures:
     output:
         magnitudes=report(
             "results/{dataset}/figures/validation_magnitudes.png",
-            caption="../report/validation.rst",
+            caption="../../imucal/report/captions/validation_magnitudes.rst",
             category="Validation",
         ),
         xcorr="results/{dataset}/figures/validation_xcorr.png",
