@@ -210,8 +210,7 @@ def choose_order(
     (over the samples of every held-out pose) is within one standard error of the best's, the
     one-standard-error rule of :func:`imucal.gap.temperature.select_model`. The residuals of
     a drift are correlated over hours, so each standard error is that of a ratio over long
-    blocks (clusters): ``sqrt(sum_b (s_b - m n_b)^2) / sum_b n_b`` with ``s_b`` the block's
-    sum (of squares, or of their difference), ``n_b`` its samples and ``m`` the mean.
+    blocks (clusters, :func:`_cluster_mean`).
 
     Parameters
     ----------
@@ -227,27 +226,42 @@ def choose_order(
         Order -> RMS over all held-out samples.
     """
 
-    def ratio(sums: np.ndarray, counts: np.ndarray) -> tuple[float, float]:
-        """Mean per sample over the blocks and its standard error (NaN without samples)."""
-        if not counts.sum():
-            return np.nan, np.nan
-        m = sums.sum() / counts.sum()
-        return m, np.sqrt(np.sum((sums - m * counts) ** 2)) / counts.sum()
-
     pooled = {
-        k: ratio(*(np.concatenate([p[i] for p in pieces]) for i in (0, 1)))
+        k: _cluster_mean(*(np.concatenate([p[i] for p in pieces]) for i in (0, 1)))
         for k, pieces in squares.items()
     }
     heldout = {k: float(np.sqrt(m)) for k, (m, _) in pooled.items()}
     admissible = []
     for k in squares:
-        gains = [ratio(p[0] - q[0], p[1]) for p, q in zip(squares[k], squares[0])]
+        gains = [_cluster_mean(p[0] - q[0], p[1]) for p, q in zip(squares[k], squares[0])]
         if k and all(m + se < 0 for m, se in gains):
             admissible.append(k)
     if not admissible:
         return 0, heldout
     best = min(admissible, key=lambda k: pooled[k][0])
     return min(k for k in admissible if pooled[k][0] <= sum(pooled[best])), heldout
+
+
+def _cluster_mean(sums: np.ndarray, counts: np.ndarray) -> tuple[float, float]:
+    """Mean per sample over blocks, and its standard error with each block one observation.
+
+    ``m = sum_b s_b / N`` and ``se = sqrt(B / (B - 1) sum_b (s_b - m n_b)^2) / N`` over the ``B``
+    blocks, ``s_b`` a block's sum (of squares, or of their difference), ``n_b`` its samples and
+    ``N`` all samples: the ratio estimator's cluster-robust standard error with the small-sample
+    factor ``B / (B - 1)``. NaN for both without samples, NaN for the error with one block.
+
+    Parameters
+    ----------
+    sums, counts : ndarray
+        Each block's sum and number of samples, shape (B,).
+    """
+    n, b = counts.sum(), len(counts)
+    if not n:
+        return np.nan, np.nan
+    m = sums.sum() / n
+    if b < 2:
+        return m, np.nan
+    return m, np.sqrt(b / (b - 1) * np.sum((sums - m * counts) ** 2)) / n
 
 
 def _block_sums(x: np.ndarray, t_s: np.ndarray, block_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -365,8 +379,7 @@ def _spread(squares: Mapping[str, tuple]) -> dict:
     ms = {m: sums.sum() / n for m, (sums, _) in squares.items()}
     dev = {m: squares[m][0] - ms[m] * counts for m in squares}
     out = {
-        f"rms_{m}_se": float(inflate * np.sqrt(np.sum(dev[m] ** 2)) / n / (2 * np.sqrt(ms[m])))
-        for m in squares
+        f"rms_{m}_se": float(_cluster_mean(*squares[m])[1] / (2 * np.sqrt(ms[m]))) for m in squares
     }
     for name, a, c in (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
                        ("term_vs_regression", "term", "regression")):  # fmt: skip
