@@ -38,6 +38,7 @@ def score_check(
     diagnoses: Sequence[str | Path],
     sealed: Sequence[str | Path],
     benchmarks: Sequence[str | Path],
+    detection_score: str | Path | None = None,
     **options,
 ) -> tuple[dict, str]:
     """Score one check's run.
@@ -48,6 +49,10 @@ def score_check(
     diagnoses, sealed, benchmarks : sequence of path
         The diagnosis JSONs, the answer keys (both named by session) and the diagnose rule's
         Snakemake benchmark files.
+    detection_score : path, optional
+        The blind check only: a detection sweep's ``score.json``; where the file exists, its
+        detection limits are shown on the blind check's page (it is read, not required: the
+        blind check does not run the sweep).
     **options
         Passed to the check's scoring function (detection: ``rate``, ``confidence``).
 
@@ -65,6 +70,9 @@ def score_check(
     keys = {Path(f).stem: read_json(f) for f in sealed}
     score = score_fn(by_session, keys, **options)
     score["diagnosis_seconds"] = read_benchmark_seconds(benchmarks)
+    if check == "blind":
+        present = detection_score is not None and Path(detection_score).is_file()
+        return score, render(score, detection=read_json(detection_score) if present else None)
     return score, render(score)
 
 

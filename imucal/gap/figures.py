@@ -160,8 +160,18 @@ padding:2px 6px;text-align:center}}table{{border-collapse:collapse}}</style></he
 """
 
 
-def render_blind_page(score: Mapping) -> str:
-    """The blind check's report page (self-contained HTML)."""
+def render_blind_page(score: Mapping, detection: Mapping | None = None) -> str:
+    """The blind check's report page (self-contained HTML).
+
+    Parameters
+    ----------
+    score : mapping
+        :func:`imucal.gap.blind.score_blind`'s score.
+    detection : mapping, optional
+        A detection sweep's score (:func:`imucal.gap.detection.score_detection`): its
+        detection limits and clean sessions' false positives are shown beside the blind check;
+        without one the page says that no sweep was run.
+    """
     effects = sorted(score["confusion"])
     named = sorted({n for row in score["confusion"].values() for n in row})
     head = "".join(f"<th>{escape(n)}</th>" for n in named)
@@ -195,12 +205,49 @@ only be noted). No-effect sessions with nothing explained:
 nothing explained the first noted one, marked "(noted)", or none.</p>
 <table><tr><th>hidden \\ named</th>{head}</tr>{body}</table>
 <h2>Unknown-effect sessions</h2><ul>{unknown}</ul>
-<h2>Relative error of the estimated magnitude (median)</h2><ul>{rel}</ul>""",
+<h2>Relative error of the estimated magnitude (median)</h2><ul>{rel}</ul>
+{_blind_detection_section(detection)}""",
     )
+
+
+def _blind_detection_section(detection: Mapping | None) -> str:
+    """The blind page's section on the detection sweep's limits, or why there are none."""
+    if detection is None:
+        return (
+            "<h2>Detection limits</h2><p>No detection sweep in this folder "
+            "(<code>snakemake --cores 2 detection</code>, docs/gap.md).</p>"
+        )
+    clean, n_clean = detection.get("clean_explained", [0, 0])
+    return f"""<h2>Detection limits (detection sweep: {detection["n"]} effect sessions)</h2>
+<p>The smallest magnitude named in at least {detection["criterion"]["rate"]:.0%} of the sweep's
+sessions, per effect (results/detection/score.json, reports/detection.html). Clean sessions
+in which an effect was explained: <b>{clean} of {n_clean}</b>.</p>
+{detection_limits_table(detection)}"""
 
 
 def _magnitude(value: float, unit: str) -> str:
     return f"{value:.3g} {escape(unit)}"
+
+
+def detection_limits_table(score: Mapping) -> str:
+    """HTML table of the detection limit of each effect of a detection sweep's score: the
+    level, its magnitude (unit of the effect and SI), k/n named and the rate's lower bound."""
+    confidence = score["criterion"]["confidence"]
+    limits = ""
+    for name, e in score["effects"].items():
+        lv = e["limit"]
+        if lv is None:
+            note = escape(e["limit_note"])
+            limits += f"<tr><th>{escape(name)}</th><td colspan=5>{note}</td></tr>"
+            continue
+        limits += (
+            f"<tr><th>{escape(name)}</th><td>x{lv['factor']:g}</td>"
+            f"<td>{_magnitude(lv['magnitude'], lv['unit'])}</td>"
+            f"<td>{_magnitude(lv['magnitude_si'], lv['unit_si'])}</td>"
+            f"<td>{lv['named']}/{lv['n']}</td><td>{lv['cp_lower']:.2f}</td></tr>"
+        )
+    return f"""<table><tr><th>effect</th><th>factor</th><th>magnitude</th>
+<th>SI</th><th>named</th><th>rate, {confidence:.0%} lower bound</th></tr>{limits}</table>"""
 
 
 def render_detection_page(score: Mapping) -> str:
@@ -220,20 +267,7 @@ def render_detection_page(score: Mapping) -> str:
                 text += f" (+{lv['noted_only']} noted)"
             row += f"<td>{f'<b>{text}</b>' if lv and lv['detected'] else text}</td>"
         cells += f"<tr><th>{escape(name)}</th>{row}</tr>"
-    limits = ""
-    for name, e in effects.items():
-        lv = e["limit"]
-        if lv is None:
-            note = escape(e["limit_note"])
-            limits += f"<tr><th>{escape(name)}</th><td colspan=5>{note}</td></tr>"
-            continue
-        limits += (
-            f"<tr><th>{escape(name)}</th><td>x{lv['factor']:g}</td>"
-            f"<td>{_magnitude(lv['magnitude'], lv['unit'])}</td>"
-            f"<td>{_magnitude(lv['magnitude_si'], lv['unit_si'])}</td>"
-            f"<td>{lv['named']}/{lv['n']}</td><td>{lv['cp_lower']:.2f}</td></tr>"
-        )
-    rate, confidence = score["criterion"]["rate"], score["criterion"]["confidence"]
+    rate = score["criterion"]["rate"]
     fp, n = score["false_positive"]
     clean, n_clean = score.get("clean_explained", [0, 0])
     seconds = score.get("diagnosis_seconds")
@@ -255,8 +289,7 @@ magnitude is the gyro clip level, the largest). Sessions in which another effect
 misalignment named by noted is to be read against it). Clean sessions (no effect) in which an
 effect was explained: <b>{clean} of {n_clean}</b>. Crashes (named nothing):
 {score["crashes"]}.{timing}</p>
-<h2>Detection limits</h2><table><tr><th>effect</th><th>factor</th><th>magnitude</th>
-<th>SI</th><th>named</th><th>rate, {confidence:.0%} lower bound</th></tr>{limits}</table>
+<h2>Detection limits</h2>{detection_limits_table(score)}
 <h2>Sessions naming the effect, by factor of the realistic magnitude</h2>
 <p>"(+m noted)": sessions that note the effect without naming it (e.g. saturation noted by
 the static fallback when the calibration chain stops).</p>

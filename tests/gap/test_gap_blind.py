@@ -111,3 +111,40 @@ def test_plan_draws_the_shapes_of_real_parts():
             assert np.all(g != 0) and np.all(np.abs(np.diag(g)) >= 1.8e-4), g
     first = [s for s in shaped if s["shape"] == "temperature_axes"]
     assert first[0]["effects"] != first[1]["effects"]
+
+
+def test_the_blind_page_shows_the_detection_limits_where_a_sweep_was_run(tmp_path):
+    """score_check('blind', ..., detection_score=...): the sweep's limits and its clean
+    sessions' false positives on the blind page; without the file, the page says so."""
+    from imucal.gap.checks import score_check
+    from imucal.gap.detection import score_detection
+    from imucal.io import write_json
+
+    folder = tmp_path / "blind"
+    folder.mkdir()
+    paths = {}
+    for kind, content in (("diag", _diag(["lever_arm"], significant=True)),
+                          ("key", _key("lever_arm"))):  # fmt: skip
+        paths[kind] = folder / f"{kind}" / "b0.json"
+        paths[kind].parent.mkdir()
+        write_json(content, paths[kind])
+    sweep = {}
+    for j in range(5):
+        sweep[f"d{j}"] = ({"explained": ["lever_arm"], "noted": [], "effects": [],
+                           "gap": {"significant": True}, "remaining": {"significant": False}},
+                          {"spec": {"effect": "lever_arm", "factor": 0.25,
+                                    "magnitude_si": {"value": 0.009, "unit": "m"}},
+                           "magnitude": {"value": 0.009, "unit": "m"}})  # fmt: skip
+    detection = score_detection(
+        {k: d for k, (d, _) in sweep.items()}, {k: s for k, (_, s) in sweep.items()},
+        rate=0.9, confidence=0.95,
+    )  # fmt: skip
+    write_json(detection, tmp_path / "score.json")
+    bench = tmp_path / "b0.tsv"  # a Snakemake benchmark file of the diagnose rule
+    bench.write_text("s\th:m:s\tmax_rss\n12.5\t0:00:12\t300.0\n")
+    args = ("blind", [paths["diag"]], [paths["key"]], [bench])
+    _, page = score_check(*args, detection_score=tmp_path / "score.json")
+    assert "Detection limits (detection sweep: 5 effect sessions)" in page
+    assert "<th>lever_arm</th><td>x0.25</td><td>0.009 m</td>" in page
+    _, page = score_check(*args, detection_score=tmp_path / "absent.json")
+    assert "No detection sweep in this folder" in page

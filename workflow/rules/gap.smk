@@ -145,6 +145,8 @@ rule blind_score:
     params:
         check="blind",
         options={},
+        # read where a detection sweep has been run, not required (the page shows its limits)
+        detection_score="results/detection/score.json",
         imucal_version=IMUCAL_VERSION,
     script:
         "../scripts/gap_check_score.py"

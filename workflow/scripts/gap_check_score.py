@@ -17,6 +17,7 @@ score, page = score_check(
     snakemake.input.diagnoses,
     snakemake.input.sealed,
     snakemake.input.benchmarks,
+    detection_score=getattr(snakemake.params, "detection_score", None),
     **snakemake.params.options,
 )
 write_json(score, snakemake.output.score)
