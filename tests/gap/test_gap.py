@@ -164,6 +164,32 @@ def test_an_effect_beyond_its_null_on_its_own_is_evaluated_without_a_location_in
     assert not evident_on_its_own(float("nan"), 12, 12, 0.05, 4.0)
 
 
+def test_a_latency_is_one_delay_in_every_phase():
+    """The lag of the magnetometer in each phase, null spread 1.5 ms per phase (the stress
+    sessions' replicas): a 20 ms delay read with that noise passes the latency gate in 200
+    draws but for the gate's two-sided tail at z = 4 (F(2, 7) at 6e-5: about 1 in 16000);
+    lags of either sign as a field that moves with the platform leaves (-37, +60, +75 ms)
+    are refused, and so is a common delay beside one phase 25 null spreads off (F(2, 7) is
+    heavy-tailed: 10 spreads, p = 4e-4, still pass)."""
+    rng = np.random.default_rng(7)
+    s = 0.0015
+    null = [gap_effects.Estimate({}, 0.0, {"lag_s": list(rng.normal(0, s, 3))}) for _ in range(8)]
+    gate = gap_effects.LIBRARY["mag_latency"].gate
+    refused = sum(
+        bool(gate(gap_effects.Estimate({}, 0.02, {"lag_s": list(0.02 + rng.normal(0, s, 3))}),
+                  null, 4.0))
+        for _ in range(200)
+    )  # fmt: skip
+    assert refused == 0
+    platform = gap_effects.Estimate({}, 0.033, {"lag_s": [-0.037, 0.060, 0.075]})
+    assert "disagree with one delay" in gate(platform, null, 4.0)
+    one_off = gap_effects.Estimate({}, 0.025, {"lag_s": [0.02, 0.02, 0.02 + 25 * s]})
+    assert gate(one_off, null, 4.0)
+    # without the phases' lags (or without a null) there is nothing to refuse on
+    assert gate(gap_effects.Estimate({}, 0.02), null, 4.0) == ""
+    assert gate(platform, null[:2], 4.0) == ""
+
+
 def test_lever_arm_signature_is_centripetal_only(twin):
     """A lever arm moves the acc rate^2 statistics and not the gyro resting statistics."""
     tw, _ = twin
