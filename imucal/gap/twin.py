@@ -425,11 +425,13 @@ def protocol_config(fit: SessionFit) -> tuple[ProtocolConfig, list[str]]:
         # the phase lasts its turns at its rate plus the ramps of the phases read whole, so
         # that the twin turns as fast as the session did and clips as long (the clipped
         # readings only bound the rate from below)
+        source = "its clipped readings' rate, a lower bound"
         if duration > ramp:
             rates[i] = max(rates[i], abs(turns[i]) * 360 / (duration - ramp))
+            source = "from its duration"
         notes.append(
             f"phase {'xyz'[i]} clipped: its turns unknown, the twin uses {turns[i]:+g} at "
-            f"{rates[i]:.0f} deg/s (from its duration)"
+            f"{rates[i]:.0f} deg/s ({source})"
         )
     transitions = _durations(seg, "rotation3d", "transition")
     positions = _durations(seg, "cube", "position")
