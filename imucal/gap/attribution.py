@@ -131,13 +131,61 @@ def statistic_shift(pairs) -> dict:
     }
 
 
-def _shift(twin: Twin | StaticTwin, effects: tuple, replicas, half, n_seeds: int) -> dict:
+def _shift(
+    twin: Twin | StaticTwin, effects: tuple, replicas, half, n_seeds: int, keep: list | None = None
+) -> dict:
     """:func:`statistic_shift` of ``effects`` rendered together on ``half`` over the first
-    ``n_seeds`` replicas."""
-    return statistic_shift(
-        (twin.replica(rep.seed, effects, (half,)).stats[half], rep.stats[half])
-        for rep in replicas[:n_seeds]
-    )
+    ``n_seeds`` replicas; ``keep`` receives each rendered replica's session (what the
+    estimators read)."""
+    pairs = []
+    for rep in replicas[:n_seeds]:
+        rendered = twin.replica(rep.seed, effects, (half,))
+        if keep is not None:
+            keep.append(rendered.session)
+        pairs.append((rendered.stats[half], rep.stats[half]))
+    return statistic_shift(pairs)
+
+
+def detection_z_given(
+    value: float, null_values: Sequence, with_values: Sequence, without_values: Sequence
+) -> float:
+    """Score of an effect's detection statistic against the null of a twin that holds effects
+    already accepted.
+
+    The accepted effects move the statistic by their mean and widen its spread; both are
+    measured on replicas rendered with them against the same seeds without them (common random
+    numbers: the difference is theirs alone). The score is the session's value less the clean
+    null's mean and that mean shift, over the root of the clean null's prediction variance and
+    the variance of the shift. A statistic that a wandering bias (say) moves by as much as the
+    session shows is then no evidence of another effect.
+
+    Parameters
+    ----------
+    value : float
+        The session's detection statistic.
+    null_values : sequence of float
+        Its values on the clean replicas of the null.
+    with_values, without_values : sequence of float or None
+        Its values on replicas rendered with the accepted effects and on the same seeds
+        without them (None where the estimator has nothing to estimate from).
+
+    Returns
+    -------
+    float
+        Clipped to +-1e6, as :func:`detection_z`; NaN with fewer than two pairs or three
+        null values.
+    """
+    vals = np.array([v for v in null_values if v is not None], dtype=float)
+    diffs = np.array(
+        [a - b for a, b in zip(with_values, without_values, strict=True)
+         if a is not None and b is not None],
+        dtype=float,
+    )  # fmt: skip
+    if len(diffs) < 2 or len(vals) < 3:
+        return float("nan")
+    var = np.var(vals, ddof=1) * (1 + 1 / len(vals)) + np.var(diffs, ddof=1)
+    spread = max(np.sqrt(var), 1e-9 * max(abs(np.mean(vals)), abs(value)), 1e-300)
+    return float(np.clip((value - np.mean(vals) - np.mean(diffs)) / spread, -1e6, 1e6))
 
 
 def add_shifts(a: Mapping, b: Mapping) -> dict:
@@ -201,6 +249,7 @@ def attribute(
     """
     cands = []
     n_null: dict = {}
+    null_of: dict = {}
     for name, model in models.items():
         try:
             est = model.estimate(session, None)
@@ -213,6 +262,7 @@ def attribute(
             cands.append(Candidate(name, None, None, float("nan"), float("nan"), note=why))
             continue
         z = detection_z(est.detect, [e.detect for e in null_detect if e is not None])
+        null_of[name] = [e.detect if e is not None else None for e in null_detect]
         cand = Candidate(name, est.params, est_a.params if est_a else None, est.detect, z)
         n_null[name] = sum(e is not None for e in null_detect)
         if not model.opens_gap:
@@ -226,11 +276,33 @@ def attribute(
         for c in scored:
             c.evident = evident_on_its_own(c.detect_z, n_null[c.name], len(scored), alpha, detect_z)
 
+    rendered: dict = {}  # accepted names -> the sessions of their replicas (all data)
+
     def shifts_of_group(group: Sequence[Candidate]) -> tuple[dict, dict]:
         full = tuple(models[c.name].simulator_effect(c.params) for c in group)
         half_a = tuple(models[c.name].simulator_effect(c.params_a or c.params) for c in group)
-        return (_shift(twin, full, replicas, None, n_seeds),
-                _shift(twin, half_a, replicas, "B", n_seeds))  # fmt: skip
+        keep: list = []
+        out = (_shift(twin, full, replicas, None, n_seeds, keep),
+               _shift(twin, half_a, replicas, "B", n_seeds))  # fmt: skip
+        rendered[frozenset(c.name for c in group)] = keep
+        return out
+
+    def z_given(c: Candidate, accepted: Sequence[str]) -> float:
+        sessions = rendered.get(frozenset(accepted))
+        if not sessions:
+            return float("nan")
+        model = models[c.name]
+
+        def detect(session):
+            try:
+                e = model.estimate(session, None)
+            except ValueError:
+                return None
+            return e.detect if e is not None else None
+
+        with_values = [detect(s) for s in sessions]
+        return detection_z_given(c.detect, null_of[c.name], with_values,
+                                 null_of[c.name][: len(sessions)])  # fmt: skip
 
     joint: dict = {}
 
@@ -243,7 +315,7 @@ def attribute(
     explained, shift, shift_b, rounds = select_forward(
         cands, stats, null_full, null_b, lambda c: shifts_of_group((c,)),
         alpha=alpha, min_heldout_shrink=min_heldout_shrink, detect_z=detect_z,
-        joint_shifts=joint_shifts,
+        joint_shifts=joint_shifts, z_given=z_given,
     )  # fmt: skip
     return cands, explained, shift, shift_b, rounds
 
@@ -259,6 +331,7 @@ def select_forward(
     min_heldout_shrink: float,
     detect_z: float,
     joint_shifts: Callable[[Sequence[Candidate]], tuple[dict, dict]] | None = None,
+    z_given: Callable[[Candidate, Sequence[str]], float] | None = None,
 ) -> tuple[list[str], dict, dict, list[dict]]:
     """The forward selection of the module docstring, on candidates already scored.
 
@@ -281,6 +354,12 @@ def select_forward(
         together (each at its estimate; at its half-A estimate on half B). A candidate is then
         evaluated as the joint model of the effects already accepted and itself, and the
         backward pass compares joint models; without it the shifts of single effects add.
+    z_given : callable, optional
+        ``(candidate, accepted names) -> score`` of the candidate's detection statistic
+        against the null of the twin with the accepted effects (:func:`detection_z_given`;
+        NaN when it cannot be scored). Once effects are accepted, a candidate whose estimate
+        they account for (``|score| < detect_z``) is not evaluated: it would only take a
+        residual of theirs.
 
     Returns
     -------
@@ -317,6 +396,15 @@ def select_forward(
                 continue
             if abs(c.detect_z) < detect_z:
                 c.note = f"estimate within the null (|z| = {abs(c.detect_z):.1f} < {detect_z:g})"
+                c.gap_after = c.heldout_after = None
+                c.evaluated = False
+                continue
+            z_acc = z_given(c, explained) if z_given is not None and explained else float("nan")
+            if abs(z_acc) < detect_z:
+                c.note = (
+                    f"estimate within the null of the twin with {', '.join(explained)} "
+                    f"(|z| = {abs(z_acc):.1f} < {detect_z:g})"
+                )
                 c.gap_after = c.heldout_after = None
                 c.evaluated = False
                 continue

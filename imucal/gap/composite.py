@@ -237,6 +237,7 @@ def diagnose_partial_session(
     sensitivity: Mapping[str, float],
     gravity_m_s2: float,
     settings: DiagnosisSettings,
+    wander: bool = True,
 ) -> dict:
     """The gap diagnosis of a partial session from the parts it has, or why none is scored.
 
@@ -254,7 +255,7 @@ def diagnose_partial_session(
         Where ``static`` comes from when it is not the session's static recording (a rest,
         :func:`rest_as_static`), or why a session without one has none; kept in the result.
     dataset : str
-    calibration, sensitivity, gravity_m_s2, settings
+    calibration, sensitivity, gravity_m_s2, settings, wander
         As in :func:`imucal.gap.static.diagnose_static`.
 
     Returns
@@ -293,7 +294,7 @@ def diagnose_partial_session(
             }
         result = diagnose_static(
             static, dataset=dataset, calibration=calibration, sensitivity=sensitivity,
-            gravity_m_s2=gravity_m_s2, settings=settings,
+            gravity_m_s2=gravity_m_s2, settings=settings, wander=wander,
         )  # fmt: skip
         return {**result, **extra}
     t0 = time.perf_counter()
@@ -301,7 +302,7 @@ def diagnose_partial_session(
     parts, sessions, libraries = {}, {}, {}
     if streams:
         parts["static"] = build_static_twin(
-            streams, calibration, dict(sensitivity or {}), gravity_m_s2
+            streams, calibration, dict(sensitivity or {}), gravity_m_s2, wander
         )
         sessions["static"] = streams
         libraries["static"] = STATIC_LIBRARY

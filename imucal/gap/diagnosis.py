@@ -8,8 +8,9 @@ with this pipeline (large misalignment under the exact rotation), with ``misalig
 
 A session whose calibration chain stops on its data (too few positions, a fit the samples do not
 support), or whose twin cannot be replicated, still gets a diagnosis: the static diagnosis of
-its ``static`` recording (:func:`imucal.gap.composite.diagnose_partial_session`), with the reason
-in ``fallback``; readings clipped at a sensor's range are then ``noted`` as ``saturation``
+its ``static`` recording (:func:`imucal.gap.composite.diagnose_partial_session`, its twin's noise
+white as the full protocol's, so that a wandering bias stays an effect), with the reason in
+``fallback``; readings clipped at a sensor's range are then ``noted`` as ``saturation``
 (with the fraction per sensor), since clipping shows in the readings without a twin.
 """
 
@@ -86,10 +87,12 @@ def diagnose(
         where = (
             "the session's twin cannot be replicated" if fit else "the calibration chain stopped"
         )
+        # the full protocol's twin: white noise, a wandering bias is an effect
         result = diagnose_partial_session(
             imu.get("static"), dataset=dataset,
             calibration=fit.calibration.to_dict() if fit else None,
             sensitivity=options.sensitivity, gravity_m_s2=options.gravity_m_s2, settings=settings,
+            wander=False,
         )  # fmt: skip
         result["fallback"] = f"{where} ({err}); the static recording alone is diagnosed"
         # clipping is seen in the readings themselves, with or without a twin

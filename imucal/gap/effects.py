@@ -14,7 +14,7 @@ matched by, so that an effect is defined in one place.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,10 +47,14 @@ class Estimate:
         Parameters of the simulator effect of the same name (SI).
     detect : float
         Detection statistic (scored against the replicas' values of the same estimator).
+    evidence : dict
+        Values the effect's physics gate reads beside the parameters (not simulator
+        parameters), e.g. the magnetometer's lag in each phase.
     """
 
     params: dict
     detect: float
+    evidence: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -190,6 +194,39 @@ def earth_gate(est: Estimate, null: list, z: float) -> str:
     if rate > EARTH_RATE_RAD_S + z * s_r:
         return (f"world-fixed rate {rate:.3g} rad/s exceeds the Earth's {EARTH_RATE_RAD_S:.4g} "
                 f"rad/s by > {z:g} null std ({s_r:.2g})")  # fmt: skip
+    return ""
+
+
+def latency_gate(est: Estimate, null: list, z: float) -> str:
+    """A latency delays the magnetometer alike in every rotation: the phases' lags
+    (``evidence['lag_s']``) must agree with one delay within the null's spread of each
+    (replicas, prediction interval). Their weighted scatter about the common delay is a
+    chi-square on ``k - 1`` degrees of freedom, read against the F distribution of the null's
+    ``n - 1`` (its spread is estimated) at the two-sided tail of ``z``. A field that moves with
+    the platform (or any error of the calibrated field) bends the phases' angles in ways of
+    their own: lags of either sign, which one delay does not explain."""
+    from scipy import stats as sps
+
+    lags = np.asarray(est.evidence.get("lag_s", ()), dtype=float)
+    rows = [e.evidence.get("lag_s") for e in null if e is not None]
+    rows = [r for r in rows if r is not None and len(r) == len(lags)]
+    if len(lags) < 2 or len(rows) < 3:
+        return ""
+    null_lags = np.asarray(rows, dtype=float)
+    n = np.sum(np.isfinite(null_lags), axis=0)
+    spread = np.nanstd(null_lags, axis=0, ddof=1) * np.sqrt(1 + 1 / np.maximum(n, 1))
+    ok = np.isfinite(lags) & np.isfinite(spread) & (spread > 0) & (n >= 3)
+    if ok.sum() < 2:
+        return ""
+    w = 1 / spread[ok] ** 2
+    delay = float(np.sum(w * lags[ok]) / np.sum(w))
+    chi2 = float(np.sum(w * (lags[ok] - delay) ** 2))
+    dof = int(ok.sum()) - 1
+    p = float(sps.f.sf(chi2 / dof, dof, int(n[ok].min()) - 1))
+    if p < 2 * sps.norm.sf(z):
+        shown = ", ".join(f"{a} {x:+.3f}" for a, x in zip(AXES, lags, strict=False))
+        return (f"the phases' lags ({shown} s) disagree with one delay: chi-square "
+                f"{chi2:.3g} on {dof} dof against the null's spread (p = {p:.1g})")  # fmt: skip
     return ""
 
 
@@ -502,6 +539,8 @@ def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
 
 
 def estimate_mag_latency(fit: SessionFit, half) -> Estimate:
+    """Delay of the magnetometer from the mean of the phases' lags, less the sample-and-hold's
+    half period; the phases' lags are the evidence of :func:`latency_gate`."""
     lags = [loc.magnetometer_lag(fit, p) for p in ses._phase_half(AXES, half)]
     lag = float(np.nanmean(lags))
     mag = column_values(fit.imu["rotation3d"], MAG)
@@ -510,7 +549,9 @@ def estimate_mag_latency(fit: SessionFit, half) -> Estimate:
     packet_mag_hz = 10.0
     rate = packet_mag_hz * (1 - repeats) if repeats > 0.05 else 75.0
     delay = max(lag - 1 / (2 * rate), 0.0)
-    return Estimate({"rate_hz": float(rate), "delay_s": float(delay)}, lag)
+    return Estimate(
+        {"rate_hz": float(rate), "delay_s": float(delay)}, lag, {"lag_s": [float(x) for x in lags]}
+    )
 
 
 def estimate_platform_magnetic(fit: SessionFit, half) -> Estimate | None:
@@ -673,7 +714,7 @@ _LIBRARY = (
                 "rate-table residuals curved in the rate"),
     EffectModel("mag_latency", estimate_mag_latency,
                 (("mag", "mag", "lag_s"),),
-                "magnetometer lagging the gyroscope during rotations"),
+                "magnetometer lagging the gyroscope during rotations", gate=latency_gate),
     EffectModel("platform_magnetic", estimate_platform_magnetic,
                 (("mag", "mag", "platform_field"), ("mag", "mag", "norm_spread"),
                  ("mag", "mag", "resid_rms"), ("mag", "mag", "dip_spread_rad")),

@@ -220,6 +220,7 @@ def diagnose_static(
     sensitivity: Mapping[str, float] | None = None,
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
     settings: DiagnosisSettings = DiagnosisSettings(),
+    wander: bool = True,
 ) -> dict:
     """The gap diagnosis of a partial session from its static recording.
 
@@ -235,6 +236,9 @@ def diagnose_static(
     gravity_m_s2 : float
     settings : DiagnosisSettings
         As for a full session; ``exclude`` leaves effects out of :data:`STATIC_LIBRARY`.
+    wander : bool
+        As :func:`~imucal.gap.statictwin.build_static_twin` (False: the twin's noise is white
+        and a wandering bias is the effect ``bias_instability``).
 
     Returns
     -------
@@ -254,7 +258,7 @@ def diagnose_static(
             "the static recording has no acc/gyro or magnetometer stream of >= 100 rows"
         )
     stats = {h: static_statistics(streams, h) for h in HALVES}
-    twin = build_static_twin(streams, calibration, dict(sensitivity or {}), gravity_m_s2)
+    twin = build_static_twin(streams, calibration, dict(sensitivity or {}), gravity_m_s2, wander)
     return scope_diagnosis(
         twin, streams, stats, STATIC_LIBRARY, scope="static", not_observable=NOT_OBSERVABLE,
         cannot_show="the session cannot show this effect (no such stream or channel)",

@@ -18,7 +18,7 @@ Its replicas are :class:`imucal.gap.twin.Replica`, measured as the full-protocol
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -126,6 +126,7 @@ def build_static_twin(
     calibration: Mapping | None,
     sensitivity: Mapping[str, float],
     gravity_m_s2: float,
+    wander: bool = True,
 ) -> StaticTwin:
     """The twin of a static recording (see the module docstring).
 
@@ -139,6 +140,12 @@ def build_static_twin(
     sensitivity : dict
         SI per count from dataset.yaml (may be empty: then estimated from the readings).
     gravity_m_s2 : float
+    wander : bool
+        Whether the twin's noise holds the recording's own bias instability and random walk
+        (a partial session: the sensor as it is) or only its white noise, as the full
+        protocol's twin (:func:`imucal.gap.twin.build_twin`), for which a wandering bias is an
+        effect (``bias_instability``): the static recording of a full-protocol session whose
+        chain stopped is diagnosed so.
 
     Returns
     -------
@@ -162,6 +169,9 @@ def build_static_twin(
             processes[s] = fit_noise_process(
                 _untempered(x, stream.temperature_c), stream.rate_hz, q, level=level[s]
             )
+            if not wander:
+                zero = np.zeros(3)
+                processes[s] = replace(processes[s], markov=zero, walk=zero.copy())
             noise[s], sens[s] = float(np.sqrt(np.mean(processes[s].white ** 2))), q
     missing = [s for s in SENSORS if s not in noise]
     for s in missing:  # not rendered into any stream; the simulator needs a value
@@ -170,6 +180,9 @@ def build_static_twin(
         "noise: the session's own, per axis: white from first differences with the rounding "
         "taken out, bias instability and bias random walk where the IEEE 952 fit of the "
         "recording's Allan deviation resolves them"
+        if wander
+        else "noise: the session's white noise per axis, from first differences with the "
+        "rounding taken out (a wandering bias is an effect, as in the full protocol's twin)"
     )
     notes.append("timing: regular sample times at each stream's effective rate, no loss")
     truth = Truth(

@@ -397,7 +397,7 @@ def protocol_config(fit: SessionFit) -> tuple[ProtocolConfig, list[str]]:
     statics = _durations(seg, "rotation3d", "static")
     phases = seg[(seg["recording"] == "rotation3d") & (seg["kind"] == "phase")].set_index("label")
     gyr = calibrated(fit, "rotation3d", "gyr")
-    turns, rates, ramps = [], [], []
+    turns, rates, ramps, clipped = [], [], [], {}
     for axis, default_turns, default_rate in zip("xyz", (2.0, -2.0, 2.0), (50.0, 50.0, 60.0)):
         if axis not in phases.index:
             notes.append(f"phase {axis} not found; the twin uses the default protocol's")
@@ -413,11 +413,26 @@ def protocol_config(fit: SessionFit) -> tuple[ProtocolConfig, list[str]]:
             t = float(np.round(r.turns * 2) / 2) or default_turns
         else:  # clipped at the gyroscope range: the raw angle is only a lower bound
             t = float(r.sense) * abs(default_turns)
-            notes.append(f"phase {axis} clipped: its turns unknown, the twin uses {t:+g}")
+            # its rate too: the clipped readings are a lower bound of it
+            clipped[len(rates)] = float(r.end_s - r.start_s)
         turns.append(t)
         rates.append(rate)
+        if not np.isfinite(r.turns):
+            continue
         ramps.append((r.end_s - r.start_s) - abs(t) * 360 / rate)
     ramp = float(np.clip(np.median(ramps), 0.2, 5.0)) if ramps else 1.5
+    for i, duration in clipped.items():
+        # the phase lasts its turns at its rate plus the ramps of the phases read whole, so
+        # that the twin turns as fast as the session did and clips as long (the clipped
+        # readings only bound the rate from below)
+        source = "its clipped readings' rate, a lower bound"
+        if duration > ramp:
+            rates[i] = max(rates[i], abs(turns[i]) * 360 / (duration - ramp))
+            source = "from its duration"
+        notes.append(
+            f"phase {'xyz'[i]} clipped: its turns unknown, the twin uses {turns[i]:+g} at "
+            f"{rates[i]:.0f} deg/s ({source})"
+        )
     transitions = _durations(seg, "rotation3d", "transition")
     positions = _durations(seg, "cube", "position")
     cube = seg[(seg["recording"] == "cube") & (seg["kind"] == "position")].sort_values("start_s")

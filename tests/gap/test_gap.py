@@ -164,6 +164,75 @@ def test_an_effect_beyond_its_null_on_its_own_is_evaluated_without_a_location_in
     assert not evident_on_its_own(float("nan"), 12, 12, 0.05, 4.0)
 
 
+def test_a_candidate_is_scored_against_the_null_of_the_accepted_effects():
+    """A lever arm's statistic (|r|, 1e-5 m null spread) at 4.6e-5 m is 4.4 null std out of
+    the clean null, but a wandering bias accepted before it moves the rate-table means by
+    as much: rendered with the same seeds with and without the wander, |r| changes by
+    3.5e-5 m on average with a spread of 2e-5 m between seeds. Against that null it is
+    0.4 out, so the candidate only takes the wander's residual and is not evaluated; a
+    lever arm of 0.5 mm stays beyond it. Before anything is accepted the candidate is
+    scored as before."""
+    from imucal.gap.attribution import Candidate, detection_z_given, select_forward
+
+    rng = np.random.default_rng(3)
+    null_values = list(rng.normal(0.0, 1e-5, 8))
+    without = null_values[:3]
+    with_wander = [v + d for v, d in zip(without, (1.5e-5, 3.5e-5, 5.5e-5), strict=True)]
+    assert abs(detection_z_given(4.6e-5, null_values, with_wander, without)) < 1.0
+    assert detection_z_given(5e-4, null_values, with_wander, without) > 10
+    assert np.isnan(detection_z_given(4.6e-5, null_values, with_wander[:1], without[:1]))
+
+    keys = [("s", "acc", ax, "run", "resid_rms") for ax in "xyz"]
+    null = NullModel.from_values(keys, rng.normal(0, 0.01, (20, 3)))
+    values = dict(zip(keys, np.exp([0.5, 0.5, 0.0]), strict=True))
+    stats = {h: dict(values) for h in (None, "A", "B")}
+
+    def shifts_of(c):
+        shift = {keys[0 if c.name == "bias_instability" else 1]: (0.5, 0.0)}
+        return shift, shift
+
+    def run(z_lever):
+        cands = [Candidate("bias_instability", {"p": 1}, {"p": 1}, 1.0, 20.0),
+                 Candidate("lever_arm", {"p": 1}, {"p": 1}, 1.0, 4.4)]  # fmt: skip
+        explained, *_ = select_forward(
+            cands, stats, null, null, shifts_of, alpha=0.05, min_heldout_shrink=0.3,
+            detect_z=4.0, z_given=lambda c, accepted: z_lever,
+        )  # fmt: skip
+        return explained, cands[1]
+
+    explained, lever = run(0.4)
+    assert explained == ["bias_instability"] and not lever.evaluated
+    assert "null of the twin with bias_instability" in lever.note
+    explained, lever = run(12.0)
+    assert explained == ["bias_instability", "lever_arm"]
+
+
+def test_a_latency_is_one_delay_in_every_phase():
+    """The lag of the magnetometer in each phase, null spread 1.5 ms per phase (the stress
+    sessions' replicas): a 20 ms delay read with that noise passes the latency gate in 200
+    draws but for the gate's two-sided tail at z = 4 (F(2, 7) at 6e-5: about 1 in 16000);
+    lags of either sign as a field that moves with the platform leaves (-37, +60, +75 ms)
+    are refused, and so is a common delay beside one phase 25 null spreads off (F(2, 7) is
+    heavy-tailed: 10 spreads, p = 4e-4, still pass)."""
+    rng = np.random.default_rng(7)
+    s = 0.0015
+    null = [gap_effects.Estimate({}, 0.0, {"lag_s": list(rng.normal(0, s, 3))}) for _ in range(8)]
+    gate = gap_effects.LIBRARY["mag_latency"].gate
+    refused = sum(
+        bool(gate(gap_effects.Estimate({}, 0.02, {"lag_s": list(0.02 + rng.normal(0, s, 3))}),
+                  null, 4.0))
+        for _ in range(200)
+    )  # fmt: skip
+    assert refused == 0
+    platform = gap_effects.Estimate({}, 0.033, {"lag_s": [-0.037, 0.060, 0.075]})
+    assert "disagree with one delay" in gate(platform, null, 4.0)
+    one_off = gap_effects.Estimate({}, 0.025, {"lag_s": [0.02, 0.02, 0.02 + 25 * s]})
+    assert gate(one_off, null, 4.0)
+    # without the phases' lags (or without a null) there is nothing to refuse on
+    assert gate(gap_effects.Estimate({}, 0.02), null, 4.0) == ""
+    assert gate(platform, null[:2], 4.0) == ""
+
+
 def test_lever_arm_signature_is_centripetal_only(twin):
     """A lever arm moves the acc rate^2 statistics and not the gyro resting statistics."""
     tw, _ = twin

@@ -249,3 +249,26 @@ def test_placement_error_is_not_estimated_on_a_cube_held_by_hand(base):
         fit.extra["options"], held_by_hand=("cube",))}  # fmt: skip
     held = dataclasses.replace(fit, extra=extra)
     assert gap_effects.LIBRARY["placement_error"].estimate(held, None) is None
+
+
+def test_the_twin_turns_a_clipped_phase_as_fast_as_the_session():
+    """Phases x and z at 300 deg/s past a 250 deg/s gyro range, y at 200 deg/s: the clipped
+    readings only bound the rate of x and z from below (by about 17 %), so the twin takes it
+    from the phase's duration, its turns and the ramps of phase y, which is read whole. A twin
+    that turns them slower clips less and cannot reproduce what the clipping does to the
+    session (e.g. the reference alignment). Tolerance: the segment ends to about a sample
+    (10 ms of a 2.4 s turn) and the calibrated rate of phase y (under 1 %), so 2 %."""
+    from imucal.gap.twin import protocol_config
+
+    rates = (300.0, 200.0, 300.0)
+    config = ProtocolConfig(static_s=120.0, run_plateau_s=3.0, run_pause_s=1.5,
+                            phase_rate_dps=rates)  # fmt: skip
+    gyr = 16375
+    options = PipelineOptions(9.81, SENSITIVITY, {**RANGE, "gyr": gyr}, RATETABLE)
+    truth = make_truth("paper", stream_rng(0, "truth"))
+    twin = Twin(truth, config, options, TWIN_RECORDINGS, True)
+    fit = _fit(twin, 21, (make_effect("saturation", gyr=gyr, acc=32767, mag=32767),))
+    protocol, notes = protocol_config(fit)
+    assert any(n.startswith("phase x clipped") for n in notes)
+    assert any(n.startswith("phase z clipped") for n in notes)
+    np.testing.assert_allclose(protocol.phase_rate_dps, rates, rtol=0.02)

@@ -124,6 +124,25 @@ def test_temperature_drift_is_found_on_the_temperature_channel():
     assert drift["heldout_shrink"] > 0.7
 
 
+def test_a_full_protocol_session_keeps_a_wandering_bias_an_effect():
+    """A gyro bias random walk of 1.2e-4 rad/s/sqrt(s) (the stress set's): over 300 s it
+    wanders by about 2e-3 rad/s, against 1.5e-3 rad/s of white noise per sample. A partial
+    session's twin takes the wander into its own noise (the sensor as it is), so nothing is
+    named; the static recording of a full-protocol session whose chain stopped is diagnosed
+    with the full protocol's twin, white noise only, and the wander is bias_instability."""
+    effect = make_effect("bias_instability", gyr_rw=1.2e-4, gyr_gm=1e-4, acc_rw=0.0, acc_gm=0.0)
+    table = _session(8, (effect,))
+    common = dict(
+        dataset="sim", calibration=None, sensitivity=SENSITIVITY, gravity_m_s2=9.81,
+        settings=DiagnosisSettings(replicas=REPLICAS, seed=500),
+    )  # fmt: skip
+    d = diagnose_static(table, wander=False, **common)
+    assert d["explained"] == ["bias_instability"]
+    assert any("white noise per axis" in n for n in d["twin"]["notes"])
+    clean = diagnose_static(_session(9), wander=False, **common)
+    assert clean["explained"] == []
+
+
 def test_a_drift_is_rendered_about_the_recordings_level():
     """The twin reads the recording's mean reading, which holds its drift at its mean
     temperature; the estimated drift, rendered from its ``start_c``, varies about that level
