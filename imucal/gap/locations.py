@@ -238,6 +238,17 @@ def cube_direction_residuals(fit: SessionFit, half) -> tuple[np.ndarray, np.ndar
     mounting : Rotation
         The common rotation (nominal -> measured).
     """
+    _, u, nominal, noise = _nominal_cube_positions(fit, half)
+    if len(u) < 3:
+        return np.zeros((0, 3)), np.zeros(0), Rotation.identity()
+    rot, _ = Rotation.align_vectors(u, nominal)
+    return np.cross(rot.apply(nominal), u), noise, rot
+
+
+def _nominal_cube_positions(fit: SessionFit, half):
+    """The cube positions whose calibrated gravity direction is within
+    ``NOMINAL_TOLERANCE_DEG`` of a nominal one: their rows, unit directions ``u`` and nominal
+    directions (each (p, 3)) and the white-noise variance of one component of ``u`` (p,)."""
     rows = _alternate(_rows(fit, "cube", "position"), half)
     acc = calibrated(fit, "cube", "acc")
     means = _means(acc, rows)
@@ -250,12 +261,75 @@ def cube_direction_residuals(fit: SessionFit, half) -> tuple[np.ndarray, np.ndar
     u = means[ok] / norm[ok, None]
     nominal, angle = nearest_nominal(u)
     keep = angle < np.radians(NOMINAL_TOLERANCE_DEG)
-    u, nominal = u[keep], nominal[keep]
     noise = (np.asarray(var)[ok][keep] / norm[ok][keep] ** 2) if len(var) else np.zeros(0)
+    return rows[ok][keep], u[keep], nominal[keep], noise
+
+
+def cube_field_tilts(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tilt of each cube position seen by the magnetometer: the part of a rigid rotation of the
+    cube that an accelerometer error cannot mimic.
+
+    A placement error turns the cube, so gravity and the Earth field turn together in B and
+    the angle ``psi`` between them stays the field's (90 deg + dip). An accelerometer bias or
+    drift turns only the gravity direction. At each position the angle between the field
+    direction ``m`` and the position's mounted nominal direction ``u0 = R n`` (``R`` the
+    common rotation of :func:`cube_direction_residuals`, fitted on the accelerometer) is
+    ``psi + t . e`` with ``t`` the placement rotation and ``e = (u0 x m) / |u0 x m|``, whatever
+    the accelerometer's error. ``psi`` and a common rotation ``w`` between the magnetometer
+    and accelerometer frames (the calibration's alignment error, and the part of the
+    placements that ``R`` absorbed, both turn ``m`` by ``w . e``) are fitted on all
+    positions, ``angle = psi + w . e`` (least squares, 4 parameters, so that a half's 6
+    positions keep most of their freedom); the residuals are the placement tilts about ``e``,
+    one component per position.
+
+    Parameters
+    ----------
+    fit : SessionFit
+    half : {None, 'A', 'B'}
+        The residuals of all positions or of alternate ones.
+
+    Returns
+    -------
+    tilt_rad : ndarray, shape (p,)
+        Residual angle of each position with a field (rad).
+    noise_var_rad2 : ndarray, shape (p,)
+        Variance of each angle from the magnetometer's white noise over the position (rad^2;
+        repeated readings of a slower magnetometer count once).
+    free : ndarray, shape (p,)
+        ``1 - h_ii`` (``h`` the fit's hat matrix): ``tilt_i^2`` has expectation
+        ``free_i (sigma^2 + noise_i)`` for tilts of std ``sigma`` about every axis. Empty
+        arrays when fewer positions than parameters have a field.
+    """
+    rows, u, nominal, _ = _nominal_cube_positions(fit, None)
+    empty = np.zeros(0), np.zeros(0), np.zeros(0)
     if len(u) < 3:
-        return np.zeros((0, 3)), np.zeros(0), Rotation.identity()
-    rot, _ = Rotation.align_vectors(u, nominal)
-    return np.cross(rot.apply(nominal), u), noise, rot
+        return empty
+    mount, _ = Rotation.align_vectors(u, nominal)
+    mag = calibrated(fit, "cube", "mag")
+    means, var = [], []
+    for a, b in row_bounds(rows):
+        x = mag[a:b]
+        x = x[np.all(np.isfinite(x), axis=1)]
+        x = x[np.r_[True, np.any(np.diff(x, axis=0) != 0, axis=1)]] if len(x) else x
+        means.append(x.mean(axis=0) if len(x) else np.full(3, np.nan))
+        var.append(
+            np.mean(np.var(np.diff(x, axis=0), axis=0) / 2) / len(x) if len(x) > 1 else np.nan
+        )
+    means, var = np.reshape(means, (-1, 3)), np.asarray(var)
+    norm = np.linalg.norm(means, axis=1)
+    ok = np.isfinite(norm) & (norm > 0) & np.isfinite(var)
+    m = means[ok] / norm[ok, None]
+    u0 = mount.apply(nominal[ok])
+    e = np.cross(u0, m)
+    e /= np.linalg.norm(e, axis=1, keepdims=True)
+    angle = np.arccos(np.clip(np.sum(u0 * m, axis=1), -1.0, 1.0))
+    design = np.column_stack([np.ones(len(angle)), e])
+    if len(angle) <= design.shape[1] or np.linalg.matrix_rank(design) < design.shape[1]:
+        return empty
+    coef, *_ = np.linalg.lstsq(design, angle, rcond=None)
+    free = 1 - np.sum(design @ np.linalg.pinv(design.T @ design) * design, axis=1)
+    mine = rows.index[ok].isin(_alternate(_rows(fit, "cube", "position"), half).index)
+    return (angle - design @ coef)[mine], (var[ok] / norm[ok] ** 2)[mine], free[mine]
 
 
 def table_mount_tilts(fit: SessionFit) -> np.ndarray:
