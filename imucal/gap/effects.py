@@ -540,20 +540,18 @@ def estimate_platform_magnetic(fit: SessionFit, half) -> Estimate | None:
 
 
 def estimate_placement_error(fit: SessionFit, half) -> Estimate | None:
-    """Placement std per axis (deg) from the cube positions' tilts that the magnetometer sees
-    too, and the rate-table mountings' tilts (their rest runs).
+    """Placement std per axis (deg) from the cube positions' tilts that the accelerometer
+    and the magnetometer see together, and the rate-table mountings' tilts (their rest runs).
 
     A placement error is a rigid rotation of the cube: it turns gravity and the field together
     in B. The accelerometer's tilts alone (:func:`imucal.gap.locations.cube_direction_residuals`)
     are also made by an accelerometer bias or temperature drift, which leaves the field where
-    it was; the tilt about ``e = u x m`` changes the angle between the accelerometer and
-    the field unless the field turned with it. So the cube's std is taken from the field's
-    angle to each mounted nominal direction (:func:`imucal.gap.locations.cube_field_tilts`):
-    ``sigma^2 = (sum t^2 - sum f noise) / sum f`` (one component per position, ``f`` its share
-    of the fit's freedom, the magnetometer's white noise of the position means removed); an
-    accelerometer-only residual gives none. None for a cube held by hand (its poses are the
-    hand's, and the session has no direction statistic) or with a field at fewer than five
-    nominal positions.
+    it was. So the cube's std is the covariance of the two sensors' tilts about the axis that
+    changes the angle between them (:func:`imucal.gap.locations.cube_joint_tilts`):
+    ``sigma^2 = sum(a f) / sum(1 - h_ii)``, at least 0; the error and noise of either sensor
+    alone add nothing to it on average. None for a cube held by hand (its poses are the hand's,
+    and the session has no direction statistic) or with a field at fewer than five nominal
+    positions.
 
     Returns
     -------
@@ -562,11 +560,10 @@ def estimate_placement_error(fit: SessionFit, half) -> Estimate | None:
     """
     if "cube" in fit.extra["options"].held_by_hand:
         return None
-    tilt, noise, free = loc.cube_field_tilts(fit, half)
-    if not len(tilt):
+    acc, field, free = loc.cube_joint_tilts(fit, half)
+    if not len(free):
         return None
-    var = max((np.sum(tilt**2) - np.sum(free * noise)) / np.sum(free), 0.0)
-    cube = float(np.degrees(np.sqrt(var)))
+    cube = float(np.degrees(np.sqrt(max(np.sum(acc * field) / np.sum(free), 0.0))))
     tilts = loc.table_mount_tilts(fit)
     table = float(np.degrees(np.sqrt(np.sum(tilts**2) / (2 * len(tilts))))) if len(tilts) else cube
     return Estimate({"cube_sigma_deg": cube, "table_sigma_deg": table}, cube)

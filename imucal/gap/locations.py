@@ -265,22 +265,27 @@ def _nominal_cube_positions(fit: SessionFit, half):
     return rows[ok][keep], u[keep], nominal[keep], noise
 
 
-def cube_field_tilts(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Tilt of each cube position seen by the magnetometer: the part of a rigid rotation of the
-    cube that an accelerometer error cannot mimic.
+def cube_joint_tilts(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tilt of each cube position about the axis that the accelerometer and the magnetometer
+    both see: a rigid turn of the cube moves both, an error of one sensor moves only its own.
 
     A placement error turns the cube, so gravity and the Earth field turn together in B and
-    the angle ``psi`` between them stays the field's (90 deg + dip). An accelerometer bias or
-    drift turns only the gravity direction. At each position the angle between the field
-    direction ``m`` and the position's mounted nominal direction ``u0 = R n`` (``R`` the
-    common rotation of :func:`cube_direction_residuals`, fitted on the accelerometer) is
-    ``psi + t . e`` with ``t`` the placement rotation and ``e = (u0 x m) / |u0 x m|``, whatever
-    the accelerometer's error. ``psi`` and a common rotation ``w`` between the magnetometer
-    and accelerometer frames (the calibration's alignment error, and the part of the
-    placements that ``R`` absorbed, both turn ``m`` by ``w . e``) are fitted on all
-    positions, ``angle = psi + w . e`` (least squares, 4 parameters, so that a half's 6
-    positions keep most of their freedom); the residuals are the placement tilts about ``e``,
-    one component per position.
+    the angle between them stays the field's (90 deg + dip); an accelerometer bias or
+    temperature drift turns only the gravity direction, a magnetometer error only the field.
+    With ``u0 = R n`` a position's mounted nominal direction (``R`` the common rotation of
+    :func:`cube_direction_residuals`, fitted on the accelerometer), ``m`` its field direction
+    and ``e = (u0 x m) / |u0 x m|``, a rotation ``t`` of the cube gives
+
+    * the accelerometer's tilt about ``e``: ``a = (u0 x u) . e = t . e`` (plus its own error),
+    * the field's: ``f = angle(u0, m) - psi = t . e`` (plus the magnetometer's error).
+
+    A common rotation ``w`` (the part of the placements that ``R`` absorbed, and between the
+    magnetometer's and the accelerometer's frames the calibration's alignment error) adds
+    ``w . e``, and ``psi`` is the field's angle: both series are taken as residuals of the
+    same least-squares fit on ``[1, e]`` over all positions (4 parameters, so that a half's
+    6 positions keep most of their freedom). ``sum(a f)`` then has expectation
+    ``sigma^2 sum(1 - h_ii)`` for rotations of std ``sigma`` about every axis, and none from
+    either sensor's own error or noise (independent of the other's).
 
     Parameters
     ----------
@@ -290,46 +295,32 @@ def cube_field_tilts(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.
 
     Returns
     -------
-    tilt_rad : ndarray, shape (p,)
-        Residual angle of each position with a field (rad).
-    noise_var_rad2 : ndarray, shape (p,)
-        Variance of each angle from the magnetometer's white noise over the position (rad^2;
-        repeated readings of a slower magnetometer count once).
+    acc_tilt_rad : ndarray, shape (p,)
+        ``a`` of each nominal position with a field, after the fit (rad).
+    field_tilt_rad : ndarray, shape (p,)
+        ``f`` of the same positions, after the fit (rad).
     free : ndarray, shape (p,)
-        ``1 - h_ii`` (``h`` the fit's hat matrix): ``tilt_i^2`` has expectation
-        ``free_i (sigma^2 + noise_i)`` for tilts of std ``sigma`` about every axis. Empty
-        arrays when fewer positions than parameters have a field.
+        ``1 - h_ii`` (``h`` the fit's hat matrix). Empty arrays when fewer than five nominal
+        positions have a field.
     """
     rows, u, nominal, _ = _nominal_cube_positions(fit, None)
-    empty = np.zeros(0), np.zeros(0), np.zeros(0)
-    if len(u) < 3:
-        return empty
+    mag = _means(calibrated(fit, "cube", "mag"), rows)
+    norm = np.linalg.norm(mag, axis=1)
+    ok = np.isfinite(norm) & (norm > 0)
+    design = np.zeros((int(ok.sum()), 4))
+    if len(design) <= design.shape[1]:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
     mount, _ = Rotation.align_vectors(u, nominal)
-    mag = calibrated(fit, "cube", "mag")
-    means, var = [], []
-    for a, b in row_bounds(rows):
-        x = mag[a:b]
-        x = x[np.all(np.isfinite(x), axis=1)]
-        x = x[np.r_[True, np.any(np.diff(x, axis=0) != 0, axis=1)]] if len(x) else x
-        means.append(x.mean(axis=0) if len(x) else np.full(3, np.nan))
-        var.append(
-            np.mean(np.var(np.diff(x, axis=0), axis=0) / 2) / len(x) if len(x) > 1 else np.nan
-        )
-    means, var = np.reshape(means, (-1, 3)), np.asarray(var)
-    norm = np.linalg.norm(means, axis=1)
-    ok = np.isfinite(norm) & (norm > 0) & np.isfinite(var)
-    m = means[ok] / norm[ok, None]
-    u0 = mount.apply(nominal[ok])
+    u, u0, m = u[ok], mount.apply(nominal[ok]), mag[ok] / norm[ok, None]
     e = np.cross(u0, m)
     e /= np.linalg.norm(e, axis=1, keepdims=True)
-    angle = np.arccos(np.clip(np.sum(u0 * m, axis=1), -1.0, 1.0))
-    design = np.column_stack([np.ones(len(angle)), e])
-    if len(angle) <= design.shape[1] or np.linalg.matrix_rank(design) < design.shape[1]:
-        return empty
-    coef, *_ = np.linalg.lstsq(design, angle, rcond=None)
-    free = 1 - np.sum(design @ np.linalg.pinv(design.T @ design) * design, axis=1)
+    design = np.column_stack([np.ones(len(e)), e])
+    # I - H of the fit on [1, e]
+    resid = np.eye(len(e)) - design @ np.linalg.pinv(design.T @ design) @ design.T
+    acc = resid @ np.sum(np.cross(u0, u) * e, axis=1)
+    field = resid @ np.arccos(np.clip(np.sum(u0 * m, axis=1), -1.0, 1.0))
     mine = rows.index[ok].isin(_alternate(_rows(fit, "cube", "position"), half).index)
-    return (angle - design @ coef)[mine], (var[ok] / norm[ok] ** 2)[mine], free[mine]
+    return acc[mine], field[mine], np.diag(resid)[mine]
 
 
 def table_mount_tilts(fit: SessionFit) -> np.ndarray:

@@ -58,8 +58,8 @@ def _null_z(name, value, null_fits):
     [
         ("platform_magnetic", {"field_x": 0.15, "field_y": -0.1, "field_z": 0.0},
          lambda p: np.hypot(p["field_x"], p["field_y"]), 0.7),
-        # one field component per cube position, 12 less 4 fitted: 8 dof, so 99 % of the
-        # estimates are within 0.41-1.66 times the true std
+        # one tilt component per cube position, 12 less 4 fitted: about 8 dof, so 99 % of
+        # the estimates are within 0.41-1.66 times the true std
         ("placement_error", {"cube_sigma_deg": 0.5, "table_sigma_deg": 0.5},
          lambda p: p["cube_sigma_deg"], 0.6),
         ("bias_instability", {"gyr_gm": 3e-4, "acc_gm": 1.5e-3, "gyr_rw": 0.0, "acc_rw": 0.0},
@@ -243,11 +243,12 @@ def test_g_sensitivity_test_of_the_resting_means():
 def test_placement_error_needs_the_field_to_turn_with_gravity(base, null_fits):
     """An accelerometer drift of its own size and sign per axis turns the calibrated gravity
     directions of the cube positions away from their nominal ones (far outside the null) but
-    leaves the field where it was: no placement error is estimated. A placement error beside
-    the same drift turns both and is estimated."""
+    leaves the field where it was, and a magnetometer drift turns the field alone: no
+    placement error is estimated. A placement error beside the same drifts turns both and is
+    estimated."""
     drift = make_effect(
         "temperature_drift", gyr_per_k=[0.0, 0.0, 0.0], acc_per_k=[0.02, -0.015, 0.01],
-        acc_scale_per_k=[2.6e-4, -1e-4, 0.0], tau_s=300.0,
+        acc_scale_per_k=[2.6e-4, -1e-4, 0.0], mag_per_k=[1e-3, -2e-3, 1e-3], tau_s=300.0,
     )  # fmt: skip
     fit = _fit(base, 13, (drift,))
     rms = [np.sqrt(np.mean(np.sum(loc.cube_direction_residuals(f, None)[0] ** 2, axis=1)))
