@@ -581,19 +581,30 @@ def estimate_platform_magnetic(fit: SessionFit, half) -> Estimate | None:
 
 
 def estimate_placement_error(fit: SessionFit, half) -> Estimate | None:
-    """Placement std per axis (deg) from the cube positions' tilts about their nominal
-    directions (2 tilt components per position, 3 dof of the common rotation; white noise of
-    the position means removed) and the rate-table mountings' tilts (their rest runs). None
-    for a cube held by hand: its poses are the hand's, and the session has no direction
-    statistic (:func:`imucal.gap.locations.cube_direction_residuals` is not scored there)."""
+    """Placement std per axis (deg) from the cube positions' tilts that the accelerometer
+    and the magnetometer see together, and the rate-table mountings' tilts (their rest runs).
+
+    A placement error is a rigid rotation of the cube: it turns gravity and the field together
+    in B. The accelerometer's tilts alone (:func:`imucal.gap.locations.cube_direction_residuals`)
+    are also made by an accelerometer bias or temperature drift, which leaves the field where
+    it was. So the cube's std is the covariance of the two sensors' tilts about the axis that
+    changes the angle between them (:func:`imucal.gap.locations.cube_joint_tilts`):
+    ``sigma^2 = sum(a f) / sum(1 - h_ii)``, at least 0; the error and noise of either sensor
+    alone add nothing to it on average. None for a cube held by hand (its poses are the hand's,
+    and the session has no direction statistic) or with a field at fewer than five nominal
+    positions.
+
+    Returns
+    -------
+    Estimate or None
+        ``cube_sigma_deg``, ``table_sigma_deg`` (deg, std per axis); detection: the cube's.
+    """
     if "cube" in fit.extra["options"].held_by_hand:
         return None
-    res, noise, _ = loc.cube_direction_residuals(fit, half)
-    if len(res) < 3:
+    acc, field, free = loc.cube_joint_tilts(fit, half)
+    if not len(free):
         return None
-    dof = 2 * len(res) - 3
-    var = max((np.sum(res**2) - 2 * np.sum(noise)) / dof, 0.0)
-    cube = float(np.degrees(np.sqrt(var)))
+    cube = float(np.degrees(np.sqrt(max(np.sum(acc * field) / np.sum(free), 0.0))))
     tilts = loc.table_mount_tilts(fit)
     table = float(np.degrees(np.sqrt(np.sum(tilts**2) / (2 * len(tilts))))) if len(tilts) else cube
     return Estimate({"cube_sigma_deg": cube, "table_sigma_deg": table}, cube)

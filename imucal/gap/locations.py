@@ -238,6 +238,17 @@ def cube_direction_residuals(fit: SessionFit, half) -> tuple[np.ndarray, np.ndar
     mounting : Rotation
         The common rotation (nominal -> measured).
     """
+    _, u, nominal, noise = _nominal_cube_positions(fit, half)
+    if len(u) < 3:
+        return np.zeros((0, 3)), np.zeros(0), Rotation.identity()
+    rot, _ = Rotation.align_vectors(u, nominal)
+    return np.cross(rot.apply(nominal), u), noise, rot
+
+
+def _nominal_cube_positions(fit: SessionFit, half):
+    """The cube positions whose calibrated gravity direction is within
+    ``NOMINAL_TOLERANCE_DEG`` of a nominal one: their rows, unit directions ``u`` and nominal
+    directions (each (p, 3)) and the white-noise variance of one component of ``u`` (p,)."""
     rows = _alternate(_rows(fit, "cube", "position"), half)
     acc = calibrated(fit, "cube", "acc")
     means = _means(acc, rows)
@@ -250,12 +261,66 @@ def cube_direction_residuals(fit: SessionFit, half) -> tuple[np.ndarray, np.ndar
     u = means[ok] / norm[ok, None]
     nominal, angle = nearest_nominal(u)
     keep = angle < np.radians(NOMINAL_TOLERANCE_DEG)
-    u, nominal = u[keep], nominal[keep]
     noise = (np.asarray(var)[ok][keep] / norm[ok][keep] ** 2) if len(var) else np.zeros(0)
-    if len(u) < 3:
-        return np.zeros((0, 3)), np.zeros(0), Rotation.identity()
-    rot, _ = Rotation.align_vectors(u, nominal)
-    return np.cross(rot.apply(nominal), u), noise, rot
+    return rows[ok][keep], u[keep], nominal[keep], noise
+
+
+def cube_joint_tilts(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tilt of each cube position about the axis that the accelerometer and the magnetometer
+    both see: a rigid turn of the cube moves both, an error of one sensor moves only its own.
+
+    A placement error turns the cube, so gravity and the Earth field turn together in B and
+    the angle between them stays the field's (90 deg + dip); an accelerometer bias or
+    temperature drift turns only the gravity direction, a magnetometer error only the field.
+    With ``u0 = R n`` a position's mounted nominal direction (``R`` the common rotation of
+    :func:`cube_direction_residuals`, fitted on the accelerometer), ``m`` its field direction
+    and ``e = (u0 x m) / |u0 x m|``, a rotation ``t`` of the cube gives
+
+    * the accelerometer's tilt about ``e``: ``a = (u0 x u) . e = t . e`` (plus its own error),
+    * the field's: ``f = angle(u0, m) - psi = t . e`` (plus the magnetometer's error).
+
+    A common rotation ``w`` (the part of the placements that ``R`` absorbed, and between the
+    magnetometer's and the accelerometer's frames the calibration's alignment error) adds
+    ``w . e``, and ``psi`` is the field's angle: both series are taken as residuals of the
+    same least-squares fit on ``[1, e]`` over all positions (4 parameters, so that a half's
+    6 positions keep most of their freedom). ``sum(a f)`` then has expectation
+    ``sigma^2 sum(1 - h_ii)`` for rotations of std ``sigma`` about every axis, and none from
+    either sensor's own error or noise (independent of the other's).
+
+    Parameters
+    ----------
+    fit : SessionFit
+    half : {None, 'A', 'B'}
+        The residuals of all positions or of alternate ones.
+
+    Returns
+    -------
+    acc_tilt_rad : ndarray, shape (p,)
+        ``a`` of each nominal position with a field, after the fit (rad).
+    field_tilt_rad : ndarray, shape (p,)
+        ``f`` of the same positions, after the fit (rad).
+    free : ndarray, shape (p,)
+        ``1 - h_ii`` (``h`` the fit's hat matrix). Empty arrays when fewer than five nominal
+        positions have a field.
+    """
+    rows, u, nominal, _ = _nominal_cube_positions(fit, None)
+    mag = _means(calibrated(fit, "cube", "mag"), rows)
+    norm = np.linalg.norm(mag, axis=1)
+    ok = np.isfinite(norm) & (norm > 0)
+    design = np.zeros((int(ok.sum()), 4))
+    if len(design) <= design.shape[1]:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    mount, _ = Rotation.align_vectors(u, nominal)
+    u, u0, m = u[ok], mount.apply(nominal[ok]), mag[ok] / norm[ok, None]
+    e = np.cross(u0, m)
+    e /= np.linalg.norm(e, axis=1, keepdims=True)
+    design = np.column_stack([np.ones(len(e)), e])
+    # I - H of the fit on [1, e]
+    resid = np.eye(len(e)) - design @ np.linalg.pinv(design.T @ design) @ design.T
+    acc = resid @ np.sum(np.cross(u0, u) * e, axis=1)
+    field = resid @ np.arccos(np.clip(np.sum(u0 * m, axis=1), -1.0, 1.0))
+    mine = rows.index[ok].isin(_alternate(_rows(fit, "cube", "position"), half).index)
+    return acc[mine], field[mine], np.diag(resid)[mine]
 
 
 def table_mount_tilts(fit: SessionFit) -> np.ndarray:
