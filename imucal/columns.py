@@ -34,6 +34,9 @@ QUAT = ("q_w", "q_x", "q_y", "q_z")
 #: file's order (``scalar`` says where w is), or the rotation matrix row by row.
 QUAT_SOURCE = ("q_0", "q_1", "q_2", "q_3")
 MATRIX_SOURCE = tuple(f"r_{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
+#: Optional position of an orientation reference's body in its world frame (m), declared and
+#: ingested under the same names (``docs/data-format.md``).
+POSITION = ("p_x", "p_y", "p_z")
 
 #: Column of the temperature channel (deg C) when a recording has one, in order of preference.
 TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp")

@@ -95,9 +95,14 @@ def motion_library(twin: MotionTwin | None = None) -> dict[str, EffectModel]:
         "world_magnetic": EffectModel(
             "world_magnetic",
             estimate_world_magnetic,
-            (("reference", "mag", "field_position_rms"), ("reference", "mag", "dir_resid_rad")),
+            (
+                ("reference", "mag", "field_position_rms"),
+                ("reference", "mag", "field_dipole_peak"),
+                ("reference", "mag", "dir_resid_rad"),
+            ),
             "a field fixed in the world near the path: the world field follows the sensor's "
-            "position (linear in its attitude about a pivot), not its rate",
+            "position (the reference's where it reports one, else linear in its attitude "
+            "about a pivot), not its rate",
         ),
         "shock": EffectModel(
             "shock",

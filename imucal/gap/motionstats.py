@@ -74,6 +74,9 @@ class MotionRecording:
     acc : ndarray, shape (n, 3), or None
         Calibrated accelerometer in B, m/s^2 (a knock's signature,
         :func:`imucal.gap.disturbance.acc_spikes`); None when the recording has none.
+    pos : ndarray, shape (m, 3), or None
+        The reference body's position in the reference's world at its samples, m (NaN rows in
+        its gaps); None when the reference declares none.
     """
 
     t_s: np.ndarray
@@ -84,6 +87,7 @@ class MotionRecording:
     alignment: OrientationAlignment
     up: str
     acc: np.ndarray | None = None
+    pos: np.ndarray | None = None
 
     def half(self, half: str | None) -> MotionRecording:
         """The first (A) or second (B) half in module time, or the whole (None)."""
@@ -101,6 +105,7 @@ class MotionRecording:
             acc=None if self.acc is None else self.acc[keep],
             t_reference=self.t_reference[keep_r],
             quat=self.quat[keep_r],
+            pos=None if self.pos is None else self.pos[keep_r],
         )
 
 

@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
-from imucal.columns import ACC, GYR, MAG, QUAT, SENSORS, TIME
+from imucal.columns import ACC, GYR, MAG, POSITION, QUAT, SENSORS, TIME
 from imucal.gap.disturbance import (
     SHOCK_ACC_SEPARATION_S,
     acc_spikes,
@@ -159,6 +159,8 @@ class _Recording:
     reference_noise_rad: float
     has_mag: bool
     has_acc: bool = False
+    position: np.ndarray | None = None
+    pos_reference: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -271,7 +273,10 @@ def recorded_motion(
         t_ref = reference[TIME].to_numpy(dtype=float)
         quat = reference[list(QUAT)].to_numpy(dtype=float)
         alignment = align_orientation_reference(t, gyr, t_ref, quat, where=where[name])
-        out[name] = MotionRecording(t, gyr, mag, t_ref, quat, alignment, meta["up"], acc)
+        pos = None
+        if set(POSITION) <= set(reference.columns):
+            pos = reference[list(POSITION)].to_numpy(dtype=float)
+        out[name] = MotionRecording(t, gyr, mag, t_ref, quat, alignment, meta["up"], acc, pos)
     return out
 
 
@@ -358,7 +363,19 @@ def build_motion_twin(
         start = Rotation.from_quat(q_body[[1, 2, 3, 0]]) * q_mount.inv()
         # the world of the twin has +z up and magnetic north +x (the simulator's): carry the
         # reference's up and the recording's north there
-        start = twin_world_turn(rec) * start
+        turn = twin_world_turn(rec)
+        start = turn * start
+        position = pos_reference = None
+        if rec.pos is not None:
+            # the position in the twin's world, at the reference's samples and (interpolated
+            # over its gaps) at the module's
+            pos_reference = turn.apply(np.nan_to_num(rec.pos))
+            pos_reference[~np.isfinite(rec.pos).all(axis=1)] = np.nan
+            known = np.isfinite(pos_reference).all(axis=1)
+            tau_p = rec.alignment.to_module_time(rec.t_reference[known])
+            position = np.column_stack(
+                [np.interp(rec.t_s, tau_p, pos_reference[known, k]) for k in range(3)]
+            )
         spec[name] = _Recording(
             t_s=rec.t_s,
             omega_b=rec.gyr,
@@ -369,6 +386,8 @@ def build_motion_twin(
             reference_noise_rad=0.0,
             has_mag=rec.mag is not None,
             has_acc=rec.acc is not None,
+            position=position,
+            pos_reference=pos_reference,
         )
     truth = Truth(
         calibration=ImuCalibration(cals["acc"], cals["gyr"], cals["mag"]),
@@ -428,7 +447,7 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
         q_tau = interpolate_orientation(r.t_s, q_rel, np.array([r.start[0]]))[0]
         q_b = quat_multiply(quat_multiply(r.start[1:], quat_conjugate(q_tau)), q_rel)
         rotation = Rotation.from_quat(q_b[:, [1, 2, 3, 0]])
-        state = KinematicState(r.t_s, rotation, r.omega_b, np.zeros_like(r.omega_b))
+        state = KinematicState(r.t_s, rotation, r.omega_b, np.zeros_like(r.omega_b), r.position)
         rate_hz = (len(r.t_s) - 1) / (r.t_s[-1] - r.t_s[0])
         ctx = RecordingContext(name, rate_hz, 0.0, twin.sensitivity, seed, None, cal, {})
         true = true_signals(state, truth.world)
@@ -465,5 +484,7 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
         jitter = Rotation.from_rotvec(rng.normal(0.0, r.reference_noise_rad, (len(tau), 3)))
         q_ref = quat_multiply(q_ref, jitter.as_quat()[:, [3, 0, 1, 2]])
         q_ref[r.gaps] = np.nan
-        out[name] = MotionRecording(r.t_s, gyr, mag, r.t_reference, q_ref, r.alignment, "+z", acc)
+        out[name] = MotionRecording(
+            r.t_s, gyr, mag, r.t_reference, q_ref, r.alignment, "+z", acc, r.pos_reference
+        )
     return out

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from imucal.columns import MATRIX_SOURCE, QUAT, QUAT_SOURCE, TIME
+from imucal.columns import MATRIX_SOURCE, POSITION, QUAT, QUAT_SOURCE, TIME
 from imucal.io.dataset import reference_with_defaults
 from imucal.io.readers import DeclarationError, read_entry
 
@@ -40,6 +40,9 @@ CONVENTION = (
     "q_w, q_x, q_y, q_z: unit quaternion, scalar first, rotating vectors from the reference's "
     "body frame to its world frame (v_world = q v_body q*); NaN rows: tracking lost"
 )
+#: Largest |position| (m) accepted of a declared reference position: a lab or a robot's cell
+#: is metres across, so a larger value is another unit (millimetres) or no position.
+MAX_POSITION_M = 100.0
 
 
 def _place(rec: Any, row: int, file: str) -> str:
@@ -63,24 +66,29 @@ def read_orientation_reference(
         The ``reference`` mapping of a recording in ``dataset.yaml`` with its ``file`` made
         absolute: reader keys (:data:`READER_KEYS`), ``orientation`` (``quaternion`` or
         ``matrix``), ``scalar`` (``first`` or ``last``, quaternions only), ``rotates``
-        (:data:`ROTATES`), ``up`` (the world axis pointing up, e.g. ``+z``).
+        (:data:`ROTATES`), ``up`` (the world axis pointing up, e.g. ``+z``); optionally the
+        body's position in the reference's world, columns ``p_x, p_y, p_z`` (m).
     where : str
         ``"<dataset.yaml>: recordings.<name>.reference"``, the prefix of every error message.
 
     Returns
     -------
-    table : DataFrame, shape (n, 5)
+    table : DataFrame, shape (n, 5) or (n, 8)
         ``t_s`` (s, the reference's own clock) and ``q_w, q_x, q_y, q_z``; all four NaN on the
         rows where the source has no orientation (a non-finite component, or all zeros).
+        With a declared position also ``p_x, p_y, p_z`` (m, the reference's world frame; NaN
+        where the orientation or a component is missing).
     metadata : dict
         ``reader``, ``files``, ``convention``, ``orientation``, ``scalar``, ``rotates``, ``up``,
-        ``held_out``, ``rows``, ``gap_rows``, ``max_norm_error``, ``unit_tolerance``.
+        ``held_out``, ``rows``, ``gap_rows``, ``max_norm_error``, ``unit_tolerance``,
+        ``position`` (whether the position is declared).
 
     Raises
     ------
     DeclarationError
         Columns that do not match ``orientation``, a quaternion farther from unit norm than
-        ``unit_tolerance``, a matrix that is not a rotation.
+        ``unit_tolerance``, a matrix that is not a rotation; a position declared with fewer
+        than its three components, without a finite value, or beyond :data:`MAX_POSITION_M`.
     RawDataError, FileNotFoundError
         From the reader.
     """
@@ -101,12 +109,20 @@ def read_orientation_reference(
         raise DeclarationError(f"{where}.scalar", "scalar with a matrix", "it for quaternions only")
     needed = ORIENTATIONS[kind]
     columns = dict(declaration.get("columns") or {})
-    given = sorted(set(columns) - {TIME})
+    given = sorted(set(columns) - {TIME, *POSITION})
     if given != sorted(needed):
         raise DeclarationError(
             f"{where}.columns",
             f"targets {given}",
-            f"exactly {', '.join(needed)} (and optionally t_s) for orientation {kind}",
+            f"exactly {', '.join(needed)} (and optionally t_s, p_x, p_y, p_z) for orientation "
+            f"{kind}",
+        )
+    position = sorted(set(columns) & set(POSITION))
+    if position and position != sorted(POSITION):
+        raise DeclarationError(
+            f"{where}.columns",
+            f"position targets {position}",
+            "all three of p_x, p_y, p_z (the body's position in the world frame, m) or none",
         )
     entry = {k: declaration[k] for k in READER_KEYS if k in declaration}
     rec = read_entry(entry, where=where)
@@ -154,6 +170,8 @@ def read_orientation_reference(
     if rotates == "world_to_body":
         quat[ok, 1:] *= -1.0  # the conjugate: the inverse rotation
     table = pd.DataFrame({TIME: rec.table[TIME].to_numpy(), **dict(zip(QUAT, quat.T))})
+    if position:
+        table[list(POSITION)] = _positions(rec, ok, entry["file"], where)
     metadata = {
         "reader": rec.metadata["reader"],
         "files": rec.metadata["files"],
@@ -167,5 +185,32 @@ def read_orientation_reference(
         "gap_rows": int(np.count_nonzero(~ok)),
         "max_norm_error": max_error,
         "unit_tolerance": tolerance,
+        "position": bool(position),
     }
     return table, metadata
+
+
+def _positions(rec: Any, ok: np.ndarray, file: str, where: str) -> np.ndarray:
+    """The declared positions (m, shape (n, 3)), NaN where the orientation is a gap or a
+    component is not finite; an error when none is finite or one is beyond
+    :data:`MAX_POSITION_M`."""
+    values = rec.table[list(POSITION)].to_numpy(dtype=float)
+    values[~ok] = np.nan
+    values[~np.isfinite(values).all(axis=1)] = np.nan
+    present = np.isfinite(values).all(axis=1)
+    if not present.any():
+        raise DeclarationError(
+            f"{where}.columns",
+            f"no finite position p_x, p_y, p_z in {file} at a row with an orientation",
+            "the body's position in the world frame (m) where the orientation is tracked",
+        )
+    size = np.linalg.norm(np.where(present[:, None], values, 0.0), axis=1)
+    worst = int(np.argmax(size))
+    if size[worst] > MAX_POSITION_M:
+        raise DeclarationError(
+            f"{where}.columns",
+            f"{_place(rec, worst, file)} has |p| = {size[worst]:.6g}",
+            f"positions in metres within {MAX_POSITION_M:g} m of the world's origin (a value "
+            "in millimetres must be converted in the file or left undeclared)",
+        )
+    return values

@@ -201,12 +201,16 @@ class KinematicState:
         Angular rate of B relative to the world, in B (rad/s).
     omega_dot_b : ndarray, shape (n, 3)
         Its time derivative (rad/s^2).
+    position_m : ndarray, shape (n, 3), or None
+        Where B is in the world (m), when the motion knows it (a position track); None: only
+        the orientation is known.
     """
 
     t_s: np.ndarray
     rotation: Rotation
     omega_b: np.ndarray
     omega_dot_b: np.ndarray
+    position_m: np.ndarray | None = None
 
 
 def _profile(piece: Piece, tau_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -56,6 +56,9 @@ class OrientationSession:
         Module-clock rests.
     realised : dict
         The effects' random draws (effect -> ``moves`` -> key -> value), as in truth.json.
+    pos_reference : ndarray, shape (m, 3), or None
+        With ``arm_m``: the body's position at the reference's samples (world, m; NaN rows in
+        the gaps).
     """
 
     t_module: np.ndarray
@@ -71,6 +74,7 @@ class OrientationSession:
     drift_ppm: float
     rests_s: list
     realised: dict = field(default_factory=dict)
+    pos_reference: np.ndarray | None = None
 
 
 def simulate_orientation_session(
@@ -100,6 +104,7 @@ def simulate_orientation_session(
     moves: str = "hand",
     mag_noise: float = 0.0,
     effects: tuple = (),
+    arm_m: np.ndarray | None = None,
 ) -> OrientationSession:
     """Simulate one session (all rates rad/s, times s).
 
@@ -123,7 +128,10 @@ def simulate_orientation_session(
     ``mag_noise`` adds white noise (normalised field) to the magnetometer. ``effects`` are
     simulator effects (:mod:`imucal.sim.effects`) acting on the true signals in B and on the
     readings (``on_true_signals``, ``on_readings``; recording name ``moves``, their own random
-    streams), e.g. ``world_magnetic``, ``shock``, ``vibration``.
+    streams), e.g. ``world_magnetic``, ``shock``, ``vibration``. ``arm_m`` (shape (3,), m, body
+    frame) puts the body at ``R(t) arm_m`` from a pivot at the world's origin (a hand's wrist, a
+    robot's flange): the effects get that position track, the session its values at the
+    reference's samples (``pos_reference``, exact: a position reference's noise is not drawn).
     """
     if moves not in ("hand", "robot"):
         raise ValueError(f"moves must be 'hand' or 'robot', got {moves!r}")
@@ -169,7 +177,12 @@ def simulate_orientation_session(
             Rotation.from_quat(q_fine[idx][:, [1, 2, 3, 0]])
             * Rotation.from_matrix(np.asarray(mounting, dtype=float)).inv()
         )
-        state = KinematicState(t_m, rotation, gyr_b, np.zeros_like(gyr_b))
+        where = (
+            None
+            if arm_m is None
+            else quat_rotate(q_fine[idx], np.tile(np.asarray(arm_m, float), (idx.size, 1)))
+        )
+        state = KinematicState(t_m, rotation, gyr_b, np.zeros_like(gyr_b), where)
         true = Signals(acc, gyr_b, mag)
         for effect in effects:
             true = effect.on_true_signals(true, state, ctx)
@@ -206,10 +219,17 @@ def simulate_orientation_session(
     frac = (pos - i)[:, None]
     q_ref = (1 - frac) * q_fine[i] + frac * q_fine[i + 1]
     q_ref /= np.linalg.norm(q_ref, axis=1, keepdims=True)
+    p_ref = (
+        None
+        if arm_m is None
+        else quat_rotate(q_ref, np.tile(np.asarray(arm_m, float), (len(q_ref), 1)))
+    )
     noise = quat_from_rotvec(rng.normal(0, orientation_noise_rad, (t_ref.size, 3)))
     q_ref = quat_multiply(q_ref, noise)
     for start in rng.uniform(t_ref[0] + 5, t_ref[-1] - 5, gaps):
         q_ref[(t_ref >= start) & (t_ref < start + gap_s)] = np.nan
+    if p_ref is not None:
+        p_ref[~np.isfinite(q_ref).all(axis=1)] = np.nan
     rests = [(s + 0.1 * rest_s, s + 0.9 * rest_s) for s in np.arange(0.0, duration_s - 3.0, 20.0)]
     if moves == "robot":
         rests = [(a + 0.1, b - 0.1) for a, b in robot_rests if b < duration_s]
@@ -227,6 +247,7 @@ def simulate_orientation_session(
         drift_ppm=drift_ppm,
         rests_s=rests,
         realised=ctx.realised,
+        pos_reference=p_ref,
     )
 
 

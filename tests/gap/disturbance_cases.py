@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
-from imucal.columns import ACC, GYR, MAG, QUAT, SEGMENT_COLUMNS, TIME
+from imucal.columns import ACC, GYR, MAG, POSITION, QUAT, SEGMENT_COLUMNS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session
 from imucal.gap.motion import motion_part
@@ -40,6 +40,17 @@ PROTOCOLS = {
     },
 }
 SETTINGS = DiagnosisSettings(replicas=12, seed=0, crn_seeds=3)
+#: The module 0.15 m from the wrist or the flange (body frame, m): with a position track the
+#: reference reports where it is (``position=True``).
+ARM_M = np.array([0.1, 0.05, 0.1])
+#: A magnet fixed in the world near the path (``world_dipole``): a small NdFeB disc (0.24 A m^2,
+#: 5.5e-4 Earth fields m^3 against 44 uT) 0.3 m from the pivot, so 0.15-0.45 m from the
+#: module: 0.16 Earth fields at the nearest, 0.006 at the farthest; no uniform gradient.
+WORLD_DIPOLE = {
+    "grad_xx": 0.0, "grad_yy": 0.0, "grad_xy": 0.0, "grad_xz": 0.0, "grad_yz": 0.0,
+    "dipole_x_m": 0.3, "dipole_y_m": 0.0, "dipole_z_m": 0.0,
+    "moment_x": 3.2e-4, "moment_y": -3.2e-4, "moment_z": 3.2e-4,
+}  # fmt: skip
 
 
 #: What the disturbances must not be taken for: the reference's samples off their time stamps
@@ -66,17 +77,25 @@ def glitched(t_reference: np.ndarray, quat: np.ndarray, offset_s: float, seed: i
     return out
 
 
-def case_inputs(protocol: str, effect: str | None, seed: int, duration_s: float = 120.0):
+def case_inputs(
+    protocol: str, effect: str | None, seed: int, duration_s: float = 120.0, position=False
+):
     """The simulated session, its calibration and its motion part
     (:func:`imucal.gap.motion.motion_part`); ``effect`` a simulator effect at its realistic
-    size, a confounder (:data:`CONFOUNDERS`) or None."""
-    effects = (make_effect(effect),) if effect and effect not in CONFOUNDERS else ()
+    size, a confounder (:data:`CONFOUNDERS`), ``world_dipole`` (:data:`WORLD_DIPOLE`) or None.
+    ``position``: the module at :data:`ARM_M` from the pivot, the reference with its position
+    (``world_dipole`` has it always)."""
+    position = position or effect == "world_dipole"
+    if effect == "world_dipole":
+        effects = (make_effect("world_magnetic", **WORLD_DIPOLE),)
+    else:
+        effects = (make_effect(effect),) if effect and effect not in CONFOUNDERS else ()
     jitter = CONFOUNDERS["reference_jitter"] if effect == "reference_jitter" else 0.0
     s = simulate_orientation_session(
         seed, matrix=MATRIX, bias=BIAS, mounting=MOUNTING, offset_s=0.3, duration_s=duration_s,
         mag_matrix=MAG_MATRIX, mag_bias=MAG_BIAS, mag_noise=MAG_NOISE, effects=effects,
         acc_noise_m_s2=ACC_NOISE,
-        reference_jitter_s=jitter, **PROTOCOLS[protocol],
+        reference_jitter_s=jitter, arm_m=ARM_M if position else None, **PROTOCOLS[protocol],
     )  # fmt: skip
     mag = s.mag
     if effect == "mag_delay":
@@ -90,6 +109,8 @@ def case_inputs(protocol: str, effect: str | None, seed: int, duration_s: float 
     if effect == "reference_glitches":
         quat = glitched(s.t_reference, quat, CONFOUNDERS[effect], seed)
     reference = pd.DataFrame({TIME: s.t_reference, **dict(zip(QUAT, quat.T))})
+    if position:
+        reference[list(POSITION)] = s.pos_reference
     rests = [
         {"recording": "moves", "label": f"s{k + 1:02d}", "kind": "static", "start_s": lo,
          "end_s": hi, "start_index": 0, "end_index": 0, "axis": "", "rate_dps": np.nan,
@@ -113,9 +134,11 @@ def case_inputs(protocol: str, effect: str | None, seed: int, duration_s: float 
     return s, calibration, motion
 
 
-def diagnose_case(protocol: str, effect: str | None, seed: int, settings=SETTINGS) -> dict:
-    """diagnosis.json of one simulated session."""
-    _, calibration, motion = case_inputs(protocol, effect, seed)
+def diagnose_case(
+    protocol: str, effect: str | None, seed: int, settings=SETTINGS, position=False
+) -> dict:
+    """diagnosis.json of one simulated session (``position`` as in :func:`case_inputs`)."""
+    _, calibration, motion = case_inputs(protocol, effect, seed, position=position)
     return diagnose_partial_session(
         None, motion=motion, dataset="sim", calibration=calibration, sensitivity={},
         gravity_m_s2=9.81, settings=settings,

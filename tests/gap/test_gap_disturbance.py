@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from disturbance_cases import MAG_NOISE, case_inputs, diagnose_case
+from disturbance_cases import MAG_NOISE, WORLD_DIPOLE, case_inputs, diagnose_case
 from scipy.spatial.transform import Rotation
 
 from imucal.gap.disturbance import (
@@ -128,4 +128,42 @@ def test_the_diagnosis_names_the_disturbance_and_nothing_on_a_clean_session(prot
     assert result["explained"] == ([effect] if effect else [])
     if effect:
         found = next(e for e in result["effects"] if e["name"] == effect)
+        assert found["heldout_shrink"] > 0.5
+
+
+def test_a_magnet_fixed_near_the_path_is_found_where_it_is():
+    # a dipole 0.3 m from the pivot, the reference reporting the module's position: the
+    # field is fitted as a function of the position, the dipole's centre recovered in the
+    # twin's world (the simulation's turned by twin_world_turn)
+    _, _, (recordings, _) = case_inputs("hand", "world_dipole", 3)
+    found = estimate_world_magnetic(recordings, None)
+    p = found.params
+    turn = twin_world_turn(recordings["moves"])
+    centre = np.array([p["dipole_x_m"], p["dipole_y_m"], p["dipole_z_m"]])
+    true = np.array([WORLD_DIPOLE[f"dipole_{a}_m"] for a in "xyz"])
+    moment = np.array([WORLD_DIPOLE[f"moment_{a}"] for a in "xyz"])
+    estimated = np.array([p[f"moment_{a}"] for a in "xyz"])
+    # the field's noise (0.0125 per sample, 1500 samples fitted) moves a centre 0.15-0.45 m
+    # from the path by millimetres; 2 cm and 10 % of the moment bound it with room
+    assert np.linalg.norm(centre - turn.apply(true)) < 0.02
+    assert np.linalg.norm(estimated - turn.apply(moment)) < 0.1 * np.linalg.norm(moment)
+    # a clean session with the same position track: the fit's part is its noise's, 13
+    # coefficients (5 gradient, 3 centre, 3 moment, plus slack for the search) from 1500
+    # samples of 0.0125; five of them bound it
+    _, _, (clean, _) = case_inputs("hand", None, 3, position=True)
+    bound = 5 * MAG_NOISE * np.sqrt(13 / 1500)
+    assert field_position_rms(clean["moves"]) < bound < 0.5 * found.detect
+
+
+@pytest.mark.parametrize(
+    ("protocol", "effect"),
+    [("hand", "world_dipole"), ("robot", "world_dipole"), ("robot", None)],
+)
+def test_a_world_fixed_magnet_on_a_position_track_is_named_and_nothing_on_a_clean_one(
+    protocol, effect
+):
+    result = diagnose_case(protocol, effect, 11, position=True)
+    assert result["explained"] == (["world_magnetic"] if effect else [])
+    if effect:
+        found = next(e for e in result["effects"] if e["name"] == "world_magnetic")
         assert found["heldout_shrink"] > 0.5

@@ -8,7 +8,7 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from imucal.columns import QUAT, TIME
+from imucal.columns import POSITION, QUAT, TIME
 from imucal.ingest import ingest_orientation_reference
 from imucal.io.dataset import read_dataset
 from imucal.io.readers import DeclarationError
@@ -74,6 +74,40 @@ def test_scalar_first_last_and_gaps_kept(files):
         keep = np.isfinite(q).all(axis=1)
         same_rotation(q[keep], WXYZ[keep])
         assert meta["held_out"] is False and meta["up"] == "+z"
+
+
+def test_a_declared_position_is_read_in_metres_with_the_gaps(files):
+    where = np.linspace([0.1, -0.2, 1.0], [0.6, 0.3, 1.4], N)
+    with h5py.File(files / "imu.h5", "a") as f:
+        f["pos"] = where
+        f["pos_mm"] = where * 1000.0
+        f["pos_nan"] = np.full((N, 3), np.nan)
+    position = {f"p_{a}": ["pos", k] for k, a in enumerate("xyz")}
+    ref = quaternion("quat_wxyz", "first", rate_hz=120.0)
+    ref["columns"] = {**ref["columns"], **position}
+    table, meta = ingest_orientation_reference("poses", write(files, ref), "test")
+    assert list(table.columns) == [TIME, *QUAT, *POSITION] and meta["position"] is True
+    p = table[list(POSITION)].to_numpy()
+    assert np.isnan(p[10:13]).all()  # the orientation's gaps are the position's
+    keep = np.isfinite(p).all(axis=1)
+    np.testing.assert_array_equal(p[keep], where[keep])
+    # without it, no position columns
+    table, meta = ingest_orientation_reference("poses", write(files, quaternion(
+        "quat_wxyz", "first", rate_hz=120.0)), "test")  # fmt: skip
+    assert list(table.columns) == [TIME, *QUAT] and meta["position"] is False
+    bad = dict(ref, columns={**ref["columns"], **{f"p_{a}": ["pos_mm", k] for k, a in
+                                                  enumerate("xyz")}})  # fmt: skip
+    with pytest.raises(DeclarationError, match=r"reference.columns: .*imu.h5, sample 50 "
+                       r"\(counted from 1\) has \|p\| = 1552.42; expected positions in metres"):  # fmt: skip
+        ingest_orientation_reference("poses", write(files, bad), "test")
+    partial = dict(ref, columns={k: v for k, v in ref["columns"].items() if k != "p_z"})
+    with pytest.raises(DeclarationError, match=r"position targets \['p_x', 'p_y'\]; expected "
+                       r"all three of p_x, p_y, p_z"):  # fmt: skip
+        ingest_orientation_reference("poses", write(files, partial), "test")
+    empty = dict(ref, columns={**ref["columns"], **{f"p_{a}": ["pos_nan", k] for k, a in
+                                                    enumerate("xyz")}})  # fmt: skip
+    with pytest.raises(DeclarationError, match=r"no finite position p_x, p_y, p_z"):
+        ingest_orientation_reference("poses", write(files, empty), "test")
 
 
 def test_matrix_own_time_base_and_world_to_body(files):

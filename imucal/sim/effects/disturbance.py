@@ -22,6 +22,15 @@ def gradient_matrix(xx: float, yy: float, xy: float, xz: float, yz: float) -> np
     return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, -(xx + yy)]])
 
 
+def dipole_field(position: np.ndarray, centre: np.ndarray, moment: np.ndarray) -> np.ndarray:
+    """The field of a dipole at ``centre`` (m) of ``moment`` (field times m^3) at
+    ``position`` (m, shape (n, 3)): ``(3 u (u . k) - k) / d^3``, shape (n, 3)."""
+    d = np.asarray(position, dtype=float) - centre
+    r = np.linalg.norm(d, axis=1, keepdims=True)
+    u = d / r
+    return (3.0 * u * (u @ moment)[:, None] - moment) / r**3
+
+
 def random_unit(rng: np.random.Generator, n: int) -> np.ndarray:
     """``n`` directions uniform on the sphere, shape (n, 3)."""
     v = rng.normal(size=(n, 3))
@@ -57,11 +66,23 @@ class WorldMagnetic(Effect):
         about 0.24 A m^2) 0.3 m from the path gives 1.8 uT and 18 uT/m (dipole, ``3 B / d``);
         steel furniture or a robot's base a similar few uT over tens of cm **[computed]**.
 
+    dipole_x_m, dipole_y_m, dipole_z_m : float
+        Where a magnetic dipole sits in the world, m (read only with a position track).
+    moment_x, moment_y, moment_z : float
+        Its moment in Earth fields times m^3 (``mu_0 m / (4 pi |B_earth|)``): a field
+        ``(3 u (u . k) - k) / d^3`` at distance ``d`` along ``u``. Default 0 (no dipole);
+        a small NdFeB disc of 0.24 A m^2 is 5.5e-4 against 44 uT.
+
     Notes
     -----
     Magnitude ``|G| |r|``: the size of the position-dependent field over the arm (Earth
     fields; realistic 0.08, about 4 uT). Only the product ``G r`` is observable from the
     orientation: the split between ``G`` and ``r`` is a convention.
+
+    Where the motion knows the sensor's position ``p`` (world, m: a position track,
+    :attr:`imucal.sim.motion.KinematicState.position_m`) the field is a function of it instead:
+    ``G (p - p_mean) + D(p) - D_mean`` with ``D`` the dipole's field; the means over the
+    recording are left out as the pivot's offset is (they change the apparent Earth field).
     """
 
     name = "world_magnetic"
@@ -74,6 +95,12 @@ class WorldMagnetic(Effect):
     grad_xy: float = 0.15
     grad_xz: float = -0.1
     grad_yz: float = 0.2
+    dipole_x_m: float = 0.0
+    dipole_y_m: float = 0.0
+    dipole_z_m: float = 0.0
+    moment_x: float = 0.0
+    moment_y: float = 0.0
+    moment_z: float = 0.0
 
     def gradient(self) -> np.ndarray:
         return gradient_matrix(self.grad_xx, self.grad_yy, self.grad_xy, self.grad_xz, self.grad_yz)
@@ -81,15 +108,30 @@ class WorldMagnetic(Effect):
     def arm(self) -> np.ndarray:
         return np.array([self.arm_x_m, self.arm_y_m, self.arm_z_m])
 
-    def field_world(self, rotation) -> np.ndarray:
+    def field_world(self, rotation, position: np.ndarray | None = None) -> np.ndarray:
         """The disturbance at the sensor, world axes, shape (n, 3), for ``n`` orientations
-        (a scipy ``Rotation``, B -> world)."""
-        return rotation.apply(self.arm()) @ self.gradient().T
+        (a scipy ``Rotation``, B -> world), or at ``n`` positions (world, m, shape (n, 3))
+        when they are given."""
+        if position is None:
+            return rotation.apply(self.arm()) @ self.gradient().T
+        p = np.asarray(position, dtype=float)
+        field = (p - p.mean(axis=0)) @ self.gradient().T
+        if np.any(self.moment()):
+            dip = dipole_field(p, self.dipole(), self.moment())
+            field = field + dip - dip.mean(axis=0)
+        return field
+
+    def dipole(self) -> np.ndarray:
+        return np.array([self.dipole_x_m, self.dipole_y_m, self.dipole_z_m])
+
+    def moment(self) -> np.ndarray:
+        return np.array([self.moment_x, self.moment_y, self.moment_z])
 
     def on_true_signals(
         self, signals: Signals, state: KinematicState, ctx: RecordingContext
     ) -> Signals:
-        extra = state.rotation.apply(self.field_world(state.rotation), inverse=True)
+        field = self.field_world(state.rotation, state.position_m)
+        extra = state.rotation.apply(field, inverse=True)
         return signals.with_sensor("mag", signals.mag + extra)
 
     def magnitude(self) -> Magnitude:
