@@ -22,8 +22,9 @@ from collections.abc import Mapping
 import pandas as pd
 
 from imucal.gap.blocks import StaticBlocks, decimate_static_table, window_segments
-from imucal.gap.effects import library, misalignment_report
+from imucal.gap.effects import library
 from imucal.gap.locations import clip_fractions
+from imucal.gap.misalignment import misalignment_report
 from imucal.gap.null import run_replicas
 from imucal.gap.scoring import DiagnosisSettings, scored_diagnosis
 from imucal.gap.statistics import HALVES, PROTOCOL_STATISTICS, compute_statistics

@@ -12,8 +12,8 @@ The effects such a recording can show (:func:`motion_library`): ``g_sensitivity`
 output following the specific force), ``scale_nonlinearity`` (a response curved in the rate,
 which makes a scale fitted on fast motion wrong on slow motion) and ``reference_jitter`` (the
 reference's samples taken off their time stamps: an error growing with the rate), and the
-disturbances of hand-held and robot use with their own locations (:mod:`imucal.gap.disturbance`:
-``world_magnetic``, ``shock``, ``vibration``).
+disturbances of hand-held and robot use with their own locations (``world_magnetic`` in
+:mod:`imucal.gap.worldfield`, ``shock`` and ``vibration`` in :mod:`imucal.gap.disturbance`).
 """
 
 from __future__ import annotations
@@ -24,11 +24,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from imucal.gap.disturbance import (
-    estimate_shock,
-    estimate_vibration,
-    estimate_world_magnetic,
-)
+from imucal.gap.disturbance import estimate_shock, estimate_vibration
 from imucal.gap.effects import EffectModel
 from imucal.gap.motionstats import (
     WINDOWS_S,
@@ -38,6 +34,7 @@ from imucal.gap.motionstats import (
     estimate_scale_nonlinearity,
 )
 from imucal.gap.motiontwin import MotionTwin, build_motion_twin, recorded_motion
+from imucal.gap.worldfield import estimate_world_magnetic
 from imucal.segments.table import rows_of
 from imucal.sim.sensors import INT16_MAX
 

@@ -29,11 +29,7 @@ from scipy.spatial.transform import Rotation
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import ACC, GYR, MAG, POSITION, QUAT, SENSORS, TIME
-from imucal.gap.disturbance import (
-    SHOCK_ACC_SEPARATION_S,
-    acc_spikes,
-    twin_world_turn,
-)
+from imucal.gap.disturbance import SHOCK_ACC_SEPARATION_S, acc_spikes
 from imucal.gap.motionstats import (
     MIN_INTERVALS,
     WINDOWS_S,
@@ -44,6 +40,7 @@ from imucal.gap.motionstats import (
 from imucal.gap.statictwin import identity_calibration, quantum
 from imucal.gap.statistics import HALVES
 from imucal.gap.twin import Replica
+from imucal.gap.worldfield import twin_world_turn
 from imucal.noise.process import NoiseProcess, dither_std, fit_noise_process, white_process
 from imucal.orientation import (
     integrate_rates,
@@ -64,7 +61,6 @@ from imucal.validation.orientation import (
 
 #: Seed of the replica that measures the gyroscope's share of the residual (not a null seed).
 NOISE_SEED = 2**31 - 1
-
 
 # --------------------------------------------------------------------------- the recording
 

@@ -151,7 +151,7 @@ MOTION_STATISTICS = {
     "shock_rate": StatisticInfo("1/s", floor=0.005),
     "line_power": StatisticInfo("(rad/s)^2", floor=1e-5),
     "field_position_rms": StatisticInfo("1", floor=0.01),
-    # the largest departure of a dipole's field near the path (imucal.gap.disturbance
+    # the largest departure of a dipole's field near the path (imucal.gap.worldfield
     # .position_fit): a maximum over the path, so the calibration's residual RMS on BROAD
     # (1.7 %, 0.75 uT) rather than its mean; an undisturbed BROAD trial's dipole reached 0.035
     "field_dipole_peak": StatisticInfo("1", floor=0.02),

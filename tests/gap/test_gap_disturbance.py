@@ -14,15 +14,17 @@ from scipy.spatial.transform import Rotation
 from imucal.gap.disturbance import (
     estimate_shock,
     estimate_vibration,
-    estimate_world_magnetic,
-    field_position_rms,
     reference_intervals,
     shock_rate,
-    twin_world_turn,
-    world_field,
 )
 from imucal.gap.motion import motion_library
 from imucal.gap.static import NOT_OBSERVABLE
+from imucal.gap.worldfield import (
+    estimate_world_magnetic,
+    field_position_rms,
+    twin_world_turn,
+    world_field,
+)
 from imucal.sim.effects import MOTION_EFFECTS, make_effect
 from imucal.sim.effects.disturbance import gradient_matrix
 

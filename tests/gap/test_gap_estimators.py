@@ -9,7 +9,8 @@ import pytest
 
 from imucal.gap import effects as gap_effects
 from imucal.gap import locations as loc
-from imucal.gap.effects import EARTH_RATE_RAD_S, Estimate, earth_gate, misalignment_report
+from imucal.gap.effects import EARTH_RATE_RAD_S, Estimate, earth_gate
+from imucal.gap.misalignment import misalignment_report
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import ProtocolConfig, make_effect, make_truth
