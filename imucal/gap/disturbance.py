@@ -34,6 +34,7 @@ from imucal.gap.effects import Estimate
 from imucal.gap.worldfield import (
     field_position_rms,
     position_fit,
+    recording_halves,
     world_field,
     world_positions,
 )
@@ -70,10 +71,6 @@ LINE_SEARCH_S = 2.0
 LINE_BLOCK_S = 5.0
 #: Offsets (Hz) from a line at which the noise's share of its fitted power is measured.
 LINE_OFFSETS_HZ = tuple(sign * 0.6 * k for k in range(1, 7) for sign in (-1, 1))
-
-
-def _halves(session: Mapping, half) -> list:
-    return [rec.half(half) for rec in session.values()]
 
 
 def reference_intervals(rec) -> tuple:
@@ -228,7 +225,7 @@ def estimate_shock(session: Mapping, half) -> Estimate | None:
     median integral of its spike, which a half-sine of peak ``A`` and duration ``D`` makes
     ``2 A D / pi`` (``D`` the simulator's realistic 5 ms: neither the reference's intervals nor
     the samples resolve it). Detection: the rate."""
-    found = [shock_events(rec) for rec in _halves(session, half)]
+    found = [shock_events(rec) for rec in recording_halves(session, half)]
     covered = sum(c for _, _, c in found)
     if covered <= 0:
         return None
@@ -360,7 +357,7 @@ def estimate_vibration(session: Mapping, half) -> Estimate | None:
     freq = line_frequency(session)
     if freq is None:
         return None
-    power = line_power(_halves(session, half), freq)
+    power = line_power(recording_halves(session, half), freq)
     realistic = Vibration()
     ratio = realistic.acc_amp_m_s2 / realistic.gyr_amp_rad_s
     size = float(np.sqrt(max(power, 0.0)))

@@ -50,7 +50,9 @@ DIPOLE_SEARCH_POINTS = 30
 HELDOUT_BLOCKS = 8
 
 
-def _halves(session: Mapping, half) -> list:
+def recording_halves(session: Mapping, half) -> list:
+    """Each recording of a session cut to its half ``A`` or ``B`` (``None``: the whole), as a
+    list."""
     return [rec.half(half) for rec in session.values()]
 
 
@@ -339,7 +341,7 @@ def estimate_world_magnetic(session: Mapping, half) -> Estimate | None:
     least squares. ``|r|`` is set to the simulator's realistic arm (only ``G r`` is
     observable). Detection: the RMS of ``G R r`` about its mean (normalised field).
     """
-    recordings = [rec for rec in _halves(session, half) if world_field(rec) is not None]
+    recordings = [rec for rec in recording_halves(session, half) if world_field(rec) is not None]
     if not recordings:
         return None
     parts = [world_field(rec, tilt=True) for rec in recordings]
