@@ -27,6 +27,15 @@ location passes Holm; in the full protocol's diagnosis (``own_evidence``) such a
 only it, is evaluated without a location in the gap when its own detection statistic is beyond
 its null (:func:`evident_on_its_own`: one-sided, Bonferroni over the library's estimates), and
 accepted by the same held-out rule.
+
+Where the twin cannot replay part of what its statistics measure (``unreplayed``: in a
+recording with an orientation reference, the reference's error beyond white noise, the
+field's uniformity; :data:`imucal.gap.scoring.TWIN_SHORTFALLS`), the gap at those locations is
+the twin's shortfall and can neither confirm nor refute a physical effect that does not render
+them. An effect with a location of its own outside them that is in the gap (a magnet's
+``field_dipole_peak``, a g-sensitivity's ``ref_g_slope``) is then judged on the gap outside
+the shortfall's locations plus its own signature (:func:`judged_locations`); an effect without
+such evidence is judged on the whole gap, as everywhere else.
 """
 
 from __future__ import annotations
@@ -63,6 +72,7 @@ class Candidate:
     note: str = ""
     blocked: str = ""
     evident: bool = False
+    judged: Callable[[tuple], bool] | None = None
 
     @property
     def shrink(self):
@@ -212,6 +222,7 @@ def attribute(
     detect_z: float,
     cannot_show: str = "the session cannot show this effect",
     own_evidence: bool = False,
+    unreplayed: Callable[[tuple], bool] | None = None,
 ) -> tuple[list[Candidate], list[str], dict, dict]:
     """Forward selection of effects (see the module docstring).
 
@@ -236,6 +247,9 @@ def attribute(
         Whether an effect whose own detection statistic is beyond its null
         (:func:`evident_on_its_own`) is evaluated without a location in the gap (the full
         protocol's diagnosis, where the blind and stress sets check it).
+    unreplayed : callable, optional
+        ``key -> bool``: the locations whose statistics the twin cannot replay (module
+        docstring); None judges every effect on the whole gap.
 
     Returns
     -------
@@ -315,9 +329,38 @@ def attribute(
     explained, shift, shift_b, rounds = select_forward(
         cands, stats, null_full, null_b, lambda c: shifts_of_group((c,)),
         alpha=alpha, min_heldout_shrink=min_heldout_shrink, detect_z=detect_z,
-        joint_shifts=joint_shifts, z_given=z_given,
+        joint_shifts=joint_shifts, z_given=z_given, unreplayed=unreplayed,
+        own={name: model.matches for name, model in models.items()},
     )  # fmt: skip
     return cands, explained, shift, shift_b, rounds
+
+
+def judged_locations(
+    own: Callable[[tuple], bool],
+    in_gap: Sequence[tuple],
+    unreplayed: Callable[[tuple], bool] | None,
+) -> Callable[[tuple], bool] | None:
+    """The locations an effect's shrink is measured on (module docstring), or None for all.
+
+    Parameters
+    ----------
+    own : callable
+        ``key -> bool``: the effect's signature (:meth:`EffectModel.matches`).
+    in_gap : list of tuple
+        The locations in the gap now (Holm).
+    unreplayed : callable or None
+        ``key -> bool``: the locations the twin cannot replay.
+
+    Returns
+    -------
+    callable or None
+        ``key -> bool``, True outside the unreplayed locations and on the effect's own; None
+        (the whole gap) without ``unreplayed`` or when none of the effect's own locations
+        outside them is in the gap.
+    """
+    if unreplayed is None or not any(own(k) and not unreplayed(k) for k in in_gap):
+        return None
+    return lambda k: own(k) or not unreplayed(k)
 
 
 def select_forward(
@@ -332,6 +375,8 @@ def select_forward(
     detect_z: float,
     joint_shifts: Callable[[Sequence[Candidate]], tuple[dict, dict]] | None = None,
     z_given: Callable[[Candidate, Sequence[str]], float] | None = None,
+    unreplayed: Callable[[tuple], bool] | None = None,
+    own: Mapping[str, Callable[[tuple], bool]] | None = None,
 ) -> tuple[list[str], dict, dict, list[dict]]:
     """The forward selection of the module docstring, on candidates already scored.
 
@@ -360,6 +405,10 @@ def select_forward(
         NaN when it cannot be scored). Once effects are accepted, a candidate whose estimate
         they account for (``|score| < detect_z``) is not evaluated: it would only take a
         residual of theirs.
+    unreplayed : callable, optional
+        ``key -> bool``, the locations the twin cannot replay; with ``own`` (effect name ->
+        its signature's ``key -> bool``), an effect with evidence of its own outside them is
+        judged on the gap outside them (:func:`judged_locations`, ``Candidate.judged``).
 
     Returns
     -------
@@ -380,7 +429,9 @@ def select_forward(
     rounds: list[dict] = []
     while True:
         t_now = null_full.t(stats[None], shift)
-        significant = bool(holm(null_full.p_values(t_now), alpha).any())
+        reject_now = holm(null_full.p_values(t_now), alpha)
+        significant = bool(reject_now.any())
+        in_gap = [k for k, r in zip(null_full.keys, reject_now, strict=True) if r]
         open_ = [c for c in cands if not c.accepted and c.params is not None]
         if not significant:  # only effects whose own statistic is beyond its null
             open_ = [c for c in open_ if c.evident]
@@ -389,7 +440,12 @@ def select_forward(
         gap_now, gap_b_now = null_full.gap(stats[None], shift), null_b.gap(stats["B"], shift_b)
         best = None
         for c in open_:
+            c.judged = judged_locations(own[c.name], in_gap, unreplayed) if own else None
+            nf, nb = _on(null_full, c.judged), _on(null_b, c.judged)
             c.gap_before, c.heldout_before = gap_now, gap_b_now
+            if c.judged is not None:
+                c.gap_before = nf.gap(stats[None], shift)
+                c.heldout_before = nb.gap(stats["B"], shift_b)
             if c.blocked:
                 c.gap_after = c.heldout_after = None
                 c.evaluated = False
@@ -422,7 +478,7 @@ def select_forward(
             c.evaluated = True
             c.note = (
                 ""
-                if gap_b_now > 0
+                if c.heldout_before > 0
                 else (
                     "half B shows no gap beyond noise: the held-out check cannot confirm an effect"
                 )
@@ -431,8 +487,8 @@ def select_forward(
                 with_c, with_c_b = combined([by_name[n] for n in explained] + [c])
             except ValueError:  # the joint replicas cannot be calibrated: the shifts add
                 with_c, with_c_b = add_shifts(shift, c.shift), add_shifts(shift_b, c.shift_b)
-            c.gap_after = null_full.gap(stats[None], with_c)
-            c.heldout_after = null_b.gap(stats["B"], with_c_b)
+            c.gap_after = nf.gap(stats[None], with_c)
+            c.heldout_after = nb.gap(stats["B"], with_c_b)
             c.heldout_deviance = null_b.deviance(stats["B"], with_c_b)
             qualifies = c.heldout_shrink is not None and c.heldout_shrink >= min_heldout_shrink
             if qualifies and (best is None or c.heldout_deviance < best.heldout_deviance):
@@ -452,6 +508,11 @@ def select_forward(
     rounds += pruned
     shift, shift_b = _safe(combined, [by_name[n] for n in explained])
     return explained, shift, shift_b, rounds
+
+
+def _on(null: NullModel, judged: Callable[[tuple], bool] | None) -> NullModel:
+    """``null`` on the locations ``judged`` keeps (all of them when it is None)."""
+    return null if judged is None else null.restricted(judged)
 
 
 def _combiner(joint_shifts) -> Callable[[Sequence[Candidate]], tuple[dict, dict]]:
@@ -516,14 +577,16 @@ def prune_backward(
 
     combined = _combiner(joint_shifts)
 
-    def gap_b(names) -> float:
-        return null_b.gap(stats["B"], _safe(combined, [by_name[n] for n in names])[1])
+    def gap_b(names, judged) -> float:
+        shift_b = _safe(combined, [by_name[n] for n in names])[1]
+        return _on(null_b, judged).gap(stats["B"], shift_b)
 
     while len(explained) > 1:
-        with_all = gap_b(explained)
         marginal = {}
         for name in explained:
-            without = gap_b([n for n in explained if n != name])
+            judged = by_name[name].judged
+            with_all = gap_b(explained, judged)
+            without = gap_b([n for n in explained if n != name], judged)
             marginal[name] = 1 - with_all / without if without > 0 else 0.0
         worst = min(explained, key=lambda n: marginal[n])
         if marginal[worst] >= min_heldout_shrink:

@@ -328,5 +328,5 @@ def diagnose_partial_session(
         scope="static+reference" if streams else "reference",
         not_observable={k: v for k, v in reasons.items() if k not in shown},
         cannot_show="the session cannot show this effect (no such recording, stream or channel)",
-        dataset=dataset, settings=settings, started=t0,
+        dataset=dataset, settings=settings, started=t0, beside_shortfalls=True,
     )  # fmt: skip

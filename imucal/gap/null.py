@@ -89,6 +89,18 @@ class NullModel:
         share = np.divide(std**2, std**2 + floor**2, out=np.zeros_like(scale), where=ok)
         return cls(list(keys), mean, np.where(ok, scale, np.nan), values, share)
 
+    def restricted(self, keep) -> NullModel:
+        """The null of the locations ``keep(key)`` is True for (same replicas)."""
+        idx = [i for i, k in enumerate(self.keys) if keep(k)]
+        share = None if self.spread_share is None else self.spread_share[idx]
+        return NullModel(
+            [self.keys[i] for i in idx],
+            self.mean[idx],
+            self.scale[idx],
+            self.values[:, idx],
+            share,
+        )
+
     @property
     def constant(self) -> list:
         """Locations the null cannot score: replicas all equal, no resolution floor."""

@@ -135,6 +135,7 @@ def _effect_record(c: Candidate, model: EffectModel, keys, reject) -> dict:
         "shrink": c.shrink,
         "heldout_shrink": c.heldout_shrink,
         "heldout_deviance": c.heldout_deviance,
+        "judged_on": JUDGED_ON[c.judged is not None],
         "accepted": c.accepted,
         "detect": _finite_or_none(c.detect),
         "detect_z": _finite_or_none(c.detect_z),
@@ -153,6 +154,18 @@ def _effect_order(c: Candidate) -> tuple:
     """Accepted first, then by held-out shrink (an effect without one last)."""
     shrink = c.heldout_shrink if c.heldout_shrink is not None else -np.inf
     return (not c.accepted, -shrink)
+
+
+#: What an effect's shrinks are measured on (:func:`imucal.gap.attribution.judged_locations`).
+JUDGED_ON = {
+    False: "the whole gap",
+    True: "the gap outside what the twin does not replay, with the effect's own locations",
+}
+
+
+def unreplayed(key: tuple) -> bool:
+    """Whether a location's statistic is one the twin does not replay (:data:`TWIN_SHORTFALLS`)."""
+    return _shortfall(dict(zip(LOCATION_FIELDS, key, strict=True))) is not None
 
 
 def _shortfall(location: Mapping) -> str | None:
@@ -207,6 +220,7 @@ def verdict_of(result: Mapping) -> dict:
             "name": e["name"],
             "kind": "acquisition" if e["name"] in ACQUISITION_EFFECTS else "physical",
             "heldout_shrink": e["heldout_shrink"],
+            "judged_on": e.get("judged_on", JUDGED_ON[False]),
             "params": e["params"],
         }
         for e in physical
@@ -242,7 +256,13 @@ def verdict_of(result: Mapping) -> dict:
     elif named:
         outcome = "effect"
         sentence = "Effect " + "; then ".join(
-            f"{e['name']} ({e['kind']}), shrink {e['heldout_shrink']:.1%} held out" for e in named
+            f"{e['name']} ({e['kind']}), shrink {e['heldout_shrink']:.1%} held out"
+            + (
+                ""
+                if e["judged_on"] == JUDGED_ON[False]
+                else " of the gap outside what the twin lacks"
+            )
+            for e in named
         )
         sentence += (
             f"; the twin still lacks {lacks[0]['what']} (at {lacks[0]['top']})."
@@ -279,6 +299,7 @@ def scored_diagnosis(
     settings: DiagnosisSettings,
     cannot_show: str = "the session cannot show this effect",
     own_evidence: bool = False,
+    beside_shortfalls: bool = False,
 ) -> dict:
     """Score a session against its twin's replicas and attribute its gap: the part of
     diagnosis.json that the full and the static diagnosis share.
@@ -301,6 +322,10 @@ def scored_diagnosis(
         Note of an effect whose estimator finds nothing to estimate from.
     own_evidence : bool
         As :func:`imucal.gap.attribution.attribute`.
+    beside_shortfalls : bool
+        Whether an effect with evidence of its own outside the statistics the twin does not
+        replay is judged on the gap outside them (:func:`unreplayed`; the reference scope,
+        whose twin's reference has white noise only).
 
     Returns
     -------
@@ -321,6 +346,7 @@ def scored_diagnosis(
         twin, session, stats, replicas, null_full, null_b, models,
         alpha=alpha, min_heldout_shrink=settings.min_heldout_shrink, n_seeds=settings.crn_seeds,
         detect_z=settings.detect_z, cannot_show=cannot_show, own_evidence=own_evidence,
+        unreplayed=unreplayed if beside_shortfalls else None,
     )  # fmt: skip
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
@@ -372,6 +398,7 @@ def scope_diagnosis(
     dataset: str,
     settings: DiagnosisSettings,
     started: float,
+    beside_shortfalls: bool = False,
     **described,
 ) -> dict:
     """diagnosis.json of one scope: the twin's replicas run, the session scored against them
@@ -393,6 +420,8 @@ def scope_diagnosis(
     settings : DiagnosisSettings
     started : float
         ``time.perf_counter()`` when the diagnosis began (``timing_s`` counts from it).
+    beside_shortfalls : bool
+        As in :func:`scored_diagnosis`.
     **described
         Further entries of the record, placed after ``scope`` (e.g. ``static_source``).
 
@@ -407,7 +436,7 @@ def scope_diagnosis(
     models = {k: m for k, m in library.items() if k not in settings.exclude}
     result = scored_diagnosis(
         twin, session, stats, replicas, models, dataset=dataset, settings=settings,
-        cannot_show=cannot_show,
+        cannot_show=cannot_show, beside_shortfalls=beside_shortfalls,
     )  # fmt: skip
     return {
         **result,
