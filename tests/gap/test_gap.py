@@ -207,6 +207,54 @@ def test_a_candidate_is_scored_against_the_null_of_the_accepted_effects():
     assert explained == ["bias_instability", "lever_arm"]
 
 
+def test_an_effect_with_its_own_evidence_is_judged_beside_what_the_twin_does_not_replay():
+    """A recording with an optical reference: the reference's error the twin does not replay
+    puts rate3 at z 100, while a magnet fixed in the world puts field_dipole_peak at z 15 and
+    the field direction at z 20. Rendering the magnet closes its two locations, 0.06 of the
+    whole gap: judged there it is refused. Judged beside what the twin does not replay (the
+    reference's error, the field's uniformity) and with its own locations, it closes all but
+    the g-slope's z 3 and is accepted. On a control, with only the field direction in the gap
+    (the reference's error carries the field into the world too) and the dipole within its
+    null, it has no evidence of its own outside the shortfalls: judged on the whole gap, and
+    refused."""
+    from imucal.gap.attribution import Candidate, judged_locations, select_forward
+    from imucal.gap.effects import EffectModel
+    from imucal.gap.scoring import unreplayed
+    from imucal.gap.statistics import CATALOGUE
+
+    keys = [("reference", "gyr", "x", "tumble", "rate3"),
+            ("reference", "mag", "-", "tumble", "field_dipole_peak"),
+            ("reference", "mag", "-", "tumble", "dir_resid_rad"),
+            ("reference", "gyr", "x", "tumble", "ref_g_slope")]  # fmt: skip
+    magnet = EffectModel("world_magnetic", None, (("reference", "mag", "field_dipole_peak"),
+                                                  ("reference", "mag", "dir_resid_rad")), "a magnet")  # fmt: skip
+    assert [unreplayed(k) for k in keys] == [True, False, True, False]
+    rng = np.random.default_rng(5)
+    null = NullModel.from_values(keys, rng.normal(0.0, 1.0, (20, len(keys))))
+
+    def run(z, beside):
+        scored = null.mean + np.asarray(z) * null.scale  # transformed units
+        raw = [np.exp(v) if CATALOGUE[k[4]].log else v for k, v in zip(keys, scored, strict=True)]
+        stats = {h: dict(zip(keys, raw, strict=True)) for h in (None, "A", "B")}
+        closes = {k: (z[i] * null.scale[i], 0.0) for i, k in enumerate(keys) if magnet.matches(k)}
+        c = Candidate("world_magnetic", {"p": 1}, {"p": 1}, 1.0, 40.0)
+        explained, *_ = select_forward(
+            [c], stats, null, null, lambda c: (closes, closes), alpha=0.05,
+            min_heldout_shrink=0.3, detect_z=4.0, unreplayed=unreplayed if beside else None,
+            own={"world_magnetic": magnet.matches},
+        )  # fmt: skip
+        return explained, c
+
+    explained, c = run([100.0, 15.0, 20.0, 3.0], beside=False)
+    assert explained == [] and c.heldout_shrink < 0.1
+    explained, c = run([100.0, 15.0, 20.0, 3.0], beside=True)
+    assert explained == ["world_magnetic"] and c.judged is not None and c.heldout_shrink > 0.9
+    explained, c = run([100.0, 1.0, 20.0, 3.0], beside=True)
+    assert explained == [] and c.judged is None and c.heldout_shrink < 0.1
+    assert judged_locations(magnet.matches, keys[:1], unreplayed) is None
+    assert judged_locations(magnet.matches, keys[1:2], None) is None
+
+
 def test_a_latency_is_one_delay_in_every_phase():
     """The lag of the magnetometer in each phase, null spread 1.5 ms per phase (the stress
     sessions' replicas): a 20 ms delay read with that noise passes the latency gate in 200
