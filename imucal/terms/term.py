@@ -173,3 +173,95 @@ class ModelTerm(ABC):
         """What an export file of format ``fmt`` says of the term it leaves out (listed in its
         header), None when the format carries it."""
         return None if fmt in self.exported_by else self.name
+
+
+def _requirement(shape: tuple[int, ...]) -> str:
+    """What a coefficient of ``shape`` must be, for error messages."""
+    if shape == ():
+        return "finite"
+    if len(shape) == 1:
+        return f"{shape[0]} finite values"
+    return f"a finite {'x'.join(map(str, shape))} matrix"
+
+
+class ValueTerm(ModelTerm):
+    """A term that is one coefficient (a scalar, vector or matrix) with its standard deviation,
+    a unit and a method: its check, dict form and report row follow from class attributes.
+
+    The subclass is a frozen dataclass with the fields named by ``value_field`` and
+    ``std_field`` (in that order) and ``method: str = ""``; it writes its correction, variance
+    and estimator.
+
+    Class attributes
+    ----------------
+    value_field, std_field : str
+        Names of the coefficient's field and of its standard deviations' (their keys in
+        ``calibration.json`` too).
+    value_shape : tuple of int
+        Shape of both: ``()`` for a float, ``(3,)``, ``(3, 3)`` for arrays.
+    unit : str
+        The ``unit`` entry of the dict form and the unit of the report row.
+    report_label : str
+        Name of the report row.
+    """
+
+    value_field: ClassVar[str]
+    std_field: ClassVar[str]
+    value_shape: ClassVar[tuple[int, ...]]
+    unit: ClassVar[str]
+    report_label: ClassVar[str]
+
+    def __post_init__(self) -> None:
+        """Coefficient and standard deviations as finite floats of ``value_shape``.
+
+        Raises
+        ------
+        ValueError
+            Naming the term, the field and the shape expected.
+        """
+        for field in (self.value_field, self.std_field):
+            value = getattr(self, field)
+            if self.value_shape == ():
+                v = float(value)
+                ok = bool(np.isfinite(v))
+            else:
+                v = np.asarray(value, dtype=float)
+                ok = v.shape == self.value_shape and bool(np.all(np.isfinite(v)))
+            if not ok:
+                raise ValueError(
+                    f"{self.name}.{field} must be {_requirement(self.value_shape)}, got {v!r}"
+                )
+            object.__setattr__(self, field, v)
+
+    def to_dict(self) -> dict:
+        value, std = (getattr(self, f) for f in (self.value_field, self.std_field))
+        return {
+            self.value_field: value.tolist() if isinstance(value, np.ndarray) else value,
+            self.std_field: std.tolist() if isinstance(std, np.ndarray) else std,
+            "unit": self.unit,
+            "method": self.method,
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> ValueTerm:
+        """The term from its entry (a missing standard deviation is zero, a missing method
+        empty).
+
+        Raises
+        ------
+        ValueError
+            If the entry lacks the coefficient.
+        """
+        if cls.value_field not in d:
+            raise ValueError(f"{cls.name} term lacks the key {cls.value_field!r}")
+        return cls(
+            **{
+                cls.value_field: d[cls.value_field],
+                cls.std_field: d.get(cls.std_field, np.zeros(cls.value_shape)),
+                "method": d.get("method", ""),
+            }
+        )
+
+    def report_rows(self) -> list[ReportRow]:
+        d = self.to_dict()
+        return [ReportRow(self.report_label, d[self.value_field], d[self.std_field], self.unit)]
