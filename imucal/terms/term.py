@@ -48,6 +48,10 @@ class Samples:
     source: str = "the recording"
 
 
+#: The fields of :class:`Samples` a term may need beyond the readings (:attr:`ModelTerm.needs`).
+SAMPLE_INPUTS = ("temp_c", "t_s")
+
+
 @dataclass(frozen=True)
 class ReportRow:
     """One coefficient (or block of them) of a term as the report shows it.
@@ -83,12 +87,21 @@ class ModelTerm(ABC):
         Whether the closed loop estimates the later terms on the session corrected by this one
         and calibrated again (a term on the readings, such as a temperature drift, changes the
         bias and matrices the later terms are estimated against).
+    needs : frozenset of str
+        What of a recording besides its readings the correction reads: fields of
+        :class:`Samples` among :data:`SAMPLE_INPUTS` (``temp_c``: the recording's temperature
+        column; ``t_s``: its sample times). Apply hands them over only when a term needs them.
+    heldout_residual : str or None
+        What the estimator's held-out residual is (for terms.json and the report; units in
+        parentheses), None when the estimator holds nothing out (:meth:`heldout_rms`).
     """
 
     name: ClassVar[str]
     effect: ClassVar[str]
     exported_by: ClassVar[frozenset] = frozenset()
     refits_session: ClassVar[bool] = False
+    needs: ClassVar[frozenset] = frozenset()
+    heldout_residual: ClassVar[str | None] = None
 
     @classmethod
     @abstractmethod
@@ -108,6 +121,23 @@ class ModelTerm(ABC):
             JSON-ready record of the estimate (held-out RMS, what was used, or the refusal).
         """
 
+    @classmethod
+    def heldout_rms(cls, evidence: Mapping) -> tuple[float, float, int] | None:
+        """The held-out RMS without and with the term and the number of held-out values, from
+        the evidence of :meth:`estimate`; None when the term or this estimate has none.
+
+        By default the evidence's ``heldout_rms`` (``without``, ``with`` and ``values``, or the
+        evidence's ``segments`` for the number); a term whose estimator records it otherwise
+        overrides this.
+        """
+        if cls.heldout_residual is None:
+            return None
+        rms = evidence.get("heldout_rms")
+        if not rms:
+            return None
+        n = rms.get("values", evidence.get("segments", 0))
+        return rms["without"], rms["with"], int(n)
+
     def check(self, samples: Samples) -> dict:
         """Refuse samples the term cannot calibrate; say what it flags (JSON-ready, empty for
         nothing). Called once per recording before :meth:`correct_reading`.
@@ -118,6 +148,25 @@ class ModelTerm(ABC):
             Naming ``samples.source`` and what the term needs.
         """
         return {}
+
+    def flag_report(self, flags: Mapping, source: str) -> tuple[dict, list[str]]:
+        """What apply writes into the output's metadata for the flags :meth:`check` returned,
+        and the warnings it logs for them (none by default).
+
+        Parameters
+        ----------
+        flags : dict
+            The term's flags, non-empty.
+        source : str
+            What the samples come from (a file name), for the warnings.
+
+        Returns
+        -------
+        metadata : dict
+            Keys to add to the calibrated recording's metadata.
+        warnings : list of str
+        """
+        return {}, []
 
     def correct_reading(self, sensor: str, bracket: np.ndarray, samples: Samples) -> np.ndarray:
         """The bracket of eq. 11 of ``sensor`` (n, 3; ``reading - bias`` and the corrections

@@ -31,6 +31,7 @@ class GSensitivity(ValueTerm):
     name = "g_sensitivity"
     effect = "g_sensitivity"
     exported_by = frozenset({"kalibr", "openvins"})
+    heldout_residual = "resting calibrated gyro means, each predicted from the others (rad/s)"
     value_field, std_field, value_shape = "matrix", "std", (3, 3)
     unit = "rad/s per m/s^2 (frame B; row: gyro axis, column: specific-force axis)"
     report_label = "g-sensitivity G"

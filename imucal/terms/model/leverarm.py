@@ -98,6 +98,11 @@ class LeverArm(ValueTerm):
 
     name = "lever_arm"
     effect = "lever_arm"
+    needs = frozenset({"t_s"})  # the tangential term differentiates the rate in time
+    heldout_residual = (
+        "rate-table run means of the acc at half the rate levels, predicted from the other "
+        "half (m/s^2)"
+    )
     value_field, std_field, value_shape = "r_m", "std_m", (3,)
     unit = "m (frame B; accelerometer relative to the rate table's rotation centre)"
     report_label = "lever arm r"
