@@ -3,10 +3,14 @@
 A term of the calibration model (``docs/model-terms.md``) is one class deriving from
 :class:`ModelTerm`, registered once (:mod:`imucal.terms.registry`). The class states its name
 (its key in ``calibration.json`` and in the config's ``terms``), the effect of the catalogue it
-answers (:mod:`imucal.gap.catalogue`), and the export formats that carry it; an instance is a
-fitted term: its correction, the variance its coefficients give the calibrated values, its dict
-form, its report rows and what an export says of it. :class:`imucal.calibration.ImuCalibration`,
-the report and the exports loop over the registered terms; none of them names one.
+answers (:mod:`imucal.gap.catalogue`), the export formats that carry it, what of a recording its
+correction needs and what its estimator holds out; an instance is a fitted term: its
+correction, the variance its coefficients give the calibrated values, its dict form, its report
+rows, what apply reports of its flags and what an export says of it.
+:class:`imucal.calibration.ImuCalibration`, apply, the held-out check, the report and the
+exports loop over the registered terms; none of them names one. A term that is one coefficient
+with its standard deviation, a unit and a method derives from :class:`ValueTerm`, which writes
+its check, dict form and report row from its declared field names, shape, unit and label.
 
 The model's chain (eq. 11 with the terms, :mod:`imucal.terms.modelterms`): the bracket of each sensor
 (``reading - bias``, corrected by the terms that act on the reading before the matrix), the
