@@ -226,8 +226,10 @@ class ImuCalibration:
         calibrated : dict of str to ndarray, shape (n, 3)
             Frame B, SI.
         flags : dict
-            Per sensor with a temperature term, how many samples are outside its calibrated span
-            (within the margin): ``{'temperature': {sensor: {...}}}``; empty without terms.
+            Term name -> what its check flags (:meth:`~imucal.terms.term.ModelTerm.check`), for
+            the terms that flag something; a temperature term: per sensor, how many samples are
+            outside its calibrated span (within the margin), ``{'temperature': {sensor:
+            {...}}}``. Empty without terms.
 
         Raises
         ------

@@ -8,7 +8,14 @@ from .loop import (
 )
 from .magdelay import fit_mag_delay
 from .poseholdout import hold_out_poses, hold_out_recording
-from .registry import register, registered_terms, term_class, term_names, unregister
+from .registry import (
+    declaration_problems,
+    register,
+    registered_terms,
+    term_class,
+    term_names,
+    unregister,
+)
 from .selection import EFFECT_OF_TERM, TermSettings, decide, final_calibration
 from .temperature import fit_temperature, select_model
-from .term import ModelTerm, ReportRow, Samples
+from .term import ModelTerm, ReportRow, Samples, ValueTerm

@@ -30,17 +30,7 @@ from imucal.gap import session as st
 from imucal.pipeline.full import SessionFit
 from imucal.pipeline.stages import apply_calibration
 from imucal.segments.table import row_bounds
-from imucal.terms.selection import EFFECT_OF_TERM
-
-#: What the held-out residual of each term is (for terms.json and the report).
-RESIDUAL_OF_TERM = {
-    "temperature": "|a| - g of resting means, rate-table runs left out, each predicted from the "
-    "others (m/s^2)",
-    "g_sensitivity": "resting calibrated gyro means, each predicted from the others (rad/s)",
-    "lever_arm": "rate-table run means of the acc at half the rate levels, predicted from the "
-    "other half (m/s^2)",
-}
-
+from imucal.terms.registry import term_class
 
 #: The held-out residual of the gyroscope's terms that no estimator fits on.
 POSE_TO_POSE = (
@@ -101,28 +91,15 @@ def _achieved(rms_without: float, rms_with: float, n: int) -> tuple[float, float
     return 1.0 - rho, rho * float(np.sqrt(4.0 / max(n, 1)))
 
 
-def _rms_pair(term: str, evidence: Mapping) -> tuple[float, float, int] | None:
-    """Held-out RMS without and with the term, and the number of held-out values."""
-    if term == "temperature":
-        acc = evidence.get("acc", {})
-        if "heldout_rms" not in acc or "refused" in acc:
-            return None
-        rms = acc["heldout_rms"]
-        return rms[acc["without"]], rms[acc["with"]], int(acc["segments"])
-    rms = evidence.get("heldout_rms")
-    if not rms:
-        return None
-    n = rms.get("values", evidence.get("segments", 0))
-    return rms["without"], rms["with"], int(n)
-
-
 def heldout_comparison(term: str, evidence: Mapping, diagnosis: Mapping | None) -> dict:
     """The achieved held-out shrink of ``term`` beside the diagnosis's prediction.
 
     Parameters
     ----------
     term : str
-        One of :data:`imucal.terms.modelterms.TERMS`.
+        A registered term's name; its class reads the evidence
+        (:meth:`~imucal.terms.term.ModelTerm.heldout_rms`) and says what was held out
+        (:attr:`~imucal.terms.term.ModelTerm.heldout_residual`).
     evidence : dict
         The term's evidence from its estimator.
     diagnosis : dict or None
@@ -136,15 +113,16 @@ def heldout_comparison(term: str, evidence: Mapping, diagnosis: Mapping | None) 
         has none for the effect), ``short_of_prediction`` (None without a prediction), or
         ``note`` when the term has no held-out residual.
     """
-    pair = _rms_pair(term, evidence) if term in RESIDUAL_OF_TERM else None
+    cls = term_class(term)
+    pair = cls.heldout_rms(evidence)
     if pair is None:
         return {"note": f"no held-out residual of {term} in this session"}
     without, with_, n = pair
     achieved, std = _achieved(without, with_, n)
     effects = {e["name"]: e for e in (diagnosis or {}).get("effects", [])}
-    predicted = effects.get(EFFECT_OF_TERM[term], {}).get("heldout_shrink")
+    predicted = effects.get(cls.effect, {}).get("heldout_shrink")
     return {
-        "residual": RESIDUAL_OF_TERM[term],
+        "residual": cls.heldout_residual,
         "rms_without": without,
         "rms_with": with_,
         "values": n,

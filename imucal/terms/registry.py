@@ -1,20 +1,22 @@
 """The registry of model terms: every term once, in the order the model applies them.
 
 A term is a :class:`~imucal.terms.term.ModelTerm` in a module of :mod:`imucal.terms.model`;
-adding one to :data:`BUILT_IN` is its whole registration. The calibration, its dict form, the
+adding one to :data:`BUILT_IN` is its whole registration, which refuses a class with a part left
+abstract or a declaration the loops over the terms read missing (:func:`declaration_problems`). The calibration, its dict form, the
 closed loop, the report's coefficients, the exports' notes and the catalogue's map from effects
 to terms (:data:`imucal.gap.catalogue.TERM_OF_EFFECT`) read the terms from here.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 
 from imucal.terms.model.gsensitivity import GSensitivity
 from imucal.terms.model.leverarm import LeverArm
 from imucal.terms.model.magdelay import MagDelay
 from imucal.terms.model.temperature import TemperatureTerm
-from imucal.terms.term import ModelTerm
+from imucal.terms.term import SAMPLE_INPUTS, ModelTerm, ValueTerm
 
 #: The package's terms, in the order they are applied: the temperature on the reading (before
 #: the matrix), the g-sensitivity with the calibrated specific force, the lever arm with the
@@ -24,20 +26,65 @@ BUILT_IN = (TemperatureTerm, GSensitivity, LeverArm, MagDelay)
 _TERMS: dict[str, type[ModelTerm]] = {}
 
 
+def declaration_problems(term: type[ModelTerm]) -> list[str]:
+    """What is missing or malformed among the class attributes the calibration, apply, the
+    closed loop, the report and the exports read of a term (empty when nothing is).
+
+    Parameters
+    ----------
+    term : type
+        A concrete subclass of :class:`ModelTerm`.
+
+    Returns
+    -------
+    list of str
+        One sentence per problem, naming the attribute and what was expected.
+    """
+    problems = []
+    for attr in ("name", "effect"):
+        if not isinstance(getattr(term, attr, None), str):
+            problems.append(f"no {attr} (a str)")
+    for attr in ("exported_by", "needs"):
+        if not isinstance(getattr(term, attr, None), frozenset):
+            problems.append(f"{attr} is not a frozenset")
+    unknown = sorted(set(getattr(term, "needs", ())) - set(SAMPLE_INPUTS))
+    if unknown:
+        problems.append(f"needs {unknown}, not among the sample inputs {list(SAMPLE_INPUTS)}")
+    residual = getattr(term, "heldout_residual", None)
+    if residual is not None and not (isinstance(residual, str) and residual):
+        problems.append("heldout_residual is neither None nor a non-empty str")
+    if residual is None and term.heldout_rms.__func__ is not ModelTerm.heldout_rms.__func__:
+        problems.append("reads a held-out RMS (heldout_rms) but declares no heldout_residual")
+    if issubclass(term, ValueTerm):
+        names = [f.name for f in dataclasses.fields(term)] if dataclasses.is_dataclass(term) else []
+        for attr in ("value_field", "std_field"):
+            if getattr(term, attr, None) not in names:
+                problems.append(f"{attr} {getattr(term, attr, None)!r} is not one of its fields")
+        if "method" not in names:
+            problems.append("has no field 'method'")
+        shape = getattr(term, "value_shape", None)
+        if not (isinstance(shape, tuple) and all(isinstance(n, int) and n > 0 for n in shape)):
+            problems.append(f"value_shape {shape!r} is not a tuple of positive ints")
+        for attr in ("unit", "report_label"):
+            if not (isinstance(getattr(term, attr, None), str) and getattr(term, attr)):
+                problems.append(f"no {attr} (a non-empty str)")
+    return problems
+
+
 def register(term: type[ModelTerm]) -> type[ModelTerm]:
     """Add a term class at the end of the order (returned, so it can decorate the class).
 
     Raises
     ------
     ValueError
-        If ``term`` is not a concrete :class:`ModelTerm` with a ``name`` and an ``effect``, or
-        its name is taken.
+        If ``term`` is not a concrete :class:`ModelTerm`, lacks a class attribute the loops
+        over the terms read (:func:`declaration_problems`), or its name is taken.
     """
     if not (inspect.isclass(term) and issubclass(term, ModelTerm)) or inspect.isabstract(term):
         raise ValueError(f"a model term must be a concrete subclass of ModelTerm, got {term!r}")
-    for attr in ("name", "effect"):
-        if not isinstance(getattr(term, attr, None), str):
-            raise ValueError(f"model term {term.__name__} has no {attr} (a str)")
+    problems = declaration_problems(term)
+    if problems:
+        raise ValueError(f"model term {term.__name__}: {'; '.join(problems)}")
     if term.name in _TERMS:
         raise ValueError(f"a model term named {term.name!r} is registered already")
     _TERMS[term.name] = term

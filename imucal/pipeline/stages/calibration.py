@@ -252,10 +252,11 @@ def apply_calibration(
 ) -> tuple[pd.DataFrame, dict]:
     """Calibrate the three sensors of an ingested recording to frame B.
 
-    Every term of the calibration's model is used (:meth:`ImuCalibration.calibrate`); a
-    temperature term takes the recording's temperature column (rows without a reading
-    interpolated in time). With ``parameter_std`` the table gains, per calibrated column, the
-    standard deviation that the calibration's parameter covariance gives the sample
+    Every term of the calibration's model is used (:meth:`ImuCalibration.calibrate`) with what
+    of the recording it needs (:attr:`imucal.terms.term.ModelTerm.needs`): the temperature
+    column (rows without a reading interpolated in time), the sample times. With
+    ``parameter_std`` the table gains, per calibrated column, the standard deviation that the
+    calibration's parameter covariance gives the sample
     (:meth:`imucal.calibration.ImuCalibration.parameter_variance`: the bias and matrix through
     their covariance and every model term through its coefficients' standard deviations;
     column name + ``_param_std``), for sensors whose calibration has a covariance or a term.
@@ -275,8 +276,9 @@ def apply_calibration(
     table : DataFrame
         Same rows and columns, sensor values calibrated (NaN magnetometer rows stay NaN).
     metadata : dict
-        With ``calibrated`` = True, and ``model_terms`` (the terms used) and
-        ``temperature_outside_span`` (per sensor, the fraction of samples outside the
+        With ``calibrated`` = True, and ``model_terms`` (the terms used) and what each term
+        reports of its flags (:meth:`imucal.terms.term.ModelTerm.flag_report`; a temperature
+        term: ``temperature_outside_span``, per sensor the fraction of samples outside the
         calibrated span but within its margin, and the farthest distance in K) when the model
         has terms.
 
@@ -303,8 +305,9 @@ def apply_calibration(
             )
         readings[sensor] = table[list(columns)].to_numpy(dtype=float)
         unit_of[sensor] = found.pop()
-    temp = _temperature_per_sample(table, source) if calibration.terms.temperature else None
-    t_s = table[TIME].to_numpy(dtype=float) if calibration.terms.lever_arm is not None else None
+    needs = {need for term in calibration.terms.values() for need in term.needs}
+    temp = _temperature_per_sample(table, source) if "temp_c" in needs else None
+    t_s = table[TIME].to_numpy(dtype=float) if "t_s" in needs else None
     values, flags = calibration.calibrate(readings, unit_of, temp_c=temp, t_s=t_s, source=source)
     variance = (
         calibration.parameter_variance(readings, temp_c=temp, t_s=t_s) if parameter_std else {}
@@ -318,15 +321,12 @@ def apply_calibration(
     meta = {**metadata, "calibrated": True}
     if not calibration.terms.empty:
         meta["model_terms"] = calibration.terms.names()
-    if "temperature" in flags:
-        meta["temperature_outside_span"] = flags["temperature"]
-        for sensor, f in flags["temperature"].items():
-            if f["outside_fraction"] > 0:
-                logger.warning(
-                    "%s: %.1f %% of the samples are outside the %s calibration's temperature "
-                    "span (up to %.2f K, within the margin): extrapolated",
-                    source, 100 * f["outside_fraction"], sensor, f["max_outside_k"],
-                )  # fmt: skip
+    for term in calibration.terms.values():
+        if term.name in flags:
+            entries, warnings = term.flag_report(flags[term.name], source)
+            meta.update(entries)
+            for warning in warnings:
+                logger.warning("%s", warning)
     return out, meta
 
 

@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from imucal.terms.term import ModelTerm, ReportRow, Samples
+from imucal.terms.term import Samples, ValueTerm
 
 
 @dataclass(frozen=True)
-class GSensitivity(ModelTerm):
+class GSensitivity(ValueTerm):
     """Gyroscope output per specific force, in frame B: ``w_B -= matrix @ a_B``.
 
     Attributes
@@ -31,17 +31,14 @@ class GSensitivity(ModelTerm):
     name = "g_sensitivity"
     effect = "g_sensitivity"
     exported_by = frozenset({"kalibr", "openvins"})
+    heldout_residual = "resting calibrated gyro means, each predicted from the others (rad/s)"
+    value_field, std_field, value_shape = "matrix", "std", (3, 3)
+    unit = "rad/s per m/s^2 (frame B; row: gyro axis, column: specific-force axis)"
+    report_label = "g-sensitivity G"
 
     matrix: np.ndarray
     std: np.ndarray
     method: str = ""
-
-    def __post_init__(self) -> None:
-        for name in ("matrix", "std"):
-            m = np.asarray(getattr(self, name), dtype=float)
-            if m.shape != (3, 3) or not np.all(np.isfinite(m)):
-                raise ValueError(f"g_sensitivity.{name} must be a finite 3x3 matrix, got {m!r}")
-            object.__setattr__(self, name, m)
 
     @classmethod
     def estimate(cls, fit: Any, settings: Any) -> tuple[GSensitivity | None, dict]:
@@ -61,21 +58,3 @@ class GSensitivity(ModelTerm):
         """Variance of ``matrix @ a_B`` from the entries' standard deviations (first order,
         independent) for the specific force of ``values``."""
         return {"gyr": np.asarray(values["acc"]) ** 2 @ (self.std**2).T}
-
-    def to_dict(self) -> dict:
-        return {
-            "matrix": self.matrix.tolist(),
-            "std": self.std.tolist(),
-            "unit": "rad/s per m/s^2 (frame B; row: gyro axis, column: specific-force axis)",
-            "method": self.method,
-        }
-
-    @classmethod
-    def from_dict(cls, d: Mapping) -> GSensitivity:
-        if "matrix" not in d:
-            raise ValueError("g_sensitivity term lacks the key 'matrix'")
-        return cls(d["matrix"], d.get("std", np.zeros((3, 3))), d.get("method", ""))
-
-    def report_rows(self) -> list[ReportRow]:
-        d = self.to_dict()
-        return [ReportRow("g-sensitivity G", d["matrix"], d["std"], d["unit"])]

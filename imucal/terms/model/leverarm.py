@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from imucal.terms.term import ModelTerm, ReportRow, Samples
+from imucal.terms.term import Samples, ValueTerm
 
 #: Time (s) over which the lever arm's angular acceleration is taken (central difference of the
 #: rate ``LEVER_ARM_DIFF_S`` apart): long enough that the gyroscope's white noise, divided by it,
@@ -81,7 +81,7 @@ def rate_per_sample(
 
 
 @dataclass(frozen=True)
-class LeverArm(ModelTerm):
+class LeverArm(ValueTerm):
     """Position of the accelerometer relative to the rate table's rotation centre, in B.
 
     The accelerometer senses ``w x (w x r) + dw/dt x r`` on top of the specific force at the
@@ -98,17 +98,18 @@ class LeverArm(ModelTerm):
 
     name = "lever_arm"
     effect = "lever_arm"
+    needs = frozenset({"t_s"})  # the tangential term differentiates the rate in time
+    heldout_residual = (
+        "rate-table run means of the acc at half the rate levels, predicted from the other "
+        "half (m/s^2)"
+    )
+    value_field, std_field, value_shape = "r_m", "std_m", (3,)
+    unit = "m (frame B; accelerometer relative to the rate table's rotation centre)"
+    report_label = "lever arm r"
 
     r_m: np.ndarray
     std_m: np.ndarray
     method: str = ""
-
-    def __post_init__(self) -> None:
-        for name in ("r_m", "std_m"):
-            v = np.asarray(getattr(self, name), dtype=float)
-            if v.shape != (3,) or not np.all(np.isfinite(v)):
-                raise ValueError(f"lever_arm.{name} must be 3 finite values (m), got {v!r}")
-            object.__setattr__(self, name, v)
 
     @classmethod
     def estimate(cls, fit: Any, settings: Any) -> tuple[LeverArm | None, dict]:
@@ -149,21 +150,3 @@ class LeverArm(ModelTerm):
         w_dot = angular_acceleration(t_s, omega)
         return {"acc": sum((self._sensed(omega, w_dot, e) * sd) ** 2
                            for e, sd in zip(np.eye(3), self.std_m, strict=True))}  # fmt: skip
-
-    def to_dict(self) -> dict:
-        return {
-            "r_m": self.r_m.tolist(),
-            "std_m": self.std_m.tolist(),
-            "unit": "m (frame B; accelerometer relative to the rate table's rotation centre)",
-            "method": self.method,
-        }
-
-    @classmethod
-    def from_dict(cls, d: Mapping) -> LeverArm:
-        if "r_m" not in d:
-            raise ValueError("lever_arm term lacks the key 'r_m'")
-        return cls(d["r_m"], d.get("std_m", np.zeros(3)), d.get("method", ""))
-
-    def report_rows(self) -> list[ReportRow]:
-        d = self.to_dict()
-        return [ReportRow("lever arm r", d["r_m"], d["std_m"], d["unit"])]

@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from imucal.terms.term import ModelTerm, ReportRow, Samples
+from imucal.terms.term import Samples, ValueTerm
 
 
 @dataclass(frozen=True)
-class MagDelay(ModelTerm):
+class MagDelay(ValueTerm):
     """Delay of the magnetometer behind acc/gyro (s): its reading is the field of
     ``delay_s`` earlier (mean age of a held sample included).
 
@@ -30,17 +30,13 @@ class MagDelay(ModelTerm):
 
     name = "mag_delay"
     effect = "mag_latency"
+    value_field, std_field, value_shape = "delay_s", "std_s", ()
+    unit = "s"
+    report_label = "magnetometer delay"
 
     delay_s: float
     std_s: float
     method: str = ""
-
-    def __post_init__(self) -> None:
-        for name in ("delay_s", "std_s"):
-            v = float(getattr(self, name))
-            if not np.isfinite(v):
-                raise ValueError(f"mag_delay.{name} must be finite, got {v}")
-            object.__setattr__(self, name, v)
 
     @classmethod
     def estimate(cls, fit: Any, settings: Any) -> tuple[MagDelay | None, dict]:
@@ -62,15 +58,3 @@ class MagDelay(ModelTerm):
         samples: Samples,
     ) -> dict:
         return {"mag": (self.std_s * np.cross(values["gyr"], values["mag"])) ** 2}
-
-    def to_dict(self) -> dict:
-        return {"delay_s": self.delay_s, "std_s": self.std_s, "unit": "s", "method": self.method}
-
-    @classmethod
-    def from_dict(cls, d: Mapping) -> MagDelay:
-        if "delay_s" not in d:
-            raise ValueError("mag_delay term lacks the key 'delay_s'")
-        return cls(d["delay_s"], d.get("std_s", 0.0), d.get("method", ""))
-
-    def report_rows(self) -> list[ReportRow]:
-        return [ReportRow("magnetometer delay", self.delay_s, self.std_s, "s")]

@@ -244,6 +244,10 @@ class TemperatureTerm(ModelTerm, Mapping):
     name = "temperature"
     effect = "temperature_drift"
     refits_session = True
+    needs = frozenset({"temp_c"})
+    heldout_residual = (
+        "|a| - g of resting means, rate-table runs left out, each predicted from the others (m/s^2)"
+    )
 
     polynomials: Mapping[str, TemperaturePolynomial]
 
@@ -283,6 +287,16 @@ class TemperatureTerm(ModelTerm, Mapping):
         )
         return (cls(polys) if polys else None), evidence
 
+    @classmethod
+    def heldout_rms(cls, evidence: Mapping) -> tuple[float, float, int] | None:
+        """The accelerometer's held-out RMS of the orders without and with the term (the
+        estimator's evidence per sensor, :func:`imucal.gap.temperature.fit_temperature`)."""
+        acc = evidence.get("acc", {})
+        if "heldout_rms" not in acc or "refused" in acc:
+            return None
+        rms = acc["heldout_rms"]
+        return rms[acc["without"]], rms[acc["with"]], int(acc["segments"])
+
     def check(self, samples: Samples) -> dict:
         """Per sensor, the samples outside its calibrated span (within the margin).
 
@@ -309,6 +323,18 @@ class TemperatureTerm(ModelTerm, Mapping):
                 )
             flags[sensor] = poly.check_span(temp, samples.source)
         return flags
+
+    def flag_report(self, flags: Mapping, source: str) -> tuple[dict, list[str]]:
+        """``temperature_outside_span`` (the flags of :meth:`check`), and a warning per sensor
+        with samples outside its span: extrapolation is never silent."""
+        warnings = [
+            f"{source}: {100 * f['outside_fraction']:.1f} % of the samples are outside the "
+            f"{sensor} calibration's temperature span (up to {f['max_outside_k']:.2f} K, within "
+            "the margin): extrapolated"
+            for sensor, f in flags.items()
+            if f["outside_fraction"] > 0
+        ]
+        return {"temperature_outside_span": flags}, warnings
 
     def correct_reading(self, sensor: str, bracket: np.ndarray, samples: Samples) -> np.ndarray:
         """``(bracket - b(dT)) / (1 + s(dT))``: the reading freed of the drift, at the scale of
