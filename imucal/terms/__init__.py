@@ -3,7 +3,7 @@ accepts their effect.
 
 The contract of a term (:mod:`.term`), the terms themselves, one module each (:mod:`.model`:
 correction, variance, dict form, report rows, export note), and their registry
-(:mod:`.registry`). Their estimators: temperature polynomials (:mod:`.temperature`), the
+(:mod:`.registry`). Their estimators: temperature polynomials (:mod:`imucal.gap.temperature`), the
 gyroscope's g-sensitivity (:mod:`.gsensitivity`), the accelerometer's lever arm on the rate
 table (:mod:`.leverarm`), the magnetometer's delay (:mod:`.magdelay`); the temperature terms
 held out across static poses (:mod:`.poseholdout`), the switch per term (:mod:`.selection`) and

@@ -17,5 +17,4 @@ from .registry import (
     unregister,
 )
 from .selection import EFFECT_OF_TERM, TermSettings, decide, final_calibration
-from .temperature import fit_temperature, select_model
 from .term import ModelTerm, ReportRow, Samples, ValueTerm
