@@ -398,6 +398,17 @@ def test_the_verdict_tells_a_clean_session_an_effect_and_a_shortfall_of_the_twin
     assert verdict_of(_result(True, [("timing_jitter", 0.998)]))["effects"][0]["kind"] == (
         "acquisition"
     )
+    # a magnet judged beside the reference's error, which the twin still lacks
+    from imucal.gap.scoring import JUDGED_ON
+
+    beside = _result(True, [("world_magnetic", 0.52)],
+                     remaining=[("reference", "gyr", "rate3", 138.0)])  # fmt: skip
+    beside["effects"][0]["judged_on"] = JUDGED_ON[True]
+    assert verdict_of(beside)["sentence"] == (
+        "Effect world_magnetic (physical), shrink 52.0% held out of the gap outside what the "
+        "twin lacks; the twin still lacks the reference's error beyond white noise (smoothing, "
+        "latency, glitches) (at reference/gyr/x/r rate3 (z = 138))."
+    )
     # the gap in the reference comparison's rate curvature, no effect accepted: the reference
     lacks = verdict_of(_result(True, remaining=[("reference", "gyr", "rate3", 300.0),
                                                 ("reference", "mag", "dir_resid_rad", 20.0)]))  # fmt: skip
