@@ -34,8 +34,11 @@ field's uniformity; :data:`imucal.gap.scoring.TWIN_SHORTFALLS`), the gap at thos
 the twin's shortfall and can neither confirm nor refute a physical effect that does not render
 them. An effect with a location of its own outside them that is in the gap (a magnet's
 ``field_dipole_peak``, a g-sensitivity's ``ref_g_slope``) is then judged on the gap outside
-the shortfall's locations plus its own signature (:func:`judged_locations`); an effect without
-such evidence is judged on the whole gap, as everywhere else.
+the shortfall's locations plus its own signature (:func:`judged_locations`): a statistic the
+effect renders stays its own (the field direction's spread is a shortfall of the twin's
+uniform field only until a field fixed in the world closes it), and the effect is charged for
+what it leaves there. An effect without such evidence is judged on the whole gap, as
+everywhere else.
 """
 
 from __future__ import annotations
@@ -346,7 +349,7 @@ def judged_locations(
     ----------
     own : callable
         ``key -> bool``: the effect's signature (:meth:`EffectModel.matches`).
-    in_gap : list of tuple
+    in_gap : sequence of tuple
         The locations in the gap now (Holm).
     unreplayed : callable or None
         ``key -> bool``: the locations the twin cannot replay.
@@ -409,6 +412,9 @@ def select_forward(
         ``key -> bool``, the locations the twin cannot replay; with ``own`` (effect name ->
         its signature's ``key -> bool``), an effect with evidence of its own outside them is
         judged on the gap outside them (:func:`judged_locations`, ``Candidate.judged``).
+    own : dict of str to callable, optional
+        Effect name -> ``key -> bool``, its signature (:meth:`EffectModel.matches`); needed
+        with ``unreplayed``.
 
     Returns
     -------
@@ -480,7 +486,9 @@ def select_forward(
                 ""
                 if c.heldout_before > 0
                 else (
-                    "half B shows no gap beyond noise: the held-out check cannot confirm an effect"
+                    "half B shows no gap beyond noise"
+                    + (" on the locations it is judged on" if c.judged is not None else "")
+                    + ": the held-out check cannot confirm an effect"
                 )
             )
             try:

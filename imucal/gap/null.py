@@ -18,7 +18,7 @@ the other ``R - 1`` (leave-one-out), which includes the small-sample inflation o
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,8 +89,19 @@ class NullModel:
         share = np.divide(std**2, std**2 + floor**2, out=np.zeros_like(scale), where=ok)
         return cls(list(keys), mean, np.where(ok, scale, np.nan), values, share)
 
-    def restricted(self, keep) -> NullModel:
-        """The null of the locations ``keep(key)`` is True for (same replicas)."""
+    def restricted(self, keep: Callable[[Key], bool]) -> NullModel:
+        """This null on some of its locations (the same replicas).
+
+        Parameters
+        ----------
+        keep : callable
+            ``key -> bool``, True for the locations to keep.
+
+        Returns
+        -------
+        NullModel
+            The kept locations' mean, scale, values and spread share, in this null's order.
+        """
         idx = [i for i, k in enumerate(self.keys) if keep(k)]
         share = None if self.spread_share is None else self.spread_share[idx]
         return NullModel(

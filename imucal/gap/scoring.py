@@ -135,7 +135,8 @@ def _effect_record(c: Candidate, model: EffectModel, keys, reject) -> dict:
         "shrink": c.shrink,
         "heldout_shrink": c.heldout_shrink,
         "heldout_deviance": c.heldout_deviance,
-        "judged_on": JUDGED_ON[c.judged is not None],
+        # judged beside the twin's shortfalls (attribution.judged_locations); None: not evaluated
+        "judged_beside_shortfalls": (c.judged is not None) if c.evaluated else None,
         "accepted": c.accepted,
         "detect": _finite_or_none(c.detect),
         "detect_z": _finite_or_none(c.detect_z),
@@ -156,16 +157,12 @@ def _effect_order(c: Candidate) -> tuple:
     return (not c.accepted, -shrink)
 
 
-#: What an effect's shrinks are measured on (:func:`imucal.gap.attribution.judged_locations`).
-JUDGED_ON = {
-    False: "the whole gap",
-    True: "the gap outside what the twin does not replay, with the effect's own locations",
-}
-
-
 def unreplayed(key: tuple) -> bool:
-    """Whether a location's statistic is one the twin does not replay (:data:`TWIN_SHORTFALLS`)."""
-    return _shortfall(dict(zip(LOCATION_FIELDS, key, strict=True))) is not None
+    """Whether a location is a statistic of the reference comparison that the twin does not
+    replay (:data:`TWIN_SHORTFALLS` of stage ``reference``: the reference's error beyond white
+    noise, the field's uniformity)."""
+    location = dict(zip(LOCATION_FIELDS, key, strict=True))
+    return location["stage"] == "reference" and _shortfall(location) is not None
 
 
 def _shortfall(location: Mapping) -> str | None:
@@ -220,7 +217,7 @@ def verdict_of(result: Mapping) -> dict:
             "name": e["name"],
             "kind": "acquisition" if e["name"] in ACQUISITION_EFFECTS else "physical",
             "heldout_shrink": e["heldout_shrink"],
-            "judged_on": e.get("judged_on", JUDGED_ON[False]),
+            "judged_beside_shortfalls": bool(e.get("judged_beside_shortfalls")),
             "params": e["params"],
         }
         for e in physical
@@ -257,11 +254,7 @@ def verdict_of(result: Mapping) -> dict:
         outcome = "effect"
         sentence = "Effect " + "; then ".join(
             f"{e['name']} ({e['kind']}), shrink {e['heldout_shrink']:.1%} held out"
-            + (
-                ""
-                if e["judged_on"] == JUDGED_ON[False]
-                else " of the gap outside what the twin lacks"
-            )
+            + (", judged beside what the twin lacks" if e["judged_beside_shortfalls"] else "")
             for e in named
         )
         sentence += (

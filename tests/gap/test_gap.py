@@ -229,6 +229,8 @@ def test_an_effect_with_its_own_evidence_is_judged_beside_what_the_twin_does_not
     magnet = EffectModel("world_magnetic", None, (("reference", "mag", "field_dipole_peak"),
                                                   ("reference", "mag", "dir_resid_rad")), "a magnet")  # fmt: skip
     assert [unreplayed(k) for k in keys] == [True, False, True, False]
+    # only the reference comparison's shortfalls: a static part keeps its own judgement
+    assert not unreplayed(("noise", "gyr", "x", "static", "adev_10s_excess"))
     rng = np.random.default_rng(5)
     null = NullModel.from_values(keys, rng.normal(0.0, 1.0, (20, len(keys))))
 
@@ -399,14 +401,12 @@ def test_the_verdict_tells_a_clean_session_an_effect_and_a_shortfall_of_the_twin
         "acquisition"
     )
     # a magnet judged beside the reference's error, which the twin still lacks
-    from imucal.gap.scoring import JUDGED_ON
-
     beside = _result(True, [("world_magnetic", 0.52)],
                      remaining=[("reference", "gyr", "rate3", 138.0)])  # fmt: skip
-    beside["effects"][0]["judged_on"] = JUDGED_ON[True]
+    beside["effects"][0]["judged_beside_shortfalls"] = True
     assert verdict_of(beside)["sentence"] == (
-        "Effect world_magnetic (physical), shrink 52.0% held out of the gap outside what the "
-        "twin lacks; the twin still lacks the reference's error beyond white noise (smoothing, "
+        "Effect world_magnetic (physical), shrink 52.0% held out, judged beside what the twin "
+        "lacks; the twin still lacks the reference's error beyond white noise (smoothing, "
         "latency, glitches) (at reference/gyr/x/r rate3 (z = 138))."
     )
     # the gap in the reference comparison's rate curvature, no effect accepted: the reference
