@@ -443,15 +443,11 @@ def select_forward(
             open_ = [c for c in open_ if c.evident]
         if not open_:
             break
-        gap_now, gap_b_now = null_full.gap(stats[None], shift), null_b.gap(stats["B"], shift_b)
         best = None
         for c in open_:
             c.judged = judged_locations(own[c.name], in_gap, unreplayed) if own else None
             nf, nb = _on(null_full, c.judged), _on(null_b, c.judged)
-            c.gap_before, c.heldout_before = gap_now, gap_b_now
-            if c.judged is not None:
-                c.gap_before = nf.gap(stats[None], shift)
-                c.heldout_before = nb.gap(stats["B"], shift_b)
+            c.gap_before, c.heldout_before = nf.gap(stats[None], shift), nb.gap(stats["B"], shift_b)
             if c.blocked:
                 c.gap_after = c.heldout_after = None
                 c.evaluated = False
