@@ -31,8 +31,9 @@ def holdout_section(path: str | Path | None) -> dict | None:
     -------
     dict or None
         ``reason`` (the stage did not run) or ``rows`` (per held-out pose, sensor and axis:
-        the three residual RMS in display units with their bootstrap standard errors, the
-        ratios to none and of the term to the regression with their 95 % intervals, the
+        the three residual RMS in display units with their standard errors over long blocks,
+        the ratios to none and of the term to the regression with their 95 % intervals (with
+        the fits' scatter; for the term against the regression also given the fits), the
         verdict, the order and the compared fraction), ``summary`` (the same over all held-out
         poses), ``units``, ``settings``, ``poses``.
     """
@@ -52,8 +53,8 @@ def holdout_section(path: str | Path | None) -> dict | None:
             value = _number(factor * c[f"rms_{method}"], 2)
             return f"{value} ± {_number(factor * c[f'rms_{method}_se'], 2)}"
 
-        def ratio(name: str, digits: int = 3) -> str:
-            lo, hi = c[f"{name}_ci95"]
+        def ratio(name: str, digits: int = 3, interval: str = "ci95") -> str:
+            lo, hi = c.get(f"{name}_{interval}", [math.nan, math.nan])
             return f"{_number(c[name], digits)} ({_number(lo, digits)}-{_number(hi, digits)})"
 
         return {
@@ -67,6 +68,7 @@ def holdout_section(path: str | Path | None) -> dict | None:
             "term_ratio": ratio("term_ratio"),
             "regression_ratio": ratio("regression_ratio"),
             "term_vs_regression": ratio("term_vs_regression", 4),
+            "given_fits": ratio("term_vs_regression", 4, "ci95_given_fits"),
             "verdict": c["verdict"],
             "fraction": _number(c.get("fraction", math.nan), 2),
         }

@@ -27,8 +27,12 @@ drift; the white noise averages out), the regression to the samples as ``IMUcali
 the comparison is on every sample and on the block means. The residuals of a drift are
 correlated over hours, so the uncertainty counts blocks of ``se_block_s`` as the independent
 observations (an effective sample size of one per block): a standard error per RMS and a 95 %
-interval per ratio, which says whether the term is resolvably better or worse than the
-regression or within the noise.
+interval per ratio. A ratio's interval holds the held-out samples' noise and the scatter of
+the fits (each fit block's influence on the fitted coefficients, carried to the held-out
+residual), so it says whether the two methods differ by more than their fits scatter: the term
+is better or worse than the regression where it excludes 1, else within noise. The interval
+given the fits (without their scatter) is reported beside it. The order's choice is taken as
+given.
 """
 
 from __future__ import annotations
@@ -128,10 +132,11 @@ def pose_series(
     return out
 
 
-def _blocks(pose: PoseSeries, block_s: float) -> tuple[np.ndarray, dict]:
-    """Means of consecutive ``block_s`` blocks (at least half full): temp (m,), sensor -> (m, 3)."""
+def _blocks(pose: PoseSeries, block_s: float) -> tuple[np.ndarray, dict, np.ndarray]:
+    """Means of consecutive ``block_s`` blocks (at least half full): temp (m,), sensor -> (m, 3),
+    and each block's start (s after the pose's first sample, (m,))."""
     if not len(pose.t_s):
-        return np.zeros(0), {s: np.zeros((0, 3)) for s in pose.values}
+        return np.zeros(0), {s: np.zeros((0, 3)) for s in pose.values}, np.zeros(0)
     k = ((pose.t_s - pose.t_s[0]) // block_s).astype(int)
     n = np.bincount(k)
     step = np.median(np.diff(pose.t_s)) if len(pose.t_s) > 1 else block_s
@@ -141,13 +146,24 @@ def _blocks(pose: PoseSeries, block_s: float) -> tuple[np.ndarray, dict]:
         s: np.column_stack([np.bincount(k, v[:, j])[full] / n[full] for j in range(3)])
         for s, v in pose.values.items()
     }
-    return temp, values
+    return temp, values, np.flatnonzero(full) * block_s
 
 
 def _powers(d_t: np.ndarray, order: int) -> np.ndarray:
     return (
         np.column_stack([d_t**q for q in range(1, order + 1)]) if order else np.zeros((len(d_t), 0))
     )
+
+
+def _term_design(temps: Sequence[np.ndarray], order: int, reference_c: float) -> np.ndarray:
+    """Design of :func:`fit_term`: one constant column per pose, then ``dT .. dT^order``."""
+    sizes = [len(t) for t in temps]
+    constants = np.zeros((sum(sizes), len(temps)))
+    start = 0
+    for p, m in enumerate(sizes):
+        constants[start : start + m, p] = 1.0
+        start += m
+    return np.column_stack([constants, _powers(np.concatenate(temps) - reference_c, order)])
 
 
 def fit_term(
@@ -172,16 +188,39 @@ def fit_term(
     """
     if order == 0:
         return np.zeros(0)
-    sizes = [len(t) for t in temps]
-    constants = np.zeros((sum(sizes), len(temps)))
-    start = 0
-    for p, m in enumerate(sizes):
-        constants[start : start + m, p] = 1.0
-        start += m
-    d_t = np.concatenate(temps) - reference_c
-    design = np.column_stack([constants, _powers(d_t, order)])
-    coef, *_ = np.linalg.lstsq(design, np.concatenate(values), rcond=None)
+    coef, *_ = np.linalg.lstsq(
+        _term_design(temps, order, reference_c), np.concatenate(values), rcond=None
+    )
     return coef[len(temps) :]
+
+
+def _influence(
+    design: np.ndarray, residual: np.ndarray, labels: np.ndarray, n_clusters: int
+) -> np.ndarray:
+    """Each cluster's influence on a least-squares fit: ``(X'X)^-1 X_c' e_c`` per cluster.
+
+    Their sum of outer products is the cluster-robust covariance of the coefficients (without
+    the small-sample factor).
+
+    Parameters
+    ----------
+    design : ndarray, shape (n, p)
+    residual : ndarray, shape (n,) or (n, q)
+        The fit's residuals (one column per fitted series).
+    labels : ndarray of int, shape (n,)
+        Cluster of each row, ``0 .. C - 1``.
+    n_clusters : int
+        C.
+
+    Returns
+    -------
+    ndarray, shape (C, p) or (C, p, q)
+    """
+    e = residual.reshape(len(residual), -1)
+    scores = np.zeros((n_clusters, design.shape[1], e.shape[1]))
+    np.add.at(scores, labels, design[:, :, None] * e[:, None, :])
+    out = np.einsum("ij,cjq->ciq", np.linalg.pinv(design.T @ design), scores)
+    return out.reshape(out.shape[:2]) if residual.ndim == 1 else out
 
 
 def _predict(coef: np.ndarray, temp: np.ndarray, reference_c: float) -> np.ndarray:
@@ -264,13 +303,21 @@ def _cluster_mean(sums: np.ndarray, counts: np.ndarray) -> tuple[float, float]:
     return m, np.sqrt(b / (b - 1) * np.sum((sums - m * counts) ** 2)) / n
 
 
-def _block_sums(x: np.ndarray, t_s: np.ndarray, block_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Sums of ``x`` (n,) over consecutive ``block_s`` blocks of ``t_s``, and their counts."""
+def _block_sums(
+    x: np.ndarray, t_s: np.ndarray, block_s: float, origin_s: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sums of ``x`` (n,) over consecutive ``block_s`` blocks of ``t_s`` from ``origin_s`` (its
+    first time by default), and their counts: the blocks with samples, in time order."""
     if not len(x):
         return x, x
-    k = ((t_s - t_s[0]) // block_s).astype(int)
+    k = _block_index(t_s, block_s, t_s[0] if origin_s is None else origin_s)
     n = np.bincount(k)
     return np.bincount(k, x)[n > 0], n[n > 0].astype(float)
+
+
+def _block_index(t_s: np.ndarray, block_s: float, origin_s: float) -> np.ndarray:
+    """Index of the ``block_s`` block from ``origin_s`` each time of ``t_s`` falls in."""
+    return ((t_s - origin_s) // block_s).astype(int)
 
 
 def _rms(x: np.ndarray) -> float:
@@ -344,52 +391,102 @@ def nested_order(
     return choose_order(squares)
 
 
-def _spread(squares: Mapping[str, tuple]) -> dict:
+def _spread(
+    squares: Mapping[str, tuple], ids: np.ndarray, fit_influence: Mapping[str, np.ndarray]
+) -> dict:
     """Standard errors of the RMS and 95 % intervals of their ratios over long blocks.
 
     Each block of ``se_block_s`` counts as one independent observation (the residuals are
-    correlated within it, little across): the standard error of a mean square ``m`` is
-    ``sqrt(B / (B - 1) sum_b (s_b - m n_b)^2) / N`` over the ``B`` blocks (``s_b`` the sum of
-    squares, ``n_b`` the samples, ``N`` all samples), that of the RMS half of it relative; the
-    interval of a ratio of two RMS on the same samples is the delta method on the log of the
-    mean squares with the same clusters and Student's t with ``B - 1`` degrees of freedom.
+    correlated within it, little across). The standard error of a mean square ``m`` is
+    ``sqrt(B / (B - 1) sum_b (s_b - m n_b)^2) / N`` over the ``B`` held-out blocks (``s_b`` the
+    sum of squares, ``n_b`` the samples, ``N`` all samples), that of the RMS half of it
+    relative. A ratio of two RMS on the same samples is compared on the log of its mean
+    squares by the delta method, each block's influence on it summed over two sources:
+
+    * the held-out samples, given the fitted models: ``(s_b - m n_b) / (m N)`` per method;
+    * the fits: each block of the fit poses moves the fitted coefficients by its influence
+      (:func:`_influence`), and they move the held-out sum of squares by its gradient
+      (``fit_influence``, already the product), divided by that sum of squares.
+
+    A block that is both (a pose held out here and fitted on for another pose's prediction,
+    as in the summary over all held-out poses) adds both before squaring. The variance is
+    ``B / (B - 1)`` times the sum of the squared influences per source (the held-out blocks,
+    the fit blocks that are not held out), Student's t with Satterthwaite's degrees of freedom
+    over the two. The intervals ``..._given_fits`` leave the fits' scatter out: they say
+    whether a difference on these samples is noise for the fitted models; the intervals with
+    it whether the methods differ more than their fits scatter (the verdict).
 
     Parameters
     ----------
     squares : mapping of str to (ndarray, ndarray)
-        Method (``none``, ``term``, ``regression``) -> block sums of its squared residuals and
-        the samples per block, each shape (B,).
+        Method (``none``, ``term``, ``regression``) -> sums of its squared residuals over the
+        held-out blocks and the samples per block, each shape (B,).
+    ids : ndarray of int, shape (B,)
+        The held-out blocks' indices among all blocks of the session (see ``fit_influence``).
+    fit_influence : mapping of str to ndarray, shape (C,)
+        Method -> per block of the session, its influence through the fit on the method's
+        held-out sum of squares (unit of the squares; zero for the blocks no fit saw and for
+        a method without coefficients).
 
     Returns
     -------
     dict
         ``rms_<method>_se``; ``term_ratio``, ``regression_ratio`` (to none) and
-        ``term_vs_regression``, each with ``..._ci95``; ``verdict`` (the term ``better``,
-        ``worse`` or ``within noise`` against the regression); ``clusters`` (B).
+        ``term_vs_regression``, each with ``..._ci95`` and ``..._ci95_given_fits``;
+        ``verdict`` (the term ``better``, ``worse`` or ``within noise`` against the
+        regression, on ``term_vs_regression_ci95``); ``clusters`` (B held-out blocks) and
+        ``fit_clusters`` (blocks of the fits that are not held out).
     """
     counts = next(iter(squares.values()))[1]
     n, b = counts.sum(), len(counts)
+    names = (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
+             ("term_vs_regression", "term", "regression"))  # fmt: skip
+    held = np.zeros(len(next(iter(fit_influence.values()))), bool)
+    held[ids] = True
+    fitted = ~held & np.any([f != 0 for f in fit_influence.values()], axis=0)
+    out = {"clusters": b, "fit_clusters": int(fitted.sum())}
     if b < 2 or not n:
         nan = float("nan")
-        out = {f"rms_{m}_se": nan for m in squares} | {"clusters": b, "verdict": "within noise"}
-        for name in ("term_ratio", "regression_ratio", "term_vs_regression"):
-            out |= {name: nan, f"{name}_ci95": [nan, nan]}
+        out |= {f"rms_{m}_se": nan for m in squares} | {"verdict": "within noise"}
+        for name, *_ in names:
+            out |= {name: nan, f"{name}_ci95": [nan, nan], f"{name}_ci95_given_fits": [nan, nan]}
         return out
-    inflate, q = np.sqrt(b / (b - 1)), float(student_t.ppf(0.975, b - 1))
     ms = {m: sums.sum() / n for m, (sums, _) in squares.items()}
-    dev = {m: squares[m][0] - ms[m] * counts for m in squares}
-    out = {
+    out |= {
         f"rms_{m}_se": float(_cluster_mean(*squares[m])[1] / (2 * np.sqrt(ms[m]))) for m in squares
     }
-    for name, a, c in (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
-                       ("term_vs_regression", "term", "regression")):  # fmt: skip
+    for name, a, c in names:
         log_ratio = np.log(ms[a] / ms[c])
-        se = inflate * np.sqrt(np.sum((dev[a] / ms[a] - dev[c] / ms[c]) ** 2)) / n
+        given = (squares[a][0] - ms[a] * counts) / ms[a] - (squares[c][0] - ms[c] * counts) / ms[c]
+        phi = (fit_influence[a] / ms[a] - fit_influence[c] / ms[c]) / n
+        phi[ids] += given / n
         out[name] = float(np.exp(0.5 * log_ratio))
-        out[f"{name}_ci95"] = [float(np.exp(0.5 * (log_ratio + k * q * se))) for k in (-1, 1)]
+        out[f"{name}_ci95_given_fits"] = _interval(log_ratio, [_part(given / n, b)])
+        out[f"{name}_ci95"] = _interval(
+            log_ratio, [_part(phi[held], b), _part(phi[fitted], int(fitted.sum()))]
+        )
     lo, hi = out["term_vs_regression_ci95"]
     out["verdict"] = "better" if hi < 1.0 else "worse" if lo > 1.0 else "within noise"
-    return out | {"clusters": b}
+    return out
+
+
+def _part(phi: np.ndarray, blocks: int) -> tuple[float, int]:
+    """A source's variance, ``B / (B - 1) sum phi^2`` over its ``B`` blocks, and ``B - 1``."""
+    if blocks < 2:
+        return 0.0, 0
+    return blocks / (blocks - 1) * float(np.sum(phi**2)), blocks - 1
+
+
+def _interval(log_ratio: float, parts: Sequence[tuple[float, int]]) -> list[float]:
+    """95 % interval of an RMS ratio from its log mean-square ratio and the variances of its
+    sources (Student's t with Satterthwaite's degrees of freedom)."""
+    parts = [(v, d) for v, d in parts if v > 0 and d > 0]
+    if not parts:
+        return [float(np.exp(0.5 * log_ratio))] * 2
+    var = sum(v for v, _ in parts)
+    dof = var**2 / sum(v**2 / d for v, d in parts)
+    half = float(student_t.ppf(0.975, dof)) * np.sqrt(var)
+    return [float(np.exp(0.5 * (log_ratio + k * half))) for k in (-1, 1)]
 
 
 def hold_out_poses(
@@ -424,9 +521,11 @@ def hold_out_poses(
         the span), ``rms_none``, ``rms_term``, ``rms_regression`` (samples, constant removed)
         and their standard errors (``rms_none_se`` ...), the ratios ``term_ratio``,
         ``regression_ratio`` (to none) and ``term_vs_regression`` each with its 95 % interval
-        (``..._ci95``), ``verdict`` (the term ``better``, ``worse`` or ``within noise`` against
-        the regression: the interval below, above or around 1), ``clusters`` (the blocks of
-        ``se_block_s`` behind them), the same RMS of the block means
+        (``..._ci95``, with the fits' scatter) and the interval given the fits
+        (``..._ci95_given_fits``), ``verdict`` (the term ``better``, ``worse`` or ``within
+        noise`` against the regression: the interval below, above or around 1), ``clusters``
+        and ``fit_clusters`` (the held-out blocks of ``se_block_s`` and those of the fit poses
+        behind them, :func:`_spread`), the same RMS of the block means
         (``blocks_none`` ...), ``order`` (chosen on the fit poses alone, :func:`nested_order`),
         ``inner_rms`` (order -> RMS of the fit poses predicted from each other), ``coef``
         (``c_1 .. c_order``, unit per K^k), ``reference_c``, ``regression_slope`` (unit per K).
@@ -459,20 +558,28 @@ def hold_out_poses(
         raise ValueError(f"max_order must be >= 1, got {max_order}")
     sensors = list(poses[0].values)
     blocks = [_blocks(p, block_s) for p in poses]
+    # every se_block_s block of every pose, numbered across the session (the fits' clusters)
+    first = np.cumsum([0] + [int((p.t_s[-1] - p.t_s[0]) // se_block_s) + 1 for p in poses])
     folds = []
     for h, held in enumerate(poses):
         fit = [p for p in range(len(poses)) if p != h]
         lo, hi = _span([poses[p].temp_c for p in fit], margin_c)
         pooled_t = np.concatenate([poses[p].temp_c for p in fit])
         regressors = np.column_stack([np.ones_like(pooled_t), pooled_t])
-        slopes = {
-            s: np.linalg.lstsq(
-                regressors, np.vstack([poses[p].values[s] for p in fit]), rcond=None
-            )[0][1]
-            for s in sensors
-        }
+        labels = np.concatenate([
+            first[p] + _block_index(poses[p].t_s, se_block_s, poses[p].t_s[0]) for p in fit
+        ])  # fmt: skip
+        slopes, slope_influence = {}, {}
+        for s in sensors:
+            y = np.vstack([poses[p].values[s] for p in fit])
+            coef = np.linalg.lstsq(regressors, y, rcond=None)[0]
+            slopes[s] = coef[1]
+            slope_influence[s] = _influence(regressors, y - regressors @ coef, labels, first[-1])[
+                :, 1
+            ]
         folds.append({
             "fit": fit, "inside": _inside(poses, fit, h, margin_c), "slopes": slopes,
+            "slope_influence": slope_influence, "first": first, "held": h,
             "block_in": (blocks[h][0] >= lo) & (blocks[h][0] <= hi), "se_block_s": se_block_s,
         })  # fmt: skip
     cells, orders, summary = [], [], []
@@ -490,9 +597,10 @@ def hold_out_poses(
                     r = _residual(poses, blocks, fold["fit"], held, inside, s, j, k, margin_c)[0]
                     outer[k].append(_block_sums(_centred(r) ** 2, held.t_s[inside], se_block_s))
                 fitted = _residual(poses, blocks, fold["fit"], held, inside, s, j, order, margin_c)
-                cell, squares = _cell(held, blocks[h], fold, s, j, order, fitted)
+                influence = _term_influence(blocks, fold, s, j, order, fitted[2])
+                cell, spread = _cell(held, blocks[h], fold, s, j, order, fitted, influence)
                 cells.append({**cell, "inner_rms": inner})
-                group.append((cell, squares))
+                group.append((cell, spread))
             orders.append({
                 "sensor": s, "axis": axis,
                 "by_pose": {c["held_out"]: c["order"] for c, _ in group},
@@ -514,45 +622,84 @@ def hold_out_poses(
     }
 
 
+def _term_influence(
+    blocks: Sequence[tuple], fold: Mapping, sensor: str, j: int, order: int, reference_c: float
+) -> np.ndarray:
+    """Each block's influence on the term's coefficients ``c_1 .. c_order`` fitted on the fold's
+    fit poses (:func:`_influence`, the blocks numbered across the session), shape (C, order)."""
+    fit = fold["fit"]
+    temps = [blocks[p][0] for p in fit]
+    design = _term_design(temps, order, reference_c)
+    y = np.concatenate([blocks[p][1][sensor][:, j] for p in fit])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    labels = np.concatenate(
+        [fold["first"][p] + (blocks[p][2] // fold["se_block_s"]).astype(int) for p in fit]
+    )
+    return _influence(design, y - design @ coef, labels, fold["first"][-1])[:, len(fit) :]
+
+
 def _cell(
-    held: PoseSeries, block: tuple, fold: Mapping, sensor: str, j: int, order: int, fitted: tuple
-) -> tuple[dict, dict]:
+    held: PoseSeries,
+    block: tuple,
+    fold: Mapping,
+    sensor: str,
+    j: int,
+    order: int,
+    fitted: tuple,
+    term_influence: np.ndarray,
+) -> tuple[dict, tuple]:
     """One held-out pose, sensor and axis: the three methods' residual RMS with their spread,
-    and per method the block sums of the squared residuals and the samples per block."""
+    and what :func:`_spread` takes (per method the block sums of the squared residuals and the
+    samples per block, the blocks' indices, the fits' influence on the sums of squares)."""
     residual, coef, reference_c = fitted
     inside, slope = fold["inside"], fold["slopes"][sensor][j]
-    y, temp = held.values[sensor][inside, j], held.temp_c[inside]
-    block_t, block_v = block
+    y, temp, t_s = held.values[sensor][inside, j], held.temp_c[inside], held.t_s[inside]
+    block_t, block_v, _ = block
     yb, tb = block_v[sensor][fold["block_in"], j], block_t[fold["block_in"]]
     r = {"none": _centred(y), "term": _centred(residual), "regression": _centred(y - slope * temp)}
-    squares = {m: _block_sums(v**2, held.t_s[inside], fold["se_block_s"]) for m, v in r.items()}
+    se_block_s, origin = fold["se_block_s"], held.t_s[0]
+    squares = {m: _block_sums(v**2, t_s, se_block_s, origin) for m, v in r.items()}
+    ids = fold["first"][fold["held"]] + np.unique(_block_index(t_s, se_block_s, origin))
+    # d(sum of squares) / d(coefficient) on the held-out samples, times each block's influence
+    powers = _powers(temp - reference_c, order)
+    grad_term = -2.0 * r["term"] @ (powers - powers.mean(axis=0))
+    grad_slope = -2.0 * r["regression"] @ (temp - temp.mean())
+    fit_influence = {
+        "none": np.zeros(len(term_influence)),
+        "term": term_influence @ grad_term,
+        "regression": fold["slope_influence"][sensor][:, j] * grad_slope,
+    }
     return {
         "held_out": held.label, "sensor": sensor, "axis": AXES[j], "unit": SI_UNITS[sensor],
         "samples": int(inside.sum()), "fraction": float(inside.mean()),
-        **{f"rms_{m}": _rms(v) for m, v in r.items()}, **_spread(squares),
+        **{f"rms_{m}": _rms(v) for m, v in r.items()}, **_spread(squares, ids, fit_influence),
         "blocks": int(fold["block_in"].sum()),
         "blocks_none": _rms(_centred(yb)),
         "blocks_term": _rms(_centred(yb - _predict(coef, tb, reference_c))),
         "blocks_regression": _rms(_centred(yb - slope * tb)),
         "order": order, "coef": coef.tolist(), "reference_c": reference_c,
         "regression_slope": float(slope),
-    }, squares  # fmt: skip
+    }, (squares, ids, fit_influence)  # fmt: skip
 
 
-def _summary(group: Sequence[tuple[Mapping, Mapping]]) -> dict:
+def _summary(group: Sequence[tuple[Mapping, tuple]]) -> dict:
     """One sensor and axis over every held-out sample of its poses: each method's RMS, its
-    standard error and the ratios' intervals (the blocks of every pose as clusters)."""
+    standard error and the ratios' intervals (the blocks of every pose as clusters, a pose's
+    blocks both held out and, for the other poses' predictions, fitted on)."""
     cells = [c for c, _ in group]
+    methods = ("none", "term", "regression")
     squares = {
-        m: tuple(np.concatenate([sq[m][i] for _, sq in group]) for i in (0, 1))
-        for m in ("none", "term", "regression")
+        m: tuple(np.concatenate([sq[m][i] for _, (sq, _, _) in group]) for i in (0, 1))
+        for m in methods
     }
+    ids = np.concatenate([i for _, (_, i, _) in group])
+    fit_influence = {m: sum(f[m] for _, (_, _, f) in group) for m in methods}
     n = squares["none"][1].sum()
     return {
         "sensor": cells[0]["sensor"], "axis": cells[0]["axis"], "unit": cells[0]["unit"],
         **{f"rms_{m}": float(np.sqrt(v[0].sum() / n)) if n else float("nan")
            for m, v in squares.items()},
-        **_spread(squares), "orders": [c["order"] for c in cells],
+        **_spread(squares, ids, fit_influence), "orders": [c["order"] for c in cells],
     }  # fmt: skip
 
 
