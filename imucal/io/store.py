@@ -114,10 +114,7 @@ class RecordingWriter:
 
     def __enter__(self) -> RecordingWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, self._tmp = tempfile.mkstemp(
-            prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent
-        )
-        os.close(fd)
+        self._tmp = _temporary_beside(self.path)
         try:
             self._writer = pq.ParquetWriter(
                 self._tmp,
@@ -373,14 +370,27 @@ def _write_atomic(path: str | Path, write: Callable[[str], object]) -> None:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    tmp = _temporary_beside(path)
     try:
         write(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _temporary_beside(path: Path) -> str:
+    """An empty temporary file in ``path``'s folder with the permissions a new file gets there.
+
+    ``tempfile.mkstemp`` creates it readable by its owner alone; the renamed artifact would keep
+    that mode, so it is set to what ``open`` would give (``0o666`` less the process's umask).
+    """
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.fchmod(fd, 0o666 & ~umask)
+    os.close(fd)
+    return tmp
 
 
 def to_jsonable(obj: Any) -> Any:

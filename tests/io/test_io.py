@@ -401,3 +401,19 @@ def test_a_misspelt_key_of_dataset_yaml_names_the_closest_setting(tmp_path, old,
     message = str(info.value)
     assert message.startswith(f"{tmp_path / 'dataset.yaml'}: {expected} Known keys here: ")
     assert "does not match any of the regexes" not in message
+
+
+def test_artifacts_get_the_permissions_of_a_new_file(tmp_path):
+    """Written atomically through a temporary file, an artifact still gets what ``open`` would
+    give it (0o666 less the umask), not the temporary file's owner-only mode."""
+    import os
+    import stat
+
+    umask = os.umask(0o022)
+    try:
+        io.write_json({"a": 1}, tmp_path / "a.json")
+        io.write_recording(pd.DataFrame({TIME: [0.0, 0.01]}), tmp_path / "r.parquet", {})
+    finally:
+        os.umask(umask)
+    for name in ("a.json", "r.parquet"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == 0o644, name
