@@ -34,7 +34,7 @@ def holdout_section(path: str | Path | None) -> dict | None:
         the three residual RMS in display units with their standard errors over long blocks,
         the ratios to none and of the term to the regression with their 95 % intervals (with
         the fits' scatter; for the term against the regression also given the fits), the
-        verdict, the order and the compared fraction), ``summary`` (the same over all held-out
+        two verdicts, the order and the compared fraction), ``summary`` (the same over all held-out
         poses), ``units``, ``settings``, ``poses``.
     """
     if path is None:
@@ -70,6 +70,7 @@ def holdout_section(path: str | Path | None) -> dict | None:
             "term_vs_regression": ratio("term_vs_regression", 4),
             "given_fits": ratio("term_vs_regression", 4, "ci95_given_fits"),
             "verdict": c["verdict"],
+            "verdict_given_fits": c.get("verdict_given_fits", "-"),
             "fraction": _number(c.get("fraction", math.nan), 2),
         }
 

@@ -27,12 +27,12 @@ drift; the white noise averages out), the regression to the samples as ``IMUcali
 the comparison is on every sample and on the block means. The residuals of a drift are
 correlated over hours, so the uncertainty counts blocks of ``se_block_s`` as the independent
 observations (an effective sample size of one per block): a standard error per RMS and a 95 %
-interval per ratio. A ratio's interval holds the held-out samples' noise and the scatter of
-the fits (each fit block's influence on the fitted coefficients, carried to the held-out
-residual), so it says whether the two methods differ by more than their fits scatter: the term
-is better or worse than the regression where it excludes 1, else within noise. The interval
-given the fits (without their scatter) is reported beside it. The order's choice is taken as
-given.
+interval per ratio, in two forms. Given the fits, the interval holds the held-out samples'
+noise: it says whether these fitted models differ on this pose (``verdict_given_fits``). With
+the fits' scatter (each fit block's influence on the fitted coefficients through the noise,
+carried to the held-out residual) it says whether the two methods differ by more than their
+fits scatter (``verdict``). The term is better or worse than the regression where an interval
+excludes 1, else within noise. The order's choice is taken as given.
 """
 
 from __future__ import annotations
@@ -411,10 +411,16 @@ def _spread(
     A block that is both (a pose held out here and fitted on for another pose's prediction,
     as in the summary over all held-out poses) adds both before squaring. The variance is
     ``B / (B - 1)`` times the sum of the squared influences per source (the held-out blocks,
-    the fit blocks that are not held out), Student's t with Satterthwaite's degrees of freedom
-    over the two. The intervals ``..._given_fits`` leave the fits' scatter out: they say
-    whether a difference on these samples is noise for the fitted models; the intervals with
-    it whether the methods differ more than their fits scatter (the verdict).
+    the fit blocks that are not held out; a single such fit block joins the held-out ones),
+    Student's t with Satterthwaite's degrees of freedom over the two, and the interval is at
+    least as wide as the one given the fits. The delta method is linear in the coefficients:
+    near a method's best fit its loss from the fit's scatter is quadratic and always positive,
+    which it leaves out.
+
+    Two questions, two intervals and two verdicts: ``..._given_fits`` (the held-out samples
+    alone) says whether these fitted models differ on this pose by more than its noise; the
+    interval with the fits' scatter whether the two methods differ by more than their fits
+    scatter, as they would on another recording of the same part.
 
     Parameters
     ----------
@@ -433,9 +439,10 @@ def _spread(
     dict
         ``rms_<method>_se``; ``term_ratio``, ``regression_ratio`` (to none) and
         ``term_vs_regression``, each with ``..._ci95`` and ``..._ci95_given_fits``;
-        ``verdict`` (the term ``better``, ``worse`` or ``within noise`` against the
-        regression, on ``term_vs_regression_ci95``); ``clusters`` (B held-out blocks) and
-        ``fit_clusters`` (blocks of the fits that are not held out).
+        ``verdict`` and ``verdict_given_fits`` (the term ``better``, ``worse`` or ``within
+        noise`` against the regression, on either interval of ``term_vs_regression``);
+        ``clusters`` (B held-out blocks) and ``fit_clusters`` (blocks of the fits that are
+        not held out).
     """
     counts = next(iter(squares.values()))[1]
     n, b = counts.sum(), len(counts)
@@ -447,7 +454,8 @@ def _spread(
     out = {"clusters": b, "fit_clusters": int(fitted.sum())}
     if b < 2 or not n:
         nan = float("nan")
-        out |= {f"rms_{m}_se": nan for m in squares} | {"verdict": "within noise"}
+        out |= {f"rms_{m}_se": nan for m in squares}
+        out |= {"verdict": "within noise", "verdict_given_fits": "within noise"}
         for name, *_ in names:
             out |= {name: nan, f"{name}_ci95": [nan, nan], f"{name}_ci95_given_fits": [nan, nan]}
         return out
@@ -460,14 +468,26 @@ def _spread(
         given = (squares[a][0] - ms[a] * counts) / ms[a] - (squares[c][0] - ms[c] * counts) / ms[c]
         phi = (fit_influence[a] / ms[a] - fit_influence[c] / ms[c]) / n
         phi[ids] += given / n
+        if fitted.sum() >= 2:
+            parts = [_part(phi[held], b), _part(phi[fitted], int(fitted.sum()))]
+        else:  # a single fit block not held out has no spread of its own: it joins the other
+            pool = held | fitted
+            parts = [_part(phi[pool], int(pool.sum()))]
+        given_fits = _interval(log_ratio, [_part(given / n, b)])
+        with_fits = _interval(log_ratio, parts)
         out[name] = float(np.exp(0.5 * log_ratio))
-        out[f"{name}_ci95_given_fits"] = _interval(log_ratio, [_part(given / n, b)])
-        out[f"{name}_ci95"] = _interval(
-            log_ratio, [_part(phi[held], b), _part(phi[fitted], int(fitted.sum()))]
-        )
-    lo, hi = out["term_vs_regression_ci95"]
-    out["verdict"] = "better" if hi < 1.0 else "worse" if lo > 1.0 else "within noise"
+        out[f"{name}_ci95_given_fits"] = given_fits
+        # the fits' scatter only widens (Satterthwaite's degrees of freedom could narrow it)
+        out[f"{name}_ci95"] = [min(with_fits[0], given_fits[0]), max(with_fits[1], given_fits[1])]
+    out["verdict"] = _verdict(out["term_vs_regression_ci95"])
+    out["verdict_given_fits"] = _verdict(out["term_vs_regression_ci95_given_fits"])
     return out
+
+
+def _verdict(interval: Sequence[float]) -> str:
+    """The term against the regression from the interval of their RMS ratio."""
+    lo, hi = interval
+    return "better" if hi < 1.0 else "worse" if lo > 1.0 else "within noise"
 
 
 def _part(phi: np.ndarray, blocks: int) -> tuple[float, int]:
@@ -522,8 +542,9 @@ def hold_out_poses(
         and their standard errors (``rms_none_se`` ...), the ratios ``term_ratio``,
         ``regression_ratio`` (to none) and ``term_vs_regression`` each with its 95 % interval
         (``..._ci95``, with the fits' scatter) and the interval given the fits
-        (``..._ci95_given_fits``), ``verdict`` (the term ``better``, ``worse`` or ``within
-        noise`` against the regression: the interval below, above or around 1), ``clusters``
+        (``..._ci95_given_fits``), ``verdict`` and ``verdict_given_fits`` (the term
+        ``better``, ``worse`` or ``within noise`` against the regression: either interval
+        below, above or around 1), ``clusters``
         and ``fit_clusters`` (the held-out blocks of ``se_block_s`` and those of the fit poses
         behind them, :func:`_spread`), the same RMS of the block means
         (``blocks_none`` ...), ``order`` (chosen on the fit poses alone, :func:`nested_order`),
@@ -556,6 +577,11 @@ def hold_out_poses(
         )
     if max_order < 1:
         raise ValueError(f"max_order must be >= 1, got {max_order}")
+    if not float(se_block_s / block_s).is_integer():
+        raise ValueError(
+            f"se_block_s ({se_block_s} s) must be a whole number of block_s ({block_s} s): "
+            "each block of the term's fit belongs to one block of the standard errors"
+        )
     sensors = list(poses[0].values)
     blocks = [_blocks(p, block_s) for p in poses]
     # every se_block_s block of every pose, numbered across the session (the fits' clusters)
@@ -569,14 +595,16 @@ def hold_out_poses(
         labels = np.concatenate([
             first[p] + _block_index(poses[p].t_s, se_block_s, poses[p].t_s[0]) for p in fit
         ])  # fmt: skip
+        # the regression's scatter is that of the noise through its (fixed) design: the steps
+        # between the poses' levels are the same in every repetition, so its noise is taken
+        # from a fit with one constant per pose, not from its own one-intercept residuals
+        per_pose = _term_design([poses[p].temp_c for p in fit], 1, 0.0)
         slopes, slope_influence = {}, {}
         for s in sensors:
             y = np.vstack([poses[p].values[s] for p in fit])
-            coef = np.linalg.lstsq(regressors, y, rcond=None)[0]
-            slopes[s] = coef[1]
-            slope_influence[s] = _influence(regressors, y - regressors @ coef, labels, first[-1])[
-                :, 1
-            ]
+            slopes[s] = np.linalg.lstsq(regressors, y, rcond=None)[0][1]
+            noise = y - per_pose @ np.linalg.lstsq(per_pose, y, rcond=None)[0]
+            slope_influence[s] = _influence(regressors, noise, labels, first[-1])[:, 1]
         folds.append({
             "fit": fit, "inside": _inside(poses, fit, h, margin_c), "slopes": slopes,
             "slope_influence": slope_influence, "first": first, "held": h,
