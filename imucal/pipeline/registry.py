@@ -54,7 +54,7 @@ STAGES: dict[str, Stage] = {
             "accelerometer from static faces of known orientation (Ferraris)",
         ),
         Stage(
-            "acc_cube", "acc", "accelerometer multi-position fit |a| = g (eq. 32)", "acc_step1.json"
+            "acc_cube", "acc", "accelerometer multi-position fit |a| = g (eq. 32)", "acc_cube.json"
         ),
         Stage(
             "acc_align",

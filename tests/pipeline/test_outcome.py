@@ -26,7 +26,7 @@ from imucal.pipeline.stages import calibration_of_what_ran
 
 def test_guard_writes_every_output_as_not_run_and_the_next_stage_traces_it(tmp_path):
     outputs = {
-        "fit": tmp_path / "acc_step1.json",
+        "fit": tmp_path / "acc_cube.json",
         "figure": tmp_path / "acc_cube.png",
         "tables": tmp_path / "tables.csv",
     }

@@ -6,7 +6,7 @@ rule acc_cube:
         cube="results/{dataset}/ingest/cube.parquet",
         segments="results/{dataset}/segments.parquet",
     output:
-        fit="results/{dataset}/acc_step1.json",
+        fit="results/{dataset}/acc_cube.json",
         figure=report(
             "results/{dataset}/figures/acc_cube.png",
             caption="../../imucal/report/captions/acc_cube.rst",
@@ -31,7 +31,7 @@ rule acc_align:
     input:
         rotation3d="results/{dataset}/lowpass/rotation3d.parquet",
         segments="results/{dataset}/segments.parquet",
-        fit="results/{dataset}/acc_step1.json",
+        fit="results/{dataset}/acc_cube.json",
     output:
         acc="results/{dataset}/acc.json",
     log:
