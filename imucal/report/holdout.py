@@ -35,7 +35,7 @@ def holdout_section(path: str | Path | None) -> dict | None:
         the ratios to none and of the term to the regression with their 95 % intervals (with
         the fits' scatter; for the term against the regression also given the fits), the
         two verdicts, the order and the compared fraction), ``summary`` (the same over all held-out
-        poses), ``units``, ``settings``, ``poses``.
+        poses), ``units``, ``settings``, ``poses``, ``warnings``.
     """
     if path is None:
         return None
@@ -89,4 +89,5 @@ def holdout_section(path: str | Path | None) -> dict | None:
         "rows": [row(c, c["held_out"]) for c in d["cells"]],
         "summary": [row(s, "all") for s in d["summary"]],
         "units": {s: DISPLAY_UNITS[s][0] for s in d["sensors"]},
+        "warnings": d.get("warnings", []),
     }

@@ -188,6 +188,9 @@ def build_report_context(
             warnings += collect_warnings(result, f"{sensor}.json")
     if validation is not None:
         warnings += collect_warnings(validation, "validation.json")
+    if temperature_holdout is not None:
+        holdout = _load_json(temperature_holdout, "temperature_holdout.json")
+        warnings += collect_warnings(holdout, "temperature_holdout.json")
     # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
     warnings += [
         {"source": "stages.json", "where": row["stage"], "text": row["reason"]}

@@ -6,7 +6,8 @@ correction, variance, dict form, report rows, export note), and their registry
 (:mod:`.registry`). Their estimators: temperature polynomials (:mod:`imucal.gap.temperature`), the
 gyroscope's g-sensitivity (:mod:`.gsensitivity`), the accelerometer's lever arm on the rate
 table (:mod:`.leverarm`), the magnetometer's delay (:mod:`.magdelay`); the temperature terms
-held out across static poses (:mod:`.poseholdout`), the switch per term (:mod:`.selection`) and
+held out across static poses (:mod:`.poseholdout`, its intervals over long blocks in
+:mod:`.blockspread`), the switch per term (:mod:`.selection`) and
 the loop that folds them into the calibration (:mod:`.loop`).
 """
 

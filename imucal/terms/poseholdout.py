@@ -42,7 +42,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.stats import t as student_t
 
 from imucal.columns import (
     AXES,
@@ -56,6 +55,7 @@ from imucal.columns import (
     temperature_column,
 )
 from imucal.segments.table import row_bounds, rows_of
+from imucal.terms.blockspread import block_index, block_sums, cluster_mean, influence, spread
 
 #: The fewest poses a hold-out needs: one held out, at least two to fit on.
 MIN_POSES = 3
@@ -194,35 +194,6 @@ def fit_term(
     return coef[len(temps) :]
 
 
-def _influence(
-    design: np.ndarray, residual: np.ndarray, labels: np.ndarray, n_clusters: int
-) -> np.ndarray:
-    """Each cluster's influence on a least-squares fit: ``(X'X)^-1 X_c' e_c`` per cluster.
-
-    Their sum of outer products is the cluster-robust covariance of the coefficients (without
-    the small-sample factor).
-
-    Parameters
-    ----------
-    design : ndarray, shape (n, p)
-    residual : ndarray, shape (n,) or (n, q)
-        The fit's residuals (one column per fitted series).
-    labels : ndarray of int, shape (n,)
-        Cluster of each row, ``0 .. C - 1``.
-    n_clusters : int
-        C.
-
-    Returns
-    -------
-    ndarray, shape (C, p) or (C, p, q)
-    """
-    e = residual.reshape(len(residual), -1)
-    scores = np.zeros((n_clusters, design.shape[1], e.shape[1]))
-    np.add.at(scores, labels, design[:, :, None] * e[:, None, :])
-    out = np.einsum("ij,cjq->ciq", np.linalg.pinv(design.T @ design), scores)
-    return out.reshape(out.shape[:2]) if residual.ndim == 1 else out
-
-
 def _predict(coef: np.ndarray, temp: np.ndarray, reference_c: float) -> np.ndarray:
     return _powers(temp - reference_c, len(coef)) @ coef if len(coef) else np.zeros(len(temp))
 
@@ -249,7 +220,7 @@ def choose_order(
     (over the samples of every held-out pose) is within one standard error of the best's, the
     one-standard-error rule of :func:`imucal.gap.temperature.select_model`. The residuals of
     a drift are correlated over hours, so each standard error is that of a ratio over long
-    blocks (clusters, :func:`_cluster_mean`).
+    blocks (clusters, :func:`~imucal.terms.blockspread.cluster_mean`).
 
     Parameters
     ----------
@@ -266,58 +237,19 @@ def choose_order(
     """
 
     pooled = {
-        k: _cluster_mean(*(np.concatenate([p[i] for p in pieces]) for i in (0, 1)))
+        k: cluster_mean(*(np.concatenate([p[i] for p in pieces]) for i in (0, 1)))
         for k, pieces in squares.items()
     }
     heldout = {k: float(np.sqrt(m)) for k, (m, _) in pooled.items()}
     admissible = []
     for k in squares:
-        gains = [_cluster_mean(p[0] - q[0], p[1]) for p, q in zip(squares[k], squares[0])]
+        gains = [cluster_mean(p[0] - q[0], p[1]) for p, q in zip(squares[k], squares[0])]
         if k and all(m + se < 0 for m, se in gains):
             admissible.append(k)
     if not admissible:
         return 0, heldout
     best = min(admissible, key=lambda k: pooled[k][0])
     return min(k for k in admissible if pooled[k][0] <= sum(pooled[best])), heldout
-
-
-def _cluster_mean(sums: np.ndarray, counts: np.ndarray) -> tuple[float, float]:
-    """Mean per sample over blocks, and its standard error with each block one observation.
-
-    ``m = sum_b s_b / N`` and ``se = sqrt(B / (B - 1) sum_b (s_b - m n_b)^2) / N`` over the ``B``
-    blocks, ``s_b`` a block's sum (of squares, or of their difference), ``n_b`` its samples and
-    ``N`` all samples: the ratio estimator's cluster-robust standard error with the small-sample
-    factor ``B / (B - 1)``. NaN for both without samples, NaN for the error with one block.
-
-    Parameters
-    ----------
-    sums, counts : ndarray
-        Each block's sum and number of samples, shape (B,).
-    """
-    n, b = counts.sum(), len(counts)
-    if not n:
-        return np.nan, np.nan
-    m = sums.sum() / n
-    if b < 2:
-        return m, np.nan
-    return m, np.sqrt(b / (b - 1) * np.sum((sums - m * counts) ** 2)) / n
-
-
-def _block_sums(
-    x: np.ndarray, t_s: np.ndarray, block_s: float, origin_s: float | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Sums of ``x`` (n,) over consecutive ``block_s`` blocks of ``t_s`` from ``origin_s`` (its
-    first time by default), and their counts: the blocks with samples, in time order."""
-    if not len(x):
-        return x, x
-    k = _block_index(t_s, block_s, t_s[0] if origin_s is None else origin_s)
-    n = np.bincount(k)
-    return np.bincount(k, x)[n > 0], n[n > 0].astype(float)
-
-
-def _block_index(t_s: np.ndarray, block_s: float, origin_s: float) -> np.ndarray:
-    """Index of the ``block_s`` block from ``origin_s`` each time of ``t_s`` falls in."""
-    return ((t_s - origin_s) // block_s).astype(int)
 
 
 def _rms(x: np.ndarray) -> float:
@@ -387,126 +319,8 @@ def nested_order(
         inside = _inside(poses, rest, i, margin_c)
         for k in squares:
             r = _residual(poses, blocks, rest, poses[i], inside, sensor, j, k, margin_c)[0]
-            squares[k].append(_block_sums(_centred(r) ** 2, poses[i].t_s[inside], se_block_s))
+            squares[k].append(block_sums(_centred(r) ** 2, poses[i].t_s[inside], se_block_s))
     return choose_order(squares)
-
-
-def _spread(
-    squares: Mapping[str, tuple], ids: np.ndarray, fit_influence: Mapping[str, np.ndarray]
-) -> dict:
-    """Standard errors of the RMS and 95 % intervals of their ratios over long blocks.
-
-    Each block of ``se_block_s`` counts as one independent observation (the residuals are
-    correlated within it, little across). The standard error of a mean square ``m`` is
-    ``sqrt(B / (B - 1) sum_b (s_b - m n_b)^2) / N`` over the ``B`` held-out blocks (``s_b`` the
-    sum of squares, ``n_b`` the samples, ``N`` all samples), that of the RMS half of it
-    relative. A ratio of two RMS on the same samples is compared on the log of its mean
-    squares by the delta method, each block's influence on it summed over two sources:
-
-    * the held-out samples, given the fitted models: ``(s_b - m n_b) / (m N)`` per method;
-    * the fits: each block of the fit poses moves the fitted coefficients by its influence
-      (:func:`_influence`), and they move the held-out sum of squares by its gradient
-      (``fit_influence``, already the product), divided by that sum of squares.
-
-    A block that is both (a pose held out here and fitted on for another pose's prediction,
-    as in the summary over all held-out poses) adds both before squaring. The variance is
-    ``B / (B - 1)`` times the sum of the squared influences per source (the held-out blocks,
-    the fit blocks that are not held out; a single such fit block joins the held-out ones),
-    Student's t with Satterthwaite's degrees of freedom over the two, and the interval is at
-    least as wide as the one given the fits. The delta method is linear in the coefficients:
-    near a method's best fit its loss from the fit's scatter is quadratic and always positive,
-    which it leaves out.
-
-    Two questions, two intervals and two verdicts: ``..._given_fits`` (the held-out samples
-    alone) says whether these fitted models differ on this pose by more than its noise; the
-    interval with the fits' scatter whether the two methods differ by more than their fits
-    scatter, as they would on another recording of the same part.
-
-    Parameters
-    ----------
-    squares : mapping of str to (ndarray, ndarray)
-        Method (``none``, ``term``, ``regression``) -> sums of its squared residuals over the
-        held-out blocks and the samples per block, each shape (B,).
-    ids : ndarray of int, shape (B,)
-        The held-out blocks' indices among all blocks of the session (see ``fit_influence``).
-    fit_influence : mapping of str to ndarray, shape (C,)
-        Method -> per block of the session, its influence through the fit on the method's
-        held-out sum of squares (unit of the squares; zero for the blocks no fit saw and for
-        a method without coefficients).
-
-    Returns
-    -------
-    dict
-        ``rms_<method>_se``; ``term_ratio``, ``regression_ratio`` (to none) and
-        ``term_vs_regression``, each with ``..._ci95`` and ``..._ci95_given_fits``;
-        ``verdict`` and ``verdict_given_fits`` (the term ``better``, ``worse`` or ``within
-        noise`` against the regression, on either interval of ``term_vs_regression``);
-        ``clusters`` (B held-out blocks) and ``fit_clusters`` (blocks of the fits that are
-        not held out).
-    """
-    counts = next(iter(squares.values()))[1]
-    n, b = counts.sum(), len(counts)
-    names = (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
-             ("term_vs_regression", "term", "regression"))  # fmt: skip
-    held = np.zeros(len(next(iter(fit_influence.values()))), bool)
-    held[ids] = True
-    fitted = ~held & np.any([f != 0 for f in fit_influence.values()], axis=0)
-    out = {"clusters": b, "fit_clusters": int(fitted.sum())}
-    if b < 2 or not n:
-        nan = float("nan")
-        out |= {f"rms_{m}_se": nan for m in squares}
-        out |= {"verdict": "within noise", "verdict_given_fits": "within noise"}
-        for name, *_ in names:
-            out |= {name: nan, f"{name}_ci95": [nan, nan], f"{name}_ci95_given_fits": [nan, nan]}
-        return out
-    ms = {m: sums.sum() / n for m, (sums, _) in squares.items()}
-    out |= {
-        f"rms_{m}_se": float(_cluster_mean(*squares[m])[1] / (2 * np.sqrt(ms[m]))) for m in squares
-    }
-    for name, a, c in names:
-        log_ratio = np.log(ms[a] / ms[c])
-        given = (squares[a][0] - ms[a] * counts) / ms[a] - (squares[c][0] - ms[c] * counts) / ms[c]
-        phi = (fit_influence[a] / ms[a] - fit_influence[c] / ms[c]) / n
-        phi[ids] += given / n
-        if fitted.sum() >= 2:
-            parts = [_part(phi[held], b), _part(phi[fitted], int(fitted.sum()))]
-        else:  # a single fit block not held out has no spread of its own: it joins the other
-            pool = held | fitted
-            parts = [_part(phi[pool], int(pool.sum()))]
-        given_fits = _interval(log_ratio, [_part(given / n, b)])
-        with_fits = _interval(log_ratio, parts)
-        out[name] = float(np.exp(0.5 * log_ratio))
-        out[f"{name}_ci95_given_fits"] = given_fits
-        # the fits' scatter only widens (Satterthwaite's degrees of freedom could narrow it)
-        out[f"{name}_ci95"] = [min(with_fits[0], given_fits[0]), max(with_fits[1], given_fits[1])]
-    out["verdict"] = _verdict(out["term_vs_regression_ci95"])
-    out["verdict_given_fits"] = _verdict(out["term_vs_regression_ci95_given_fits"])
-    return out
-
-
-def _verdict(interval: Sequence[float]) -> str:
-    """The term against the regression from the interval of their RMS ratio."""
-    lo, hi = interval
-    return "better" if hi < 1.0 else "worse" if lo > 1.0 else "within noise"
-
-
-def _part(phi: np.ndarray, blocks: int) -> tuple[float, int]:
-    """A source's variance, ``B / (B - 1) sum phi^2`` over its ``B`` blocks, and ``B - 1``."""
-    if blocks < 2:
-        return 0.0, 0
-    return blocks / (blocks - 1) * float(np.sum(phi**2)), blocks - 1
-
-
-def _interval(log_ratio: float, parts: Sequence[tuple[float, int]]) -> list[float]:
-    """95 % interval of an RMS ratio from its log mean-square ratio and the variances of its
-    sources (Student's t with Satterthwaite's degrees of freedom)."""
-    parts = [(v, d) for v, d in parts if v > 0 and d > 0]
-    if not parts:
-        return [float(np.exp(0.5 * log_ratio))] * 2
-    var = sum(v for v, _ in parts)
-    dof = var**2 / sum(v**2 / d for v, d in parts)
-    half = float(student_t.ppf(0.975, dof)) * np.sqrt(var)
-    return [float(np.exp(0.5 * (log_ratio + k * half))) for k in (-1, 1)]
 
 
 def hold_out_poses(
@@ -546,13 +360,14 @@ def hold_out_poses(
         ``better``, ``worse`` or ``within noise`` against the regression: either interval
         below, above or around 1), ``clusters``
         and ``fit_clusters`` (the held-out blocks of ``se_block_s`` and those of the fit poses
-        behind them, :func:`_spread`), the same RMS of the block means
+        behind them, :func:`~imucal.terms.blockspread.spread`), the same RMS of the block means
         (``blocks_none`` ...), ``order`` (chosen on the fit poses alone, :func:`nested_order`),
         ``inner_rms`` (order -> RMS of the fit poses predicted from each other), ``coef``
         (``c_1 .. c_order``, unit per K^k), ``reference_c``, ``regression_slope`` (unit per K).
         ``orders``: per sensor and axis the order of each held-out pose and ``outer_rms``, the
         RMS over all held-out samples of every order (for comparison only: choosing on it
-        would choose on the reported residuals). ``summary``: per sensor and axis, the RMS
+        would choose on the reported residuals). ``warnings``: poses too short for the
+        blocks of ``se_block_s`` (:func:`_short_poses`). ``summary``: per sensor and axis, the RMS
         over all held-out samples of each method, its standard error and the ratios with their
         intervals (the blocks of all poses as clusters). ``poses``: label, samples,
         temperature span.
@@ -593,7 +408,7 @@ def hold_out_poses(
         pooled_t = np.concatenate([poses[p].temp_c for p in fit])
         regressors = np.column_stack([np.ones_like(pooled_t), pooled_t])
         labels = np.concatenate([
-            first[p] + _block_index(poses[p].t_s, se_block_s, poses[p].t_s[0]) for p in fit
+            first[p] + block_index(poses[p].t_s, se_block_s, poses[p].t_s[0]) for p in fit
         ])  # fmt: skip
         # the regression's scatter is that of the noise through its (fixed) design: the steps
         # between the poses' levels are the same in every repetition, so its noise is taken
@@ -604,7 +419,7 @@ def hold_out_poses(
             y = np.vstack([poses[p].values[s] for p in fit])
             slopes[s] = np.linalg.lstsq(regressors, y, rcond=None)[0][1]
             noise = y - per_pose @ np.linalg.lstsq(per_pose, y, rcond=None)[0]
-            slope_influence[s] = _influence(regressors, noise, labels, first[-1])[:, 1]
+            slope_influence[s] = influence(regressors, noise, labels, first[-1])[:, 1]
         folds.append({
             "fit": fit, "inside": _inside(poses, fit, h, margin_c), "slopes": slopes,
             "slope_influence": slope_influence, "first": first, "held": h,
@@ -623,12 +438,12 @@ def hold_out_poses(
                 inside = fold["inside"]
                 for k in outer:
                     r = _residual(poses, blocks, fold["fit"], held, inside, s, j, k, margin_c)[0]
-                    outer[k].append(_block_sums(_centred(r) ** 2, held.t_s[inside], se_block_s))
+                    outer[k].append(block_sums(_centred(r) ** 2, held.t_s[inside], se_block_s))
                 fitted = _residual(poses, blocks, fold["fit"], held, inside, s, j, order, margin_c)
-                influence = _term_influence(blocks, fold, s, j, order, fitted[2])
-                cell, spread = _cell(held, blocks[h], fold, s, j, order, fitted, influence)
+                term_influence = _term_influence(blocks, fold, s, j, order, fitted[2])
+                cell, parts = _cell(held, blocks[h], fold, s, j, order, fitted, term_influence)
                 cells.append({**cell, "inner_rms": inner})
-                group.append((cell, spread))
+                group.append((cell, parts))
             orders.append({
                 "sensor": s, "axis": axis,
                 "by_pose": {c["held_out"]: c["order"] for c, _ in group},
@@ -647,14 +462,32 @@ def hold_out_poses(
         "orders": orders,
         "cells": cells,
         "summary": summary,
+        "warnings": _short_poses(poses, se_block_s),
     }
+
+
+def _short_poses(poses: Sequence[PoseSeries], se_block_s: float) -> list[str]:
+    """A warning per pose that spans fewer than two blocks of ``se_block_s``: its residuals
+    have no spread over blocks, so no order can be admitted on it (the axis gets no term) and
+    its intervals are undefined."""
+    out = []
+    for p in poses:
+        span_s = float(p.t_s[-1] - p.t_s[0])
+        if span_s < 2 * se_block_s:
+            out.append(
+                f"pose {p.label!r} spans {span_s:.0f} s, fewer than two blocks of se_block_s "
+                f"({se_block_s:.0f} s): no order can be admitted on it and its intervals are "
+                "undefined; set temperature_holdout.se_block_s to the residuals' correlation "
+                "time (at most half the shortest pose)"
+            )
+    return out
 
 
 def _term_influence(
     blocks: Sequence[tuple], fold: Mapping, sensor: str, j: int, order: int, reference_c: float
 ) -> np.ndarray:
     """Each block's influence on the term's coefficients ``c_1 .. c_order`` fitted on the fold's
-    fit poses (:func:`_influence`, the blocks numbered across the session), shape (C, order)."""
+    fit poses (:func:`~imucal.terms.blockspread.influence`, the blocks numbered across the session), shape (C, order)."""
     fit = fold["fit"]
     temps = [blocks[p][0] for p in fit]
     design = _term_design(temps, order, reference_c)
@@ -663,7 +496,7 @@ def _term_influence(
     labels = np.concatenate(
         [fold["first"][p] + (blocks[p][2] // fold["se_block_s"]).astype(int) for p in fit]
     )
-    return _influence(design, y - design @ coef, labels, fold["first"][-1])[:, len(fit) :]
+    return influence(design, y - design @ coef, labels, fold["first"][-1])[:, len(fit) :]
 
 
 def _cell(
@@ -677,7 +510,7 @@ def _cell(
     term_influence: np.ndarray,
 ) -> tuple[dict, tuple]:
     """One held-out pose, sensor and axis: the three methods' residual RMS with their spread,
-    and what :func:`_spread` takes (per method the block sums of the squared residuals and the
+    and what :func:`~imucal.terms.blockspread.spread` takes (per method the block sums of the squared residuals and the
     samples per block, the blocks' indices, the fits' influence on the sums of squares)."""
     residual, coef, reference_c = fitted
     inside, slope = fold["inside"], fold["slopes"][sensor][j]
@@ -686,8 +519,8 @@ def _cell(
     yb, tb = block_v[sensor][fold["block_in"], j], block_t[fold["block_in"]]
     r = {"none": _centred(y), "term": _centred(residual), "regression": _centred(y - slope * temp)}
     se_block_s, origin = fold["se_block_s"], held.t_s[0]
-    squares = {m: _block_sums(v**2, t_s, se_block_s, origin) for m, v in r.items()}
-    ids = fold["first"][fold["held"]] + np.unique(_block_index(t_s, se_block_s, origin))
+    squares = {m: block_sums(v**2, t_s, se_block_s, origin) for m, v in r.items()}
+    ids = fold["first"][fold["held"]] + np.unique(block_index(t_s, se_block_s, origin))
     # d(sum of squares) / d(coefficient) on the held-out samples, times each block's influence
     powers = _powers(temp - reference_c, order)
     grad_term = -2.0 * r["term"] @ (powers - powers.mean(axis=0))
@@ -700,7 +533,7 @@ def _cell(
     return {
         "held_out": held.label, "sensor": sensor, "axis": AXES[j], "unit": SI_UNITS[sensor],
         "samples": int(inside.sum()), "fraction": float(inside.mean()),
-        **{f"rms_{m}": _rms(v) for m, v in r.items()}, **_spread(squares, ids, fit_influence),
+        **{f"rms_{m}": _rms(v) for m, v in r.items()}, **spread(squares, ids, fit_influence),
         "blocks": int(fold["block_in"].sum()),
         "blocks_none": _rms(_centred(yb)),
         "blocks_term": _rms(_centred(yb - _predict(coef, tb, reference_c))),
@@ -727,7 +560,7 @@ def _summary(group: Sequence[tuple[Mapping, tuple]]) -> dict:
         "sensor": cells[0]["sensor"], "axis": cells[0]["axis"], "unit": cells[0]["unit"],
         **{f"rms_{m}": float(np.sqrt(v[0].sum() / n)) if n else float("nan")
            for m, v in squares.items()},
-        **_spread(squares, ids, fit_influence), "orders": [c["order"] for c in cells],
+        **spread(squares, ids, fit_influence), "orders": [c["order"] for c in cells],
     }  # fmt: skip
 
 

@@ -284,3 +284,20 @@ def test_cats_tag_held_out_across_its_three_poses():
     # the difference on that pose, not between the methods
     cell = next(c for c in cells(out, "gyr", "x") if c["held_out"] == "pose_z")
     assert (cell["verdict_given_fits"], cell["verdict"]) == ("worse", "within noise")
+
+
+def test_poses_shorter_than_two_standard_error_blocks_are_warned():
+    rng = np.random.default_rng(3)
+    n = 10_000  # 2.8 h at 1 Hz: one block of 4 h
+    poses = [
+        ph.PoseSeries(
+            f"pose_{k}", np.arange(n) / RATE_HZ, sweep(rng, 5.0, 15.0 + 3 * k, n),
+            {"gyr": NOISE * rng.standard_normal((n, 3))},
+        )
+        for k in range(3)
+    ]  # fmt: skip
+    out = ph.hold_out_poses(poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=14_400)
+    assert len(out["warnings"]) == 3
+    assert "fewer than two blocks of se_block_s (14400 s)" in out["warnings"][0]
+    with pytest.raises(ValueError, match="must be a whole number of block_s"):
+        ph.hold_out_poses(poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=1000.0)
