@@ -216,6 +216,9 @@ def choose_order(
     it predicts every held-out pose better than no term, each by more than one standard error
     of the paired difference (the orders are compared on the same samples, which share the
     white noise and the pose's own drift); with no admissible order the axis gets none (0).
+    A held-out pose whose compared samples lie in a single block (one that overlaps the
+    others' temperature span only briefly) has no standard error and can neither confirm nor
+    refute an order: it is left out of this test, which needs at least two poses that can.
     Among the admissible orders the choice is the smallest whose mean squared held-out residual
     (over the samples of every held-out pose) is within one standard error of the best's, the
     one-standard-error rule of :func:`imucal.gap.temperature.select_model`. The residuals of
@@ -244,7 +247,8 @@ def choose_order(
     admissible = []
     for k in squares:
         gains = [cluster_mean(p[0] - q[0], p[1]) for p, q in zip(squares[k], squares[0])]
-        if k and all(m + se < 0 for m, se in gains):
+        judged = [(m, se) for m, se in gains if np.isfinite(se)]
+        if k and len(judged) >= 2 and all(m + se < 0 for m, se in judged):
             admissible.append(k)
     if not admissible:
         return 0, heldout
@@ -366,7 +370,7 @@ def hold_out_poses(
         (``c_1 .. c_order``, unit per K^k), ``reference_c``, ``regression_slope`` (unit per K).
         ``orders``: per sensor and axis the order of each held-out pose and ``outer_rms``, the
         RMS over all held-out samples of every order (for comparison only: choosing on it
-        would choose on the reported residuals). ``warnings``: poses too short for the
+        would choose on the reported residuals). ``warnings``: poses with fewer than three
         blocks of ``se_block_s`` (:func:`_short_poses`). ``summary``: per sensor and axis, the RMS
         over all held-out samples of each method, its standard error and the ratios with their
         intervals (the blocks of all poses as clusters). ``poses``: label, samples,
@@ -467,18 +471,24 @@ def hold_out_poses(
 
 
 def _short_poses(poses: Sequence[PoseSeries], se_block_s: float) -> list[str]:
-    """A warning per pose that spans fewer than two blocks of ``se_block_s``: its residuals
-    have no spread over blocks, so no order can be admitted on it (the axis gets no term) and
-    its intervals are undefined."""
+    """A warning per pose with fewer than three blocks of ``se_block_s``: its standard errors
+    rest on one degree of freedom or none (one block: no spread, so no order can be admitted
+    on it and its intervals are undefined)."""
     out = []
     for p in poses:
         span_s = float(p.t_s[-1] - p.t_s[0])
-        if span_s < 2 * se_block_s:
+        blocks = int(span_s // se_block_s) + 1
+        if blocks < 3:
+            consequence = (
+                "no spread over blocks: no order can be admitted on it and its intervals are "
+                "undefined"
+                if blocks == 1
+                else "its standard errors rest on one degree of freedom"
+            )
             out.append(
-                f"pose {p.label!r} spans {span_s:.0f} s, fewer than two blocks of se_block_s "
-                f"({se_block_s:.0f} s): no order can be admitted on it and its intervals are "
-                "undefined; set temperature_holdout.se_block_s to the residuals' correlation "
-                "time (at most half the shortest pose)"
+                f"pose {p.label!r} spans {span_s:.0f} s, {blocks} block(s) of se_block_s "
+                f"({se_block_s:.0f} s): {consequence}; set temperature_holdout.se_block_s to "
+                "the residuals' correlation time, at most a third of the shortest pose"
             )
     return out
 

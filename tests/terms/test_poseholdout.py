@@ -216,7 +216,6 @@ def test_the_interval_of_a_ratio_holds_the_fits_scatter(step):
     # deviation); a 95 % half-width is about 2.2 spreads (Student's t, about 10 dof)
     assert coverage(with_fits) >= 0.85
     assert np.median(np.diff(with_fits, axis=1)) / 2 < 3.0 * spread
-    assert coverage(given_fits) <= coverage(with_fits)
     if step == 0.0:
         assert coverage(given_fits) < 0.90
 
@@ -286,7 +285,7 @@ def test_cats_tag_held_out_across_its_three_poses():
     assert (cell["verdict_given_fits"], cell["verdict"]) == ("worse", "within noise")
 
 
-def test_poses_shorter_than_two_standard_error_blocks_are_warned():
+def test_poses_with_fewer_than_three_standard_error_blocks_are_warned():
     rng = np.random.default_rng(3)
     n = 10_000  # 2.8 h at 1 Hz: one block of 4 h
     poses = [
@@ -298,6 +297,29 @@ def test_poses_shorter_than_two_standard_error_blocks_are_warned():
     ]  # fmt: skip
     out = ph.hold_out_poses(poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=14_400)
     assert len(out["warnings"]) == 3
-    assert "fewer than two blocks of se_block_s (14400 s)" in out["warnings"][0]
+    assert "1 block(s) of se_block_s (14400 s): no spread over blocks" in out["warnings"][0]
+    out = ph.hold_out_poses(poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=4800)
+    assert "3 block(s)" not in " ".join(out["warnings"])
+    out = ph.hold_out_poses(poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=6000)
+    assert (
+        "2 block(s) of se_block_s (6000 s): its standard errors rest on one" in out["warnings"][0]
+    )
     with pytest.raises(ValueError, match="must be a whole number of block_s"):
         ph.hold_out_poses(poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=1000.0)
+
+
+def test_a_pose_that_barely_overlaps_the_others_span_does_not_veto_an_order():
+    """Four poses with one linear law; the hottest pose overlaps the span of the others only
+    at the start of its hold, in one block: predicted from them it has no standard error, so
+    it neither confirms nor refutes the order, and the two other fit poses decide."""
+    rng = np.random.default_rng(11)
+    n, slope = 20_000, 4e-4
+    spans = [(5.0, 13.0), (8.0, 16.0), (11.0, 19.0), (19.5, 27.0)]
+    poses = []
+    for k, (lo, hi) in enumerate(spans):
+        temp = lo + (hi - lo) * np.sqrt(np.linspace(0.0, 1.0, n))  # warming, fast at first
+        gyr = slope * (temp - 14.0)[:, None] + NOISE * rng.standard_normal((n, 3)) + 1e-3 * k
+        poses.append(ph.PoseSeries(f"pose_{k}", np.arange(n) / RATE_HZ, temp, {"gyr": gyr}))
+    out = ph.hold_out_poses(poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=3600.0)
+    orders = [c["order"] for c in out["cells"] if c["held_out"] == "pose_1"]
+    assert orders == [1, 1, 1]
