@@ -13,7 +13,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from scipy.stats import t as student_t
 
 
 def influence(
@@ -193,6 +192,9 @@ def _part(phi: np.ndarray, blocks: int) -> tuple[float, int]:
 def _interval(log_ratio: float, parts: Sequence[tuple[float, int]]) -> list[float]:
     """95 % interval of an RMS ratio from its log mean-square ratio and the variances of its
     sources (Student's t with Satterthwaite's degrees of freedom)."""
+    # imported here: scipy.stats costs about 0.4 s, and the workflow's parse imports this module
+    from scipy.stats import t as student_t
+
     parts = [(v, d) for v, d in parts if v > 0 and d > 0]
     if not parts:
         return [float(np.exp(0.5 * log_ratio))] * 2
