@@ -38,7 +38,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.stats import t as student_t
 
 from imucal.columns import (
     AXES,
@@ -375,6 +374,9 @@ def _spread(squares: Mapping[str, tuple]) -> dict:
         for name in ("term_ratio", "regression_ratio", "term_vs_regression"):
             out |= {name: nan, f"{name}_ci95": [nan, nan]}
         return out
+    # imported here: scipy.stats costs about 0.4 s, and the workflow's parse imports this module
+    from scipy.stats import t as student_t
+
     inflate, q = np.sqrt(b / (b - 1)), float(student_t.ppf(0.975, b - 1))
     ms = {m: sums.sum() / n for m, (sums, _) in squares.items()}
     dev = {m: squares[m][0] - ms[m] * counts for m in squares}
