@@ -11,10 +11,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from html import escape
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.colors import LogNorm
-from matplotlib.figure import Figure
+
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn: the report's context needs none
+    from matplotlib.figure import Figure
 
 
 def _percent(x) -> str:
@@ -24,6 +26,9 @@ def _percent(x) -> str:
 
 def plot_gap_map(diagnosis: Mapping) -> Figure:
     """Heat map of |z| per location (rows: stage/sensor/axis/segment, columns: statistic)."""
+    from matplotlib.colors import LogNorm
+    from matplotlib.figure import Figure
+
     locs = diagnosis["all_locations"]
     rows = sorted({(d["stage"], d["sensor"], d["axis"], d["segment"]) for d in locs})
     cols = sorted({d["statistic"] for d in locs})
@@ -56,6 +61,8 @@ def plot_gap_map(diagnosis: Mapping) -> Figure:
 
 def plot_effects(diagnosis: Mapping) -> Figure:
     """Gap before and after each evaluated effect, in sample and held out (symlog scale)."""
+    from matplotlib.figure import Figure
+
     ev = [e for e in diagnosis["effects"] if e["evaluated"]]
     fig = Figure(figsize=(7, 1.2 + 0.5 * max(len(ev), 1)))
     ax = fig.add_subplot()

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import allantools
 import numpy as np
 
 #: Samples per chunk of the second-difference sum (bounds the temporaries, 8 MB each).
@@ -169,6 +168,10 @@ def equivalent_dof(m: np.ndarray, n_phase: int, alpha: np.ndarray) -> np.ndarray
     -------
     ndarray, shape (k,)
     """
+    # imported here: allantools (with scipy.stats and scipy.signal) costs about 1 s, and the
+    # readers of a noise artifact (the exports) need none of it
+    import allantools
+
     return np.array(
         [
             allantools.edf_greenhall(
@@ -191,6 +194,8 @@ def confidence_interval(
     """
     if not 0 < level < 1:
         raise ValueError(f"confidence level must be in (0, 1), got {level!r}")
+    import allantools
+
     bounds = [allantools.confidence_interval(d, e, ci=level) for d, e in zip(adev, edf)]
     low, high = (np.array(b) for b in zip(*bounds)) if bounds else (np.array([]), np.array([]))
     return low, high

@@ -26,7 +26,6 @@ import pandas as pd
 from scipy.interpolate import BSpline, CubicSpline
 from scipy.linalg import solve_banded
 from scipy.optimize import least_squares
-from scipy.signal import correlate
 
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SEQ, TIME
 from imucal.ingest.timebase import unwrap_seq
@@ -164,6 +163,10 @@ def _rate_squared(t: np.ndarray, gyr: np.ndarray, name: str) -> tuple[np.ndarray
 
 def _coarse_offset(t_m: np.ndarray, w_m: np.ndarray, t_r: np.ndarray, w_r: np.ndarray) -> float:
     """Offset ``t_ref - t_module`` at the peak of the overlap-normalised cross-correlation."""
+    # imported here: scipy.signal (with scipy.stats) costs about 0.5 s, and the packet times
+    # are all that most importers of this module use
+    from scipy.signal import correlate
+
     dt = min(np.median(np.diff(t_m)), np.median(np.diff(t_r)))
     grid_m = np.arange(t_m[0], t_m[-1], dt)
     grid_r = np.arange(t_r[0], t_r[-1], dt)

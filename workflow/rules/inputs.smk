@@ -3,7 +3,6 @@
 from pathlib import Path
 
 from imucal.constants import IMU_RECORDINGS
-from imucal.gap.composite import partial_scope
 from imucal.pipeline.registry import full_protocol_artifacts
 from imucal.terms import TermSettings
 
@@ -17,6 +16,9 @@ def diagnosis_for_terms(wildcards):
 
 def gap_partial_scope(wildcards):
     """Which parts of a partial session the gap diagnosis scores (imucal.gap.composite.partial_scope)."""
+    # imported here: the diagnosis's imports cost the parse of every workflow about 1 s
+    from imucal.gap.composite import partial_scope
+
     return partial_scope(
         static=has_recording(wildcards, "static"),
         references=bool(dataset_info(wildcards).orientation_references),

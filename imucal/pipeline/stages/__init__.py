@@ -15,66 +15,8 @@ whole calibration, its application, the validation and their figures) and :mod:`
 they share).
 """
 
-from imucal.pipeline.stages.accelerometer import (
-    align_acc,
-    cube_calibration,
-    cube_quality,
-    fit_acc_cube,
-)
-from imucal.pipeline.stages.calibration import (
-    PAPER_TABLE_I,
-    PAPER_TABLE_II,
-    apply_calibration,
-    calibration_of_what_ran,
-    combine_calibration,
-    combine_gyr,
-    plot_phases,
-    plot_validation,
-    validate_session,
-)
-from imucal.pipeline.stages.common import ALIGNMENT_METHODS, plain
-from imucal.pipeline.stages.gyroscope import (
-    RATE_TABLE_RULE,
-    align_gyr,
-    estimate_gyr_bias,
-    fit_gyr_table,
-    gyr_bias_quality,
-    gyr_bias_value,
-)
-from imucal.pipeline.stages.magnetometer import align_mag, fit_mag_step1
-from imucal.pipeline.stages.toolfree import (
-    TOOL_FREE_RULE,
-    estimate_gyr_scale,
-    integration_times,
-    tool_free_gyr,
-)
+import lazy_loader
 
-__all__ = [
-    "ALIGNMENT_METHODS",
-    "PAPER_TABLE_I",
-    "PAPER_TABLE_II",
-    "RATE_TABLE_RULE",
-    "TOOL_FREE_RULE",
-    "align_acc",
-    "align_gyr",
-    "align_mag",
-    "apply_calibration",
-    "calibration_of_what_ran",
-    "combine_calibration",
-    "combine_gyr",
-    "cube_calibration",
-    "cube_quality",
-    "estimate_gyr_bias",
-    "estimate_gyr_scale",
-    "fit_acc_cube",
-    "fit_gyr_table",
-    "fit_mag_step1",
-    "gyr_bias_quality",
-    "gyr_bias_value",
-    "integration_times",
-    "plain",
-    "plot_phases",
-    "plot_validation",
-    "tool_free_gyr",
-    "validate_session",
-]
+# the names of __init__.pyi, each imported on first use (SPEC 1): a process that needs one
+# submodule does not pay for the others' imports
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)
