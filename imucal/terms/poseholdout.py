@@ -137,7 +137,7 @@ def _blocks(pose: PoseSeries, block_s: float) -> tuple[np.ndarray, dict, np.ndar
     and each block's start (s after the pose's first sample, (m,))."""
     if not len(pose.t_s):
         return np.zeros(0), {s: np.zeros((0, 3)) for s in pose.values}, np.zeros(0)
-    k = ((pose.t_s - pose.t_s[0]) // block_s).astype(int)
+    k = block_index(pose.t_s, block_s, pose.t_s[0])
     n = np.bincount(k)
     step = np.median(np.diff(pose.t_s)) if len(pose.t_s) > 1 else block_s
     full = n >= 0.5 * block_s / step
@@ -404,7 +404,7 @@ def hold_out_poses(
     sensors = list(poses[0].values)
     blocks = [_blocks(p, block_s) for p in poses]
     # every se_block_s block of every pose, numbered across the session (the fits' clusters)
-    first = np.cumsum([0] + [int((p.t_s[-1] - p.t_s[0]) // se_block_s) + 1 for p in poses])
+    first = np.cumsum([0] + [_block_count(p, se_block_s) for p in poses])
     folds = []
     for h, held in enumerate(poses):
         fit = [p for p in range(len(poses)) if p != h]
@@ -476,8 +476,7 @@ def _short_poses(poses: Sequence[PoseSeries], se_block_s: float) -> list[str]:
     on it and its intervals are undefined)."""
     out = []
     for p in poses:
-        span_s = float(p.t_s[-1] - p.t_s[0])
-        blocks = int(span_s // se_block_s) + 1
+        span_s, blocks = float(p.t_s[-1] - p.t_s[0]), _block_count(p, se_block_s)
         if blocks < 3:
             consequence = (
                 "no spread over blocks: no order can be admitted on it and its intervals are "
@@ -493,18 +492,24 @@ def _short_poses(poses: Sequence[PoseSeries], se_block_s: float) -> list[str]:
     return out
 
 
+def _block_count(pose: PoseSeries, se_block_s: float) -> int:
+    """The blocks of ``se_block_s`` a pose's samples fall in, from its first sample."""
+    return int(block_index(pose.t_s[-1:], se_block_s, pose.t_s[0])[0]) + 1
+
+
 def _term_influence(
     blocks: Sequence[tuple], fold: Mapping, sensor: str, j: int, order: int, reference_c: float
 ) -> np.ndarray:
-    """Each block's influence on the term's coefficients ``c_1 .. c_order`` fitted on the fold's
-    fit poses (:func:`~imucal.terms.blockspread.influence`, the blocks numbered across the session), shape (C, order)."""
+    """Each block's influence on the term's coefficients ``c_1 .. c_order`` fitted on the
+    fold's fit poses (:func:`~imucal.terms.blockspread.influence`, the blocks numbered across
+    the session), shape (C, order)."""
     fit = fold["fit"]
     temps = [blocks[p][0] for p in fit]
     design = _term_design(temps, order, reference_c)
     y = np.concatenate([blocks[p][1][sensor][:, j] for p in fit])
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     labels = np.concatenate(
-        [fold["first"][p] + (blocks[p][2] // fold["se_block_s"]).astype(int) for p in fit]
+        [fold["first"][p] + block_index(blocks[p][2], fold["se_block_s"], 0.0) for p in fit]
     )
     return influence(design, y - design @ coef, labels, fold["first"][-1])[:, len(fit) :]
 
@@ -520,8 +525,9 @@ def _cell(
     term_influence: np.ndarray,
 ) -> tuple[dict, tuple]:
     """One held-out pose, sensor and axis: the three methods' residual RMS with their spread,
-    and what :func:`~imucal.terms.blockspread.spread` takes (per method the block sums of the squared residuals and the
-    samples per block, the blocks' indices, the fits' influence on the sums of squares)."""
+    and what :func:`~imucal.terms.blockspread.spread` takes (per method the block sums of the
+    squared residuals and the samples per block, the blocks' indices, the fits' influence on
+    the sums of squares)."""
     residual, coef, reference_c = fitted
     inside, slope = fold["inside"], fold["slopes"][sensor][j]
     y, temp, t_s = held.values[sensor][inside, j], held.temp_c[inside], held.t_s[inside]
