@@ -145,25 +145,36 @@ def test_the_held_out_pose_takes_no_part_in_its_own_order():
     assert drifting["pose_2"]["term_ratio_ci95"][0] > 1.0
 
 
+#: A pose's own drift: a random walk pulled back over this time (s), of this std (rad/s).
+DRIFT_TAU_S, DRIFT_STD = 600.0, 2e-3
+
+
+def drifting_poses(rng: np.random.Generator, n: int, step: float = 0.0) -> list:
+    """Three gyro poses of ``n`` samples with no law of temperature: each a drift of its own
+    (:data:`DRIFT_TAU_S`, :data:`DRIFT_STD`) and white noise, its level ``step * k`` (rad/s)."""
+    phi = np.exp(-1.0 / DRIFT_TAU_S)
+    poses = []
+    for k, (lo, hi) in enumerate([(4.8, 16.3), (5.8, 20.1), (5.4, 24.3)]):
+        temp = sweep(rng, lo, hi, n)
+        kick = DRIFT_STD * np.sqrt(1 - phi**2) * rng.standard_normal((n, 3))
+        gyr = lfilter([1.0], [1.0, -phi], kick, axis=0) + NOISE * rng.standard_normal((n, 3))
+        poses.append(
+            ph.PoseSeries(f"pose_{k}", np.arange(n) / RATE_HZ, temp, {"gyr": gyr + step * k})
+        )
+    return poses
+
+
 def test_the_uncertainty_follows_correlated_residuals():
-    """A drift of its own in every pose (a random walk pulled back over tau_s, not a function
-    of temperature): the standard error of the held-out RMS over long blocks matches the
-    spread over independent realisations, where the white-noise formula is far too small."""
-    tau_s, sigma, n, runs = 600.0, 2e-3, 20_000, 24
-    spans = [(4.8, 16.3), (5.8, 20.1), (5.4, 24.3)]
-    phi = np.exp(-1.0 / tau_s)
+    """A drift of its own in every pose (a random walk pulled back over DRIFT_TAU_S, not a
+    function of temperature): the standard error of the held-out RMS over long blocks matches
+    the spread over independent realisations, where the white-noise formula is far too
+    small."""
+    n, runs = 20_000, 24
     rms, se = [], []
     for seed in range(runs):
-        rng = np.random.default_rng(100 + seed)
-        poses = []
-        for k, (lo, hi) in enumerate(spans):
-            temp = sweep(rng, lo, hi, n)
-            kick = sigma * np.sqrt(1 - phi**2) * rng.standard_normal((n, 3))
-            slow = lfilter([1.0], [1.0, -phi], kick, axis=0)
-            gyr = slow + NOISE * rng.standard_normal((n, 3))
-            poses.append(ph.PoseSeries(f"pose_{k}", np.arange(n) / RATE_HZ, temp, {"gyr": gyr}))
+        poses = drifting_poses(np.random.default_rng(100 + seed), n)
         out = ph.hold_out_poses(
-            poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=6 * tau_s
+            poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=6 * DRIFT_TAU_S
         )
         cell = next(c for c in out["cells"] if c["held_out"] == "pose_0" and c["axis"] == "x")
         rms.append(cell["rms_none"])
@@ -178,29 +189,19 @@ def test_the_uncertainty_follows_correlated_residuals():
 @pytest.mark.parametrize("step", [0.0, 1e-2])
 def test_the_interval_of_a_ratio_holds_the_fits_scatter(step):
     """Three poses with no law of temperature, each with a drift of its own correlated over
-    tau_s: the regression's slope from two poses is noise, and so is its gain or loss against
-    the term on the third. With ``step`` (rad/s) the poses' levels step up from pose to pose,
+    DRIFT_TAU_S: the regression's slope from two poses is noise, and so is its gain or loss
+    against the term on the third. With ``step`` (rad/s) the poses' levels step up from pose to pose,
     which the regression's one intercept reads as a slope (a misspecified model; its scatter
     is still that of the noise). Over independent realisations the interval of term /
     regression with the fits' scatter covers the centre of the log ratios close to 95 % of
     the time without being much wider than their spread requires; the interval given the
     fits (the held-out samples' noise alone) covers less."""
-    tau_s, sigma, n, runs = 600.0, 2e-3, 20_000, 60
-    spans = [(4.8, 16.3), (5.8, 20.1), (5.4, 24.3)]
-    phi = np.exp(-1.0 / tau_s)
+    n, runs = 20_000, 60
     ratio, with_fits, given_fits = [], [], []
     for seed in range(runs):
-        rng = np.random.default_rng(500 + seed)
-        poses = []
-        for k, (lo, hi) in enumerate(spans):
-            temp = sweep(rng, lo, hi, n)
-            kick = sigma * np.sqrt(1 - phi**2) * rng.standard_normal((n, 3))
-            gyr = lfilter([1.0], [1.0, -phi], kick, axis=0) + NOISE * rng.standard_normal((n, 3))
-            poses.append(
-                ph.PoseSeries(f"pose_{k}", np.arange(n) / RATE_HZ, temp, {"gyr": gyr + step * k})
-            )
+        poses = drifting_poses(np.random.default_rng(500 + seed), n, step)
         out = ph.hold_out_poses(
-            poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=6 * tau_s
+            poses, block_s=BLOCK_S, max_order=1, margin_c=1.0, se_block_s=6 * DRIFT_TAU_S
         )
         for c in out["cells"]:
             if c["held_out"] == "pose_0":
