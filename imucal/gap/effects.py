@@ -136,7 +136,7 @@ def estimate_time_offset(fit: SessionFit, half) -> Estimate | None:
 
 
 def estimate_lever_arm(fit: SessionFit, half) -> Estimate | None:
-    if fit.artifacts.get("table") is None:
+    if fit.artifacts["gyr_table"] is None:
         return None
     r = -loc.centripetal_slopes(fit, half)
     r = np.nan_to_num(r)
@@ -398,7 +398,7 @@ def _table_runs(fit: SessionFit, half) -> dict | None:
         rate vector (rad/s); ``acc`` (r, 3) calibrated specific force; ``temp`` (r,) mean
         temperature (NaN without a channel). None without a table fit or turning runs.
     """
-    if fit.artifacts.get("table") is None or "ratetable" not in fit.imu:
+    if fit.artifacts["gyr_table"] is None or "ratetable" not in fit.imu:
         return None
     rows, res, rate = ses.table_residuals(fit, half)
     turning = (rows["rate_dps"] != 0).to_numpy()
@@ -509,7 +509,7 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
 
 
 def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
-    if fit.artifacts.get("table") is None:
+    if fit.artifacts["gyr_table"] is None:
         return None
     opt = fit.extra["options"]
     fs = 32767 * float(opt.sensitivity["gyr"])

@@ -428,7 +428,7 @@ def _table(fit: SessionFit, half) -> dict:
             out[("gyr_table", "gyr", a, "run", "rate3")] = float(c[3])
     all_runs = _run_half(_rows(fit, "ratetable", "run"), half)
     out[("gyr_table", "gyr", "-", "run", "left_out")] = float(
-        (~all_runs["label"].isin(fit.artifacts["table"]["labels"])).sum()
+        (~all_runs["label"].isin(fit.artifacts["gyr_table"]["labels"])).sum()
     )
     out.update(_centripetal(fit, half))
     return out
@@ -468,9 +468,9 @@ def _centripetal(fit: SessionFit, half) -> dict:
 
 
 def _scale(fit: SessionFit, half) -> dict:
-    if fit.artifacts["scale"] is None:
+    if fit.artifacts["gyr_scale"] is None:
         return {}
-    per_phase = fit.artifacts["scale"]["per_phase"]
+    per_phase = fit.artifacts["gyr_scale"]["per_phase"]
     final = errormodel.decompose(fit.calibration.sensor("gyr").matrix).scale
     out = {}
     for p in _phase_half(per_phase, half):

@@ -88,7 +88,7 @@ def _mid_times(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.ndarra
 
 def table_residuals(fit: SessionFit, half) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
     """Rate-table runs kept by the fit: rows, run-mean residuals (rad/s, (r, 3)), true rates."""
-    table = fit.artifacts["table"]
+    table = fit.artifacts["gyr_table"]
     rows = _rows(fit, "ratetable", "run")
     rows = rows[rows["label"].isin(table["labels"])]
     rows = _run_half(rows, half)

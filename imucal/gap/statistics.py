@@ -194,7 +194,7 @@ def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, fl
     out.update(_cube(fit, half))
     out.update(_gyr_rest(fit, half))
     out.update(_world_rate(fit, half))
-    if fit.artifacts.get("table") is not None:
+    if fit.artifacts["gyr_table"] is not None:
         out.update(_table(fit, half))
     out.update(_scale(fit, half))
     out.update(_mag(fit, half))

@@ -278,7 +278,7 @@ def _gyro_scale(
 ):
     """Scale polynomial of the gyroscope from the rate-table runs (None without a table);
     ``order`` fixes the order (no selection), ``half`` takes every other run."""
-    table = fit.artifacts.get("table")
+    table = fit.artifacts["gyr_table"]
     if table is None or "ratetable" not in fit.imu:
         return None
     rows, _, true = st.table_residuals(fit, half)

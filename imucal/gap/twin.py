@@ -450,7 +450,7 @@ def protocol_config(fit: SessionFit) -> tuple[ProtocolConfig, list[str]]:
     if len(gaps):
         kwargs["cube_move_s"] = (float(np.min(gaps)), float(np.max(gaps)))
     ratetable = fit.imu.get("ratetable")
-    rt = fit.artifacts.get("table")
+    rt = fit.artifacts["gyr_table"]
     runs = seg[(seg["recording"] == "ratetable") & (seg["kind"] == "run")].sort_values("start_s")
     if ratetable is not None and len(runs):
         plateau = float(np.median(runs["end_s"] - runs["start_s"]))

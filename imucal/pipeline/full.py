@@ -18,7 +18,9 @@ from imucal import validation
 from imucal.calibration import ImuCalibration
 from imucal.columns import GYR, SEQ, TIME, column_values, sensor_columns
 from imucal.pipeline import stages
+from imucal.pipeline.graph import FULL_PROTOCOL, run_nodes, usable
 from imucal.pipeline.options import PipelineOptions
+from imucal.pipeline.outcome import not_run_reason
 from imucal.segments.filtering import lowpass_recording
 from imucal.segments.segmentation import segment_dataset
 
@@ -37,12 +39,16 @@ class SessionFit:
         Low-pass filtered rotation3d.
     calibration : ImuCalibration
     artifacts : dict
-        Stage artifacts: 'mag', 'cube', 'acc', 'bias', 'align', 'scale', 'table' (None without a
-        rate table), 'gyr'.
+        Each stage's artifact by its name (:data:`~imucal.pipeline.graph.FULL_PROTOCOL`); None
+        for a stage that did not run or does not apply (the rate table's without one).
     time_alignment : TimeAlignment or None
         Reference clock against rotation3d (None without a reference).
     reference_start_s : float or None
         ``t_s`` of the reference's first sample (its own clock).
+    extra : dict
+        ``options`` (as run, with ``held_by_hand`` from the segments), ``notes`` (the stages
+        that did not run although the calibration did, with their reasons), ``records`` (each
+        stage's artifact or not-run record, as the workflow writes them).
     """
 
     imu: dict
@@ -92,84 +98,23 @@ def calibrate_session(
     low = lowpass_recording(
         imu["rotation3d"], order=options.lowpass_order, cutoff_hz=options.lowpass_cutoff_hz
     )
-    exact, cov, methods = options.exact_rotation, options.with_covariance, options.methods
-    step1 = stages.fit_mag_step1(
-        imu["rotation3d"],
-        imu["cube"],
-        field_norm=options.field_norm,
-        refine_lm=methods.mag_refine_lm,
+    store = run_nodes({**imu, "lowpass": low, "segments": segments}, options)
+    records = {name: store[name] for name in FULL_PROTOCOL if name in store}
+    artifacts = {name: usable(records.get(name)) for name in FULL_PROTOCOL}
+    for sensor in ("mag_step2", "acc_align", "gyr"):
+        reason = not_run_reason(store[sensor])
+        if reason:
+            raise ValueError(reason)
+    # a stage that did not run although the calibration did (eq. 36 beside a rate table, the
+    # rate table's fit beside eq. 36): the diagnosis goes on and says so
+    notes = [not_run_reason(r) for r in records.values() if not_run_reason(r)]
+    calibration = stages.combine_calibration(
+        artifacts["acc_align"], artifacts["gyr"], artifacts["mag_step2"]
     )
-    mag = stages.align_mag(
-        imu["rotation3d"],
-        segments,
-        step1,
-        method=methods.mag_alignment,
-        exact=exact,
-        with_covariance=cov,
-    )
-    cube, _ = stages.fit_acc_cube(
-        imu["cube"],
-        segments,
-        gravity_m_s2=options.gravity_m_s2,
-        saturation_limit_m_s2=options.limit("acc"),
-        method=methods.acc_cube,
-        figures=False,
-    )
-    acc = stages.align_acc(
-        low, segments, cube, method=methods.acc_alignment, exact=exact, with_covariance=cov
-    )
-    bias, _ = stages.estimate_gyr_bias(imu, segments, figures=False)
-    o, _ = stages.gyr_bias_value(bias, methods.gyr_bias_estimator)
-    align = stages.align_gyr(
-        low, segments, o, method=methods.gyr_alignment, exact=exact, with_covariance=cov
-    )
-    notes = []
-    try:
-        scale = stages.estimate_gyr_scale(
-            imu["rotation3d"],
-            low,
-            segments,
-            bias,
-            align,
-            acc,
-            mag,
-            bias_estimator=methods.gyr_bias_estimator,
-            with_covariance=cov,
-        )
-    except ValueError as err:
-        # eq. 36 integrates on the receive timestamps and refuses repeated ones, or phases
-        # clipped at the range; with a rate table the final calibration does not need it, so
-        # the diagnosis goes on and says so
-        if "ratetable" not in imu:
-            raise
-        notes.append(f"eq. 36 (gyro scale without tools) failed: {err}")
-        scale = None
-    table = table_align = None
-    if "ratetable" in imu:
-        try:
-            table, _ = stages.fit_gyr_table(
-                imu["ratetable"],
-                segments,
-                saturation_limit_rad_s=options.limit("gyr"),
-                figures=False,
-            )
-            table_align = _align_table(low, segments, table, options, exact)
-        except ValueError as err:
-            # as the workflow: the tool-free result calibrates when eq. 36 ran
-            if scale is None:
-                raise
-            notes.append(f"rate-table fit (eq. 33) failed: {err}; the tool-free result is used")
-            table = table_align = None
-    gyr = _combine_gyr(bias, scale, table, table_align, options, exact)
-    calibration = stages.combine_calibration(acc, gyr, mag)
     alignment = start = None
     if reference is not None:
         alignment = reference_alignment(imu["rotation3d"], reference, calibration)
         start = float(reference[TIME].iloc[0])
-    artifacts = {
-        "mag": mag, "cube": cube, "acc": acc, "bias": bias, "align": align, "scale": scale,
-        "table": table, "gyr": gyr,
-    }  # fmt: skip
     return SessionFit(
         imu,
         reference,
@@ -179,7 +124,7 @@ def calibrate_session(
         artifacts,
         alignment,
         start,
-        {"options": options, "notes": notes},
+        {"options": options, "notes": notes, "records": records},
     )
 
 
@@ -205,67 +150,23 @@ def refit_alignment(fit: SessionFit, *, exact: bool) -> ImuCalibration:
     -------
     ImuCalibration
     """
-    a, low, seg = fit.artifacts, fit.lowpass, fit.segments
-    options = fit.extra["options"]
-    cov, methods = options.with_covariance, options.methods
-    mag = stages.align_mag(
-        fit.imu["rotation3d"],
-        seg,
-        a["mag"]["step1"],
-        method=methods.mag_alignment,
-        exact=exact,
-        with_covariance=cov,
-    )
-    acc = stages.align_acc(
-        low, seg, a["cube"], method=methods.acc_alignment, exact=exact, with_covariance=cov
-    )
-    o, _ = stages.gyr_bias_value(a["bias"], methods.gyr_bias_estimator)
-    scale = a["scale"]
+    options = replace(fit.extra["options"], exact_rotation=exact)
+    store = {**fit.imu, "lowpass": fit.lowpass, "segments": fit.segments, **fit.extra["records"]}
+    scale = fit.artifacts["gyr_scale"]
     if scale is not None:
         refit = stages.align_gyr(
-            low,
-            seg,
-            o,
+            fit.lowpass,
+            fit.segments,
+            stages.gyr_bias_value(fit.artifacts["gyr_bias"], options.methods.gyr_bias_estimator)[0],
             np.diag(scale["first_pass_scale"]),  # as the fit refitted it
             method=scale["alignment"]["used"],
             exact=exact,
-            with_covariance=cov,
+            with_covariance=options.with_covariance,
         )
-        scale = {**scale, "alignment": refit}
-    table_align = None
-    if a["table"] is not None:
-        table_align = _align_table(low, seg, a["table"], options, exact)
-    gyr = _combine_gyr(a["bias"], scale, a["table"], table_align, options, exact)
-    return stages.combine_calibration(acc, gyr, mag)
-
-
-def _align_table(
-    low: pd.DataFrame, segments: pd.DataFrame, table: Mapping, options: PipelineOptions, exact: bool
-) -> dict:
-    """``T_R,gyr`` at the rate table's bias and ``S'_gyr`` (its alignment stage)."""
-    return stages.align_gyr(
-        low,
-        segments,
-        table["bias"],
-        table["upper"],
-        method=options.methods.gyr_alignment,
-        exact=exact,
-        with_covariance=options.with_covariance,
-    )
-
-
-def _combine_gyr(bias, scale, table, table_align, options: PipelineOptions, exact: bool) -> dict:
-    """The gyroscope's calibration from its stages (rate table, else eq. 36), as rule gyr."""
-    gyr, _ = stages.combine_gyr(
-        bias,
-        scale,
-        table,
-        table_align,
-        bias_estimator=options.methods.gyr_bias_estimator,
-        exact=exact,
-        with_covariance=options.with_covariance,
-    )
-    return gyr
+        store["gyr_scale"] = {**scale, "alignment": refit}
+    steps = ("mag_step2", "acc_align", "gyr_table_align", "gyr")
+    store = run_nodes(store, options, nodes={name: FULL_PROTOCOL[name] for name in steps})
+    return stages.combine_calibration(store["acc_align"], store["gyr"], store["mag_step2"])
 
 
 def reference_alignment(

@@ -28,7 +28,7 @@ METHOD = (
 def table_runs(fit: SessionFit, half: str | None = None) -> pd.DataFrame | None:
     """The rate-table runs the gyroscope fit kept (rest runs included), of one half of the
     rate levels (:func:`imucal.gap.session._run_half`) or all; None without a table."""
-    table = fit.artifacts.get("table")
+    table = fit.artifacts["gyr_table"]
     if table is None or "ratetable" not in fit.imu:
         return None
     rows = st._rows(fit, "ratetable", "run")
