@@ -67,6 +67,8 @@ def calibrate_session(
     reference: pd.DataFrame | None,
     options: PipelineOptions,
     segments: pd.DataFrame | None = None,
+    *,
+    done: Mapping[str, Mapping] | None = None,
 ) -> SessionFit:
     """Segment (unless ``segments`` is given) and calibrate a session, stage by stage.
 
@@ -80,6 +82,10 @@ def calibrate_session(
     options : PipelineOptions
     segments : DataFrame, optional
         The segments table; automatic segmentation when None.
+    done : dict of str to dict, optional
+        Stage name -> artifact (or not-run record) of stages already run on this session with
+        these options and ``segments``: the workflow's own rules' (their JSON files). Those
+        stages are taken as they are and not run again.
 
     Returns
     -------
@@ -98,7 +104,12 @@ def calibrate_session(
     low = lowpass_recording(
         imu["rotation3d"], order=options.lowpass_order, cutoff_hz=options.lowpass_cutoff_hz
     )
-    store = run_nodes({**imu, "lowpass": low, "segments": segments}, options)
+    done = dict(done or {})
+    store = run_nodes(
+        {**imu, "lowpass": low, "segments": segments, **done},
+        options,
+        nodes={name: node for name, node in FULL_PROTOCOL.items() if name not in done},
+    )
     records = {name: store[name] for name in FULL_PROTOCOL if name in store}
     artifacts = {name: usable(records.get(name)) for name in FULL_PROTOCOL}
     for sensor in ("mag_step2", "acc_align", "gyr"):

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from imucal.pipeline import stages
@@ -121,6 +122,12 @@ class Node:
         return {key: SETTINGS[key](options) for key in self.settings}
 
 
+def _alignment(s: Mapping, method: str) -> dict:
+    """The keywords of an alignment stage (eqs. 25-31): its method, the exact rotation or the
+    small-angle form, and whether its covariance is carried."""
+    return {"method": s[method], "exact": s["exact"], "with_covariance": s["with_covariance"]}
+
+
 def _mag_step1(i: Mapping, s: Mapping, draw: bool) -> tuple:
     step1 = stages.fit_mag_step1(
         i["rotation3d"], i.get("cube"), field_norm=s["field_norm"], refine_lm=s["mag_refine_lm"]
@@ -130,12 +137,7 @@ def _mag_step1(i: Mapping, s: Mapping, draw: bool) -> tuple:
 
 def _mag_step2(i: Mapping, s: Mapping, draw: bool) -> tuple:
     mag = stages.align_mag(
-        i["rotation3d"],
-        i["segments"],
-        i["mag_step1"],
-        method=s["mag_alignment"],
-        exact=s["exact"],
-        with_covariance=s["with_covariance"],
+        i["rotation3d"], i["segments"], i["mag_step1"], **_alignment(s, "mag_alignment")
     )
     if not draw:
         return mag, {}
@@ -157,12 +159,7 @@ def _acc_cube(i: Mapping, s: Mapping, draw: bool) -> tuple:
 
 def _acc_align(i: Mapping, s: Mapping, draw: bool) -> tuple:
     acc = stages.align_acc(
-        i["lowpass"],
-        i["segments"],
-        i["acc_cube"],
-        method=s["acc_alignment"],
-        exact=s["exact"],
-        with_covariance=s["with_covariance"],
+        i["lowpass"], i["segments"], i["acc_cube"], **_alignment(s, "acc_alignment")
     )
     return acc, {}
 
@@ -174,15 +171,7 @@ def _gyr_bias(i: Mapping, s: Mapping, draw: bool) -> tuple:
 
 def _gyr_align(i: Mapping, s: Mapping, draw: bool) -> tuple:
     bias, _ = stages.gyr_bias_value(i["gyr_bias"], s["gyr_bias_estimator"])
-    alignment = stages.align_gyr(
-        i["lowpass"],
-        i["segments"],
-        bias,
-        method=s["gyr_alignment"],
-        exact=s["exact"],
-        with_covariance=s["with_covariance"],
-    )
-    return alignment, {}
+    return stages.align_gyr(i["lowpass"], i["segments"], bias, **_alignment(s, "gyr_alignment")), {}
 
 
 def _gyr_scale(i: Mapping, s: Mapping, draw: bool) -> tuple:
@@ -209,13 +198,7 @@ def _gyr_table(i: Mapping, s: Mapping, draw: bool) -> tuple:
 def _gyr_table_align(i: Mapping, s: Mapping, draw: bool) -> tuple:
     table = i["gyr_table"]
     alignment = stages.align_gyr(
-        i["lowpass"],
-        i["segments"],
-        table["bias"],
-        table["upper"],
-        method=s["gyr_alignment"],
-        exact=s["exact"],
-        with_covariance=s["with_covariance"],
+        i["lowpass"], i["segments"], table["bias"], table["upper"], **_alignment(s, "gyr_alignment")
     )
     return alignment, {}
 
@@ -356,6 +339,40 @@ FULL_PROTOCOL: dict[str, Node] = {
         ),
     )
 }
+
+
+def source_file(source: str) -> str | None:
+    """The file a source is read from in the workflow, under ``results/{dataset}/`` (None for
+    ``truth``, which is the dataset's own file)."""
+    if source == "truth":
+        return None
+    if source == "lowpass":
+        return "lowpass/rotation3d.parquet"
+    if source == "segments":
+        return "segments.parquet"
+    if source in TABLE_SOURCES:
+        return f"ingest/{source}.parquet"
+    return FULL_PROTOCOL[source].artifact
+
+
+def read_source(source: str, path: str | Path) -> Any:
+    """A source read from its file: a table (parquet) or an artifact (JSON, not-run records
+    kept as they are)."""
+    from imucal.io import read_json, read_recording, read_segments
+
+    if source == "segments":
+        return read_segments(path)
+    if source in TABLE_SOURCES:
+        return read_recording(path)[0]
+    return read_json(path)
+
+
+def write_output(value: Any, path: str | Path) -> None:
+    """A node's figure (PNG) or table (CSV) at ``path``."""
+    if hasattr(value, "savefig"):
+        value.savefig(path, dpi=110)
+    else:
+        value.to_csv(path, index=False)
 
 
 def checked(artifact: Mapping) -> Mapping:

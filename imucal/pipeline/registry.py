@@ -1,9 +1,9 @@
-"""The stages of the calibration, defined once: name, sensor, what each does, its artifact.
+"""The stages of the calibration, defined once: name, sensor and what each does.
 
-The partial path (:mod:`imucal.pipeline.partial`) runs them in this order, the stage-per-rule
-workflow names its artifacts from here (``workflow/rules/inputs.smk``), and ``stages.json``
-lists them in this order. Which of the two paths a dataset takes is decided here too, from its
-``dataset.yaml`` alone (:func:`is_full_protocol`).
+The partial path (:mod:`imucal.pipeline.partial`) runs them in this order and ``stages.json``
+lists them in this order; how the full protocol's stages run, and their artifacts, are the
+nodes of :mod:`imucal.pipeline.graph`. Which of the two paths a dataset takes is decided here
+too, from its ``dataset.yaml`` alone (:func:`is_full_protocol`).
 """
 
 from __future__ import annotations
@@ -26,49 +26,40 @@ class Stage:
         'acc', 'gyr' or 'mag'; 'all' for the validation.
     what : str
         What it does, with the paper's equations (the report lists it).
-    artifact : str or None
-        File of the stage-per-rule workflow under ``results/{dataset}/``; None for stages of
-        the partial protocols only.
     """
 
     name: str
     sensor: str
     what: str
-    artifact: str | None = None
 
 
 #: The calibration stages in run order.
 STAGES: dict[str, Stage] = {
     s.name: s
     for s in (
-        Stage("mag_step1", "mag", "magnetometer ellipsoid fit (eqs. 17-24)", "mag_step1.json"),
+        Stage("mag_step1", "mag", "magnetometer ellipsoid fit (eqs. 17-24)"),
         Stage(
             "mag_step2",
             "mag",
             "magnetometer alignment T_R from the rotation3d phases (eqs. 25-27)",
-            "mag.json",
         ),
         Stage(
             "acc_known_orientation",
             "acc",
             "accelerometer from static faces of known orientation (Ferraris)",
         ),
-        Stage(
-            "acc_cube", "acc", "accelerometer multi-position fit |a| = g (eq. 32)", "acc_cube.json"
-        ),
+        Stage("acc_cube", "acc", "accelerometer multi-position fit |a| = g (eq. 32)"),
         Stage(
             "acc_align",
             "acc",
             "accelerometer alignment T_R from the rotation3d phases (eqs. 25-27)",
-            "acc.json",
         ),
-        Stage("gyr_bias", "gyr", "gyroscope bias from static data (eqs. 34-35)", "gyr_bias.json"),
-        Stage("gyr_table", "gyr", "gyroscope rate-table fit (eq. 33)", "gyr_table.json"),
+        Stage("gyr_bias", "gyr", "gyroscope bias from static data (eqs. 34-35)"),
+        Stage("gyr_table", "gyr", "gyroscope rate-table fit (eq. 33)"),
         Stage(
             "gyr_align",
             "gyr",
             "gyroscope alignment T_R from the rotation3d phases (eqs. 28-31)",
-            "gyr_align.json",
         ),
         Stage(
             "gyr_known_rotation",
@@ -102,12 +93,11 @@ STAGES: dict[str, Stage] = {
             "gyr_scale",
             "gyr",
             "gyroscope scale from acc/mag angles, tool-free (eq. 36)",
-            "gyr_scale.json",
         ),
     )
 }
 #: The validation against the reference, listed after the calibration stages.
-VALIDATE = Stage("validate", "all", "validation against the reference", "validation.json")
+VALIDATE = Stage("validate", "all", "validation against the reference")
 #: Per sensor, the stages whose result calibrates it, preferred first.
 FINAL = {
     "mag": ("mag_step2", "mag_reference", "mag_step1"),
@@ -124,8 +114,13 @@ FINAL = {
 
 
 def full_protocol_artifacts() -> dict[str, str]:
-    """Stage name -> artifact file of the stage-per-rule workflow (with the validation)."""
-    return {s.name: s.artifact for s in (*STAGES.values(), VALIDATE) if s.artifact}
+    """Stage name -> artifact file under ``results/{dataset}/`` of the registered stages that
+    the stage-per-rule workflow runs (the nodes of :mod:`imucal.pipeline.graph`), in the
+    registry's order, and the validation's."""
+    from imucal.pipeline.graph import FULL_PROTOCOL
+
+    files = {name: FULL_PROTOCOL[name].artifact for name in STAGES if name in FULL_PROTOCOL}
+    return files | {VALIDATE.name: "validation.json"}
 
 
 def declared_sensors(dataset, recording: str) -> tuple[str, ...]:

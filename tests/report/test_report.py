@@ -576,13 +576,22 @@ RULES_DIR = Path(__file__).resolve().parents[2] / "workflow" / "rules"
 
 
 def _report_outputs_of_rules() -> list[tuple[str, str]]:
-    """(output path, caption path relative to the rule file) of every ``report(...)`` output."""
+    """(output path, caption path relative to the rule file) of every ``report(...)`` output
+    of the rules, and of the stage rules generated from the graph."""
     import re
+
+    from imucal.pipeline.graph import FULL_PROTOCOL
 
     pairs = []
     for rules in sorted(RULES_DIR.glob("*.smk")):
         text = rules.read_text(encoding="utf-8")
         pairs += re.findall(r'report\(\s*"([^"]+)",\s*caption="([^"]+)"', text)
+    # the stage rules are generated from the graph (workflow/rules/stages.smk)
+    pairs += [
+        (f"results/{{dataset}}/{out.path}", f"../../{out.caption}")
+        for node in FULL_PROTOCOL.values()
+        for out in node.outputs
+    ]
     return pairs
 
 

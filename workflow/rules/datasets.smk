@@ -13,7 +13,7 @@ import imucal
 from imucal.constants import RECORDING_NAMES
 from imucal.fleet import read_sample_sheet
 from imucal.io.dataset import read_dataset
-from imucal.pipeline.options import pipeline_settings
+from imucal.pipeline.options import PipelineOptions, pipeline_settings
 from imucal.pipeline.registry import is_full_protocol
 from imucal.terms import poseholdout
 
@@ -187,22 +187,9 @@ def has_recording(wildcards, recording):
     return recording in dataset_info(wildcards).recordings
 
 
-def saturation_limit(sensor):
-    """Input function: sensor range in SI units (range_counts * sensitivity)."""
-
-    def limit(wildcards):
-        info = dataset_info(wildcards)
-        return info.range_counts[sensor] * info.sensitivity[sensor]
-
-    return limit
-
-
-def gravity(wildcards):
-    return dataset_info(wildcards).gravity_m_s2
-
-
-def field_norm(wildcards):
-    return dataset_info(wildcards).field_norm
+def pipeline_options(wildcards):
+    """The settings that change a fit for one dataset: its dataset.yaml's and the config's."""
+    return PipelineOptions.of_dataset(dataset_info(wildcards), **PIPELINE_SETTINGS)
 
 
 def noise_settings(name):

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from imucal.constants import IMU_RECORDINGS
+from imucal.pipeline.graph import FULL_PROTOCOL
 from imucal.pipeline.registry import full_protocol_artifacts
 from imucal.terms import TermSettings
 
@@ -12,6 +13,20 @@ def diagnosis_for_terms(wildcards):
     if TermSettings.from_config(config["terms"]).needs_diagnosis:
         return f"results/{wildcards.dataset}/gap/diagnosis.json"
     return []
+
+
+def stage_fits_for_terms(wildcards):
+    """The session's stage artifacts when a term may be estimated (the closed loop estimates
+    against them instead of running the chain again), else none."""
+    if not TermSettings.from_config(config["terms"]).wanted():
+        return {}
+    d = wildcards.dataset
+    recordings = frozenset(dataset_info(wildcards).recordings)
+    return {
+        f"fit_{node.name}": f"results/{d}/{node.artifact}"
+        for node in FULL_PROTOCOL.values()
+        if node.applies(recordings)
+    }
 
 
 def gap_partial_scope(wildcards):
@@ -101,28 +116,6 @@ def full_stage_artifacts(wildcards):
     }
 
 
-def gyr_bias_inputs(wildcards):
-    """The static recording, or the recordings whose static pauses stand in for it."""
-    names = ["static"] if has_recording(wildcards, "static") else ["rotation3d", "cube"]
-    return {name: f"results/{wildcards.dataset}/ingest/{name}.parquet" for name in names}
-
-
-def gyr_table_inputs(wildcards):
-    """Rate-table artifacts when the dataset has a rate table, else nothing."""
-    if not has_recording(wildcards, "ratetable"):
-        return {}
-    return {
-        "table": f"results/{wildcards.dataset}/gyr_table.json",
-        "table_alignment": f"results/{wildcards.dataset}/gyr_table_align.json",
-    }
-
-
-def truth_input(wildcards):
-    """truth.json of a simulated or conformance dataset (for the truth rows of tables.csv)."""
-    path = Path(dataset_folder(wildcards)) / "truth.json"
-    return {"truth": str(path)} if path.is_file() else {}
-
-
 def noise_input(wildcards):
     recording = noise_settings(wildcards.dataset)["recording"]
     return {"recording": f"results/{wildcards.dataset}/ingest/{recording}.parquet"}
@@ -141,12 +134,6 @@ def holdout_recording_param(wildcards):
 def holdout_input(wildcards):
     """The ingested recording of the temperature hold-out."""
     return f"results/{wildcards.dataset}/ingest/{holdout_recording(wildcards.dataset)}.parquet"
-
-
-def mag_step1_inputs(wildcards):
-    """rotation3d, and the cube's magnetometer samples offered for coverage."""
-    names = ["rotation3d"] + (["cube"] if has_recording(wildcards, "cube") else [])
-    return {name: f"results/{wildcards.dataset}/ingest/{name}.parquet" for name in names}
 
 
 def orientation_files(wildcards):

@@ -1,6 +1,7 @@
 # What a run produces: each dataset's final targets, its report's inputs and the fleet's
 # calibrations. No rules here.
 from imucal.export.formats import FORMATS as EXPORT_FORMATS
+from imucal.pipeline.graph import FULL_PROTOCOL
 
 EXPORT_FILES = [f"{fmt}/{name}" for fmt, names in EXPORT_FORMATS.items() for name in names]
 
@@ -68,6 +69,20 @@ def noise_report_inputs(name):
     return {"noise": [f"results/{name}/noise.json", figure]}
 
 
+def stage_report_files(d, info):
+    """Figures and run-time benchmarks of the paper's stages that apply to a dataset, in run
+    order (imucal.pipeline.graph)."""
+    recordings = frozenset(info.recordings)
+    nodes = [node for node in FULL_PROTOCOL.values() if node.applies(recordings)]
+    figures = [
+        f"results/{d}/{out.path}"
+        for node in nodes
+        for out in node.outputs
+        if out.path.endswith(".png")
+    ]
+    return figures, [f"results/{d}/benchmarks/{node.name}.tsv" for node in nodes]
+
+
 def report_inputs(wildcards):
     """Artifacts, figures and run-time benchmarks of a dataset's report, by the path it took."""
     d = wildcards.dataset
@@ -94,21 +109,17 @@ def report_inputs(wildcards):
         return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
-    figures += [
-        f"results/{d}/figures/{name}.png"
-        for name in ("mag_raw", "mag_step1", "mag_phases", "mag_step2", "acc_cube", "acc_phases")
-        + ("gyr_bias", "gyr_phases")
+    stage_figures, stage_benchmarks = stage_report_files(d, info)
+    figures += stage_figures + [
+        f"results/{d}/figures/{n}.png" for n in ("acc_phases", "gyr_phases")
     ]
     benchmarks = [
-        f"results/{d}/benchmarks/{rule}.tsv"
-        for rule in ("segment", "mag_step1", "mag_step2", "acc_cube", "acc_align")
-        + ("gyr_bias", "gyr_align", "gyr_scale", "validate", "gap_diagnose", "model_terms")
-        + ("lowpass/rotation3d",)
+        f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "lowpass/rotation3d")
+    ]
+    benchmarks += stage_benchmarks + [
+        f"results/{d}/benchmarks/{rule}.tsv" for rule in ("validate", "gap_diagnose", "model_terms")
     ]
     benchmarks += ingest_benchmarks(d, info)
-    if "ratetable" in info.recordings:
-        figures.append(f"results/{d}/figures/gyr_table.png")
-        benchmarks += [f"results/{d}/benchmarks/{r}.tsv" for r in ("gyr_table", "gyr_table_align")]
     if "reference" in info.recordings:
         figures += [
             f"results/{d}/figures/validation_magnitudes.png",

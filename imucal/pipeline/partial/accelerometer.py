@@ -96,12 +96,8 @@ def _acc_cube(s: _Session) -> dict:
 def _acc_align(s: _Session) -> dict:
     _need("acc_cube" in s.done, "needs the cube fit (acc_cube)")
     s.need_phases("acc")
-    return stages.align_acc(
-        s.rotation3d_lowpass,
-        s.segments,
-        s.done["acc_cube"],
-        method=s.methods.acc_alignment,
-        exact=s.exact,
+    return s.run_node(
+        "acc_align", lowpass=s.rotation3d_lowpass, segments=s.segments, acc_cube=s.done["acc_cube"]
     )
 
 

@@ -56,23 +56,14 @@ def _gyr_table(s: _Session) -> dict:
     _need(
         s.with_sensor("ratetable", "gyr") and s.ratetable is not None, "needs a ratetable recording"
     )
-    artifact, _ = stages.fit_gyr_table(
-        s.tables["ratetable"],
-        s.segments,
-        saturation_limit_rad_s=np.inf if s.saturation_rad_s is None else s.saturation_rad_s,
-    )
-    return artifact
+    return s.run_node("gyr_table", ratetable=s.tables["ratetable"], segments=s.segments)
 
 
 def _gyr_align(s: _Session) -> dict:
     _need("gyr_bias" in s.done, "needs the gyroscope bias")
     s.need_phases("gyr")
-    return stages.align_gyr(
-        s.rotation3d_lowpass,
-        s.segments,
-        _bias(s),
-        method=s.methods.gyr_alignment,
-        exact=s.exact,
+    return s.run_node(
+        "gyr_align", lowpass=s.rotation3d_lowpass, segments=s.segments, gyr_bias=s.done["gyr_bias"]
     )
 
 

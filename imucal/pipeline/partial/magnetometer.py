@@ -6,7 +6,6 @@ the reason when the session does not allow it.
 
 from __future__ import annotations
 
-from imucal.pipeline import stages
 from imucal.pipeline.partial.session import _need, _Session
 
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
@@ -39,12 +38,11 @@ def _mag_step1(s: _Session) -> dict:
 def _mag_step2(s: _Session) -> dict:
     _need("mag_step1" in s.done, "needs the ellipsoid fit (mag_step1)")
     s.need_phases("mag")
-    return stages.align_mag(
-        s.tables["rotation3d"],
-        s.segments,
-        s.done["mag_step1"],
-        method=s.methods.mag_alignment,
-        exact=s.exact,
+    return s.run_node(
+        "mag_step2",
+        rotation3d=s.tables["rotation3d"],
+        segments=s.segments,
+        mag_step1=s.done["mag_step1"],
     )
 
 

@@ -106,6 +106,28 @@ class _Session:
         self.done: dict[str, dict] = {}
 
     @functools.cached_property
+    def settings(self) -> dict:
+        """The settings of the full protocol's stages (:data:`imucal.pipeline.graph.SETTINGS`)
+        as this session takes them; an unknown range leaves nothing out."""
+        return {
+            **dataclasses.asdict(self.methods),
+            "exact": self.exact,
+            "with_covariance": True,
+            "gravity_m_s2": self.gravity_m_s2,
+            "field_norm": self.field_norm,
+            "acc_limit_m_s2": np.inf if self.saturation_m_s2 is None else self.saturation_m_s2,
+            "gyr_limit_rad_s": np.inf if self.saturation_rad_s is None else self.saturation_rad_s,
+        }
+
+    def run_node(self, name: str, **inputs) -> dict:
+        """The artifact of a stage the full protocol shares, run as its node
+        (:data:`imucal.pipeline.graph.FULL_PROTOCOL`) on ``inputs``."""
+        from imucal.pipeline.graph import FULL_PROTOCOL
+
+        node = FULL_PROTOCOL[name]
+        return node.run(inputs, {k: self.settings[k] for k in node.settings}, False)[0]
+
+    @functools.cached_property
     def rotation3d_lowpass(self) -> pd.DataFrame:
         """The low-pass filtered rotation3d recording (both alignment stages use it)."""
         from imucal.segments.filtering import lowpass_recording
