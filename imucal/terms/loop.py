@@ -66,6 +66,7 @@ def close_loop(
     segments: pd.DataFrame,
     diagnosis: Mapping | None,
     settings: TermSettings,
+    fits: Mapping[str, Mapping] | None = None,
 ) -> dict:
     """Decide, estimate and fold the optional terms into a session's calibration.
 
@@ -80,6 +81,10 @@ def close_loop(
     diagnosis : dict or None
         The session's diagnosis.json (for 'auto').
     settings : TermSettings
+    fits : dict of str to dict, optional
+        The session's own stage artifacts (the workflow's rules', by stage name): the terms
+        are estimated against them instead of a second run of the chain
+        (:func:`imucal.pipeline.full.calibrate_session` ``done``).
 
     Returns
     -------
@@ -100,7 +105,7 @@ def close_loop(
     if not any(r["included"] for r in record.values()):
         return {"terms": record, "calibration": None, "corrected": None}
     try:
-        found, base = _estimate(imu, reference, options, segments, record, settings)
+        found, base = _estimate(imu, reference, options, segments, record, settings, fits)
         for term in found:
             record[term]["heldout"] = heldout_comparison(term, record[term]["evidence"], diagnosis)
         for term, r in record.items():
@@ -131,10 +136,10 @@ def close_loop(
     }
 
 
-def _estimate(imu, reference, options, segments, record: dict, settings: TermSettings):
-    """The included terms' estimates (term -> value) and the paper's fit they are against;
-    each term's evidence goes into ``record``."""
-    fit = base = calibrate_session(imu, reference, options, segments)
+def _estimate(imu, reference, options, segments, record: dict, settings: TermSettings, fits):
+    """The included terms' estimates (term -> value) and the paper's fit they are against
+    (the session's own ``fits`` where given); each term's evidence goes into ``record``."""
+    fit = base = calibrate_session(imu, reference, options, segments, done=fits)
     found: dict = {}
     for name, r in record.items():
         if not r["included"]:

@@ -473,3 +473,29 @@ def test_term_std_follows_the_errors_over_sessions(twin, rms_z_band):
         if not low < rms < high:
             failed.append(f"{name}: RMS z {rms:.2f} of {values.size}, [{low:.2f}, {high:.2f}]")
     assert not failed, failed
+
+
+def test_the_loop_estimates_on_the_sessions_own_stage_files(twin, drift, tmp_path, monkeypatch):
+    # the workflow hands the loop the stage rules' JSON files: the loop then runs none of the
+    # chain's stages for its base fit, and ships what a second run of the chain gives
+    from imucal.io import read_json, write_json
+    from imucal.pipeline import full
+
+    imu, ref, fit, res = drift
+    files = {}
+    for name, record in fit.extra["records"].items():
+        write_json(record, tmp_path / f"{name}.json")
+        files[name] = read_json(tmp_path / f"{name}.json")
+    runs = []
+
+    def counted(store, options, *, nodes):
+        runs.append(list(nodes))
+        return run_nodes(store, options, nodes=nodes)
+
+    run_nodes = full.run_nodes
+    monkeypatch.setattr(full, "run_nodes", counted)
+    again = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=None,
+                       settings=ON, fits=files)  # fmt: skip
+    assert runs[0] == []  # the base fit: every stage from its file
+    assert len(runs) > 1  # the refit of the corrected session runs the chain
+    assert again["calibration"].to_dict() == res["calibration"].to_dict()

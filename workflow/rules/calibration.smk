@@ -4,12 +4,14 @@
 
 # The closed loop (imucal.terms, docs/model-terms.md): per term (config `terms`) off, on, or
 # auto when the diagnosis accepts its effect; the included terms are estimated, the session is
-# recalibrated with them and diagnosed again (gap/after.json). Without a term it writes the
-# decisions only and the paper's calibration stands; with no term `auto` it does not wait for
-# the diagnosis.
+# recalibrated with them and diagnosed again (gap/after.json). The terms are estimated against
+# the session's own stage artifacts (the chain is not run again for them). Without a term it
+# writes the decisions only and the paper's calibration stands; with no term `auto` it does not
+# wait for the diagnosis.
 rule model_terms:
     input:
         unpack(ingested),
+        unpack(stage_fits_for_terms),
         dataset_yaml=dataset_yaml,
         segments="results/{dataset}/segments.parquet",
         diagnosis=diagnosis_for_terms,

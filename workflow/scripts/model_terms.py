@@ -30,6 +30,9 @@ result = close_loop(
     segments=segments,
     diagnosis=read_json(recordings["diagnosis"]) if recordings.get("diagnosis") else None,
     settings=TermSettings.from_config(p.terms),
+    fits={
+        k.removeprefix("fit_"): read_json(v) for k, v in recordings.items() if k.startswith("fit_")
+    },
 )
 after = diagnosis_after(
     result,
