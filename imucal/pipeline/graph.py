@@ -28,7 +28,7 @@ from typing import Any
 
 from imucal.pipeline import stages
 from imucal.pipeline.options import PipelineOptions
-from imucal.pipeline.outcome import StageNotRun, not_run_reason, not_run_record
+from imucal.pipeline.outcome import NotApplicable, StageNotRun, not_run_reason, not_run_record
 
 #: Sources that are tables read from parquet (the others are JSON artifacts).
 TABLE_SOURCES = ("rotation3d", "cube", "static", "ratetable", "lowpass", "segments")
@@ -129,10 +129,7 @@ def _alignment(s: Mapping, method: str) -> dict:
 
 
 def _mag_step1(i: Mapping, s: Mapping, draw: bool) -> tuple:
-    step1 = stages.fit_mag_step1(
-        i["rotation3d"], i.get("cube"), field_norm=s["field_norm"], refine_lm=s["mag_refine_lm"]
-    )
-    return step1, {}
+    return stages.fit_mag_step1(i, field_norm=s["field_norm"], refine_lm=s["mag_refine_lm"]), {}
 
 
 def _mag_step2(i: Mapping, s: Mapping, draw: bool) -> tuple:
@@ -147,8 +144,9 @@ def _mag_step2(i: Mapping, s: Mapping, draw: bool) -> tuple:
 
 
 def _acc_cube(i: Mapping, s: Mapping, draw: bool) -> tuple:
+    tables = {k: v for k, v in i.items() if k != "segments"}
     return stages.fit_acc_cube(
-        i["cube"],
+        tables,
         i["segments"],
         gravity_m_s2=s["gravity_m_s2"],
         saturation_limit_m_s2=s["acc_limit_m_s2"],
@@ -165,7 +163,7 @@ def _acc_align(i: Mapping, s: Mapping, draw: bool) -> tuple:
 
 
 def _gyr_bias(i: Mapping, s: Mapping, draw: bool) -> tuple:
-    tables = {k: i[k] for k in ("static", "rotation3d", "cube") if k in i}
+    tables = {k: v for k, v in i.items() if k != "segments"}
     return stages.estimate_gyr_bias(tables, i["segments"], figures=draw)
 
 
@@ -175,14 +173,22 @@ def _gyr_align(i: Mapping, s: Mapping, draw: bool) -> tuple:
 
 
 def _gyr_scale(i: Mapping, s: Mapping, draw: bool) -> tuple:
+    # the phase angles need one calibrated sensor of the two
+    acc, mag = usable(i.get("acc_align")), usable(i.get("mag_step2"))
+    if acc is None and mag is None:
+        why = [not_run_reason(i[k]) for k in ("acc_align", "mag_step2") if k in i]
+        raise NotApplicable(
+            "needs a calibrated magnetometer (mag_step2) or accelerometer (acc_align) to "
+            "measure the phase angles" + "".join(f"; {w}" for w in why if w)
+        )
     scale = stages.estimate_gyr_scale(
         i["rotation3d"],
         i["lowpass"],
         i["segments"],
         i["gyr_bias"],
         i["gyr_align"],
-        i["acc_align"],
-        i["mag_step2"],
+        acc,
+        mag,
         bias_estimator=s["gyr_bias_estimator"],
         with_covariance=s["with_covariance"],
     )
@@ -310,6 +316,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             ),
             _gyr_scale,
             ("gyr_bias_estimator", "with_covariance"),
+            tolerates=("acc_align", "mag_step2"),
         ),
         Node(
             "gyr_table",

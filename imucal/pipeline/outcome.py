@@ -33,6 +33,12 @@ NOT_SHIPPED = "fitted but not shipped"
 TABLE_COLUMNS = ("table", "row", "x", "y", "z")
 
 
+class NotApplicable(ValueError):
+    """A stage's requirements are not met by the session's data (the message says which): no
+    recording it fits on, too few poses, directions not covered. The workflow writes the
+    stage's not-run record; the partial path lists it as not applicable."""
+
+
 class StageNotRun(Exception):
     """A stage cannot run because a stage it needs did not (the message says which and why)."""
 

@@ -26,7 +26,7 @@ session's state (:mod:`.session`). :mod:`.driver` runs them and chooses the fina
 names are re-exported here.
 """
 
-from imucal.pipeline.partial.accelerometer import MIN_CUBE_POSITIONS
+from imucal.pipeline.outcome import NotApplicable
 from imucal.pipeline.partial.driver import RUNNERS, final_calibration, run_stages
 from imucal.pipeline.partial.gyroscope import (
     ADJACENT_SAMPLES,
@@ -35,8 +35,10 @@ from imucal.pipeline.partial.gyroscope import (
     rest_to_rest,
 )
 from imucal.pipeline.partial.listing import figures, full_protocol_stages, stage_results
-from imucal.pipeline.partial.magnetometer import MAG_RECORDINGS, ONE_ORIENTATION
-from imucal.pipeline.partial.session import NotApplicable, Outcome, sensors_of
+from imucal.pipeline.partial.session import Outcome
+from imucal.pipeline.stages.accelerometer import MIN_CUBE_POSITIONS
+from imucal.pipeline.stages.common import sensors_of
+from imucal.pipeline.stages.magnetometer import MAG_RECORDINGS, ONE_ORIENTATION
 
 __all__ = [
     "ADJACENT_SAMPLES",

@@ -10,14 +10,10 @@ import numpy as np
 
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC
-from imucal.fits import accelerometer, orientations
 from imucal.pipeline import stages
-from imucal.pipeline.partial.session import NotApplicable, _axis_vector, _need, _Session
+from imucal.pipeline.partial.session import _axis_vector, _need, _Session
 from imucal.pipeline.registry import FINAL
 from imucal.segments.table import cut_finite
-
-#: The cube fit has 9 parameters and one equation per position.
-MIN_CUBE_POSITIONS = 9
 
 
 def _acc_known_orientation(s: _Session) -> dict:
@@ -41,56 +37,8 @@ def _acc_known_orientation(s: _Session) -> dict:
     return artifact
 
 
-def _pose_recording(s: _Session) -> str:
-    for r in ("cube", "poses"):
-        if s.with_sensor(r, "acc") and len(s.poses(r)) >= MIN_CUBE_POSITIONS:
-            return r
-    counts = {r: len(s.poses(r)) for r in ("cube", "poses") if r in s.tables}
-    shown = [_coverage(s, r).reason for r in ("cube", "poses") if s.with_sensor(r, "acc")]
-    raise NotApplicable(
-        f"needs >= {MIN_CUBE_POSITIONS} static poses in a cube or poses recording with "
-        f"accelerometer data (static poses found: {counts or 'no such recording'})"
-        + "".join(f"; {reason}" for reason in shown if reason)
-    )
-
-
-def _coverage(s: _Session, recording: str) -> orientations.OrientationCoverage:
-    """The distinct gravity directions of a recording's poses (those long enough for the fit)."""
-    pieces = [v for _, v in cut_finite(s.tables[recording], s.poses(recording), ACC)]
-    pieces = [v for v in pieces if len(v) >= accelerometer.MIN_SAMPLES_PER_POSITION]
-    return orientations.cube_coverage(
-        np.array([v.mean(axis=0) for v in pieces]).reshape(-1, 3),
-        np.array([len(v) for v in pieces]),
-    )
-
-
 def _acc_cube(s: _Session) -> dict:
-    recording = _pose_recording(s)
-    coverage = _coverage(s, recording)
-    _need(coverage.identifiable, coverage.reason)
-    rows = s.poses(recording)
-    positions = [v for _, v in cut_finite(s.tables[recording], rows, ACC)]
-    fit = accelerometer.fit_cube(
-        positions,
-        s.gravity_m_s2,
-        labels=[str(x) for x in rows["label"]],
-        saturation_limit_m_s2=s.saturation_m_s2,
-        method=s.methods.acc_cube,
-    )
-    artifact = stages.plain(fit)
-    artifact.update(gravity_m_s2=s.gravity_m_s2, recording=recording)
-    artifact["orientations"] = coverage.to_dict()
-    if len(positions) > MIN_CUBE_POSITIONS:
-        held = accelerometer.heldout_errors(positions, s.gravity_m_s2)
-        artifact.update(
-            heldout_error_before_m_s2=held.before.tolist(),
-            heldout_error_after_m_s2=held.after.tolist(),
-            heldout_predicted_std_m_s2=held.predicted_std.tolist(),
-        )
-    if recording in s.notes:  # how the poses were found (e.g. the tremor-adaptive detector)
-        artifact["segmentation"] = s.notes[recording]
-    artifact["calibration"] = stages.cube_calibration(artifact).to_dict()
-    return artifact
+    return s.run_node("acc_cube", **s.tables, segments=s.segments)
 
 
 def _acc_align(s: _Session) -> dict:

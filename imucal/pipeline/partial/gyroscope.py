@@ -13,39 +13,14 @@ import pandas as pd
 from imucal import errormodel, uncertainty
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, TIME
-from imucal.fits import gyroscope
 from imucal.pipeline import stages
 from imucal.pipeline.partial.accelerometer import _acc_final
 from imucal.pipeline.partial.session import _axis_vector, _need, _Session
 from imucal.segments.table import cut_finite, rows_of
 
 
-def _static_gyr(s: _Session) -> list[np.ndarray]:
-    names = (
-        ["static"]
-        if s.with_sensor("static", "gyr")
-        else [r for r in s.tables if s.with_sensor(r, "gyr")]
-    )
-    pieces = []
-    for name in names:
-        rows = rows_of(s.segments, name, "static", "position")
-        pieces += [v for _, v in cut_finite(s.tables[name], rows, GYR) if len(v) >= 2]
-    return pieces
-
-
 def _gyr_bias(s: _Session) -> dict:
-    found = _static_gyr(s)
-    # the segmentation's word on rests too short to count names the settings that find them
-    hints = [n for r, n in s.notes.items() if r in s.tables and "still interval" in n]
-    _need(bool(found), "; ".join(["no static segment with gyroscope samples", *hints]))
-    pieces, _, left_out = gyroscope.usable_static_segments(found)
-    _need(
-        bool(pieces),
-        f"no static segment with at least {gyroscope.MIN_STATIC_SAMPLES} gyroscope samples "
-        f"({left_out['short_left_out']} shorter ones)",
-    )
-    artifact = stages.plain(gyroscope.estimate_bias(pieces))
-    return {**artifact, **left_out} if left_out["short_left_out"] else artifact
+    return s.run_node("gyr_bias", **s.tables, segments=s.segments)
 
 
 def _bias(s: _Session) -> np.ndarray:
@@ -267,18 +242,13 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
 
 def _gyr_scale(s: _Session) -> dict:
     _need("gyr_align" in s.done, "needs the gyroscope alignment (gyr_align)")
-    _need(
-        "mag_step2" in s.done or "acc_align" in s.done,
-        "needs a calibrated magnetometer (mag_step2) or accelerometer (acc_align) to measure "
-        "the phase angles",
-    )
-    return stages.estimate_gyr_scale(
-        s.tables["rotation3d"],
-        s.rotation3d_lowpass,
-        s.segments,
-        s.done["gyr_bias"],
-        s.done["gyr_align"],
-        s.done.get("acc_align"),
-        s.done.get("mag_step2"),
-        bias_estimator=s.methods.gyr_bias_estimator,
+    return s.run_node(
+        "gyr_scale",
+        rotation3d=s.tables["rotation3d"],
+        lowpass=s.rotation3d_lowpass,
+        segments=s.segments,
+        gyr_bias=s.done["gyr_bias"],
+        gyr_align=s.done["gyr_align"],
+        acc_align=s.done.get("acc_align"),
+        mag_step2=s.done.get("mag_step2"),
     )

@@ -8,31 +8,9 @@ from __future__ import annotations
 
 from imucal.pipeline.partial.session import _need, _Session
 
-#: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
-MAG_RECORDINGS = ("tumble", "rotation3d", "cube", "poses", "ferraris", "static")
-
-
-#: Recordings held at one orientation: they add one direction to the ellipsoid, and their
-#: thousands of samples there would outweigh the turning recordings with an error that does not
-#: average out over them (the reading's quantisation at a fixed field, a local field); offered
-#: to the fit only when they are the only source (which the coverage check then refuses).
-ONE_ORIENTATION = ("static",)
-
 
 def _mag_step1(s: _Session) -> dict:
-    from imucal.fits import magnetometer
-
-    sources = [r for r in MAG_RECORDINGS if s.with_sensor(r, "mag")]
-    _need(bool(sources), "no recording has magnetometer samples")
-    primary, extra = sources[0], [r for r in sources[1:] if r not in ONE_ORIENTATION]
-    _, samples = magnetometer.field_samples(s.tables[primary])
-    fit = magnetometer.fit_ellipsoid(
-        samples,
-        refine_lm=s.methods.mag_refine_lm,
-        field_norm=s.field_norm,
-        extra_samples={r: magnetometer.field_samples(s.tables[r])[1] for r in extra} or None,
-    )
-    return {**fit.to_dict(), "source": primary, "offered": extra}
+    return s.run_node("mag_step1", **s.tables)
 
 
 def _mag_step2(s: _Session) -> dict:

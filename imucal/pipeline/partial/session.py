@@ -12,14 +12,11 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from imucal.columns import ACC, GYR, MAG
 from imucal.pipeline.options import FitMethods
+from imucal.pipeline.outcome import NotApplicable
 from imucal.pipeline.registry import STAGES, split_held_out
+from imucal.pipeline.stages.common import sensors_of
 from imucal.segments.table import rows_of
-
-
-class NotApplicable(Exception):
-    """A stage's requirements are not met by the dataset (the message says which)."""
 
 
 @dataclasses.dataclass
@@ -48,18 +45,6 @@ class Outcome:
             "status": self.status,
             "reason": self.reason,
         }
-
-
-def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
-    """Sensors with at least one finite sample in an ingested table."""
-    present = []
-    for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
-        if (
-            all(c in table.columns for c in columns)
-            and np.isfinite(table[list(columns)].to_numpy(dtype=float)).all(axis=1).any()
-        ):
-            present.append(sensor)
-    return tuple(present)
 
 
 def _need(condition: bool, reason: str) -> None:
@@ -108,14 +93,15 @@ class _Session:
     @functools.cached_property
     def settings(self) -> dict:
         """The settings of the full protocol's stages (:data:`imucal.pipeline.graph.SETTINGS`)
-        as this session takes them; an unknown range leaves nothing out."""
+        as this session takes them; an unknown range leaves nothing out (the cube fit takes
+        None for it, the rate table's an infinite limit)."""
         return {
             **dataclasses.asdict(self.methods),
             "exact": self.exact,
             "with_covariance": True,
             "gravity_m_s2": self.gravity_m_s2,
             "field_norm": self.field_norm,
-            "acc_limit_m_s2": np.inf if self.saturation_m_s2 is None else self.saturation_m_s2,
+            "acc_limit_m_s2": self.saturation_m_s2,
             "gyr_limit_rad_s": np.inf if self.saturation_rad_s is None else self.saturation_rad_s,
         }
 

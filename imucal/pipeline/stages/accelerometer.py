@@ -17,37 +17,82 @@ import pandas as pd
 from imucal import errormodel, uncertainty
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC
-from imucal.fits import accelerometer
+from imucal.fits import accelerometer, orientations
 from imucal.fits.alignment import ALIGNMENT_RULE, align_constant_component
 from imucal.fits.propagation import alignment_sensitivity
-from imucal.pipeline.stages.common import ALIGNMENT_METHODS, _phases, plain
-from imucal.segments.table import cut, rows_of
+from imucal.pipeline.outcome import NotApplicable
+from imucal.pipeline.stages.common import ALIGNMENT_METHODS, _phases, plain, sensors_of
+from imucal.segments.table import cut_finite, rows_of
 from imucal.validation.plausibility import bound_warnings
 
 if TYPE_CHECKING:  # matplotlib is imported by the stages that draw, when they draw
     from matplotlib.figure import Figure
 
 
+#: The cube fit has 9 parameters and one equation per position.
+MIN_CUBE_POSITIONS = 9
+#: Recordings of static poses the cube fit may be run on, preferred first.
+POSE_RECORDINGS = ("cube", "poses")
+
+
+def pose_rows(segments: pd.DataFrame, recording: str) -> pd.DataFrame:
+    """The poses of a recording: its segments of kind 'position' (the faces its protocol
+    names), else those of kind 'static' (the rests the fallback segmentation finds)."""
+    rows = rows_of(segments, recording, "position")
+    return rows if not rows.empty else rows_of(segments, recording, "static")
+
+
+def pose_coverage(table: pd.DataFrame, rows: pd.DataFrame) -> orientations.OrientationCoverage:
+    """The distinct gravity directions of a recording's poses (those long enough for the fit)."""
+    pieces = [v for _, v in cut_finite(table, rows, ACC)]
+    pieces = [v for v in pieces if len(v) >= accelerometer.MIN_SAMPLES_PER_POSITION]
+    return orientations.cube_coverage(
+        np.array([v.mean(axis=0) for v in pieces]).reshape(-1, 3),
+        np.array([len(v) for v in pieces]),
+    )
+
+
+def _pose_recording(tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame) -> str:
+    """The first of :data:`POSE_RECORDINGS` with accelerometer samples and enough poses."""
+    with_acc = [r for r in POSE_RECORDINGS if r in tables and "acc" in sensors_of(tables[r])]
+    for r in with_acc:
+        if len(pose_rows(segments, r)) >= MIN_CUBE_POSITIONS:
+            return r
+    counts = {r: len(pose_rows(segments, r)) for r in POSE_RECORDINGS if r in tables}
+    shown = [pose_coverage(tables[r], pose_rows(segments, r)).reason for r in with_acc]
+    raise NotApplicable(
+        f"needs >= {MIN_CUBE_POSITIONS} static poses in a cube or poses recording with "
+        f"accelerometer data (static poses found: {counts or 'no such recording'})"
+        + "".join(f"; {reason}" for reason in shown if reason)
+    )
+
+
 def fit_acc_cube(
-    cube: pd.DataFrame,
+    tables: Mapping[str, pd.DataFrame],
     segments: pd.DataFrame,
     *,
     gravity_m_s2: float,
-    saturation_limit_m_s2: float,
+    saturation_limit_m_s2: float | None,
     method: str = "means",
     figures: bool = True,
 ) -> tuple[dict, dict[str, Figure]]:
-    """Accelerometer step 1 (eq. 32) on the static cube positions.
+    """Accelerometer step 1 (eq. 32) on the static poses of the cube (or a poses recording).
+
+    The poses (:func:`pose_rows`) of the first of :data:`POSE_RECORDINGS` with at least
+    :data:`MIN_CUBE_POSITIONS` of them are fitted when their gravity directions determine the
+    9 parameters (:func:`imucal.fits.orientations.cube_coverage`); each pose in turn is also
+    predicted by the fit on the others when there are more than the minimum.
 
     Parameters
     ----------
-    cube : DataFrame
-        Ingested cube recording (m/s^2).
+    tables : dict of str to DataFrame
+        Ingested recordings by name (m/s^2); the paper's protocol gives the cube.
     segments : DataFrame
-        Segments table; rows of kind 'position' of 'cube'.
+        Segments table (its ``attrs['notes']``, the segmentation's notes, join the artifact).
     gravity_m_s2 : float
-    saturation_limit_m_s2 : float
-        ``range_counts * sensitivity`` of the accelerometer; samples at it are excluded.
+    saturation_limit_m_s2 : float or None
+        ``range_counts * sensitivity`` of the accelerometer; samples at it are excluded (None:
+        the range is unknown, nothing is excluded).
     method : {'means', 'samples'}
         See :func:`imucal.fits.accelerometer.fit_cube`.
     figures : bool
@@ -56,14 +101,25 @@ def fit_acc_cube(
     Returns
     -------
     artifact : dict
-        The fit (``upper`` = S'_acc, ``bias``, std, per-position residuals before/after, warnings).
+        The fit (``upper`` = S'_acc, ``bias``, std, per-position residuals before/after,
+        warnings), the ``recording`` fitted, its ``orientations``, the held-out errors and the
+        ``calibration`` the cube alone gives.
     figures : dict of str to Figure
         'acc_cube': |a| - g per position before/after (paper Fig. 10).
+
+    Raises
+    ------
+    NotApplicable
+        If no recording has enough poses, or their directions do not determine the fit.
     """
     from imucal.plots import inertial as inertial_plots
 
-    rows = rows_of(segments, "cube", "position")
-    positions = cut(cube, rows, ACC)
+    recording = _pose_recording(tables, segments)
+    rows = pose_rows(segments, recording)
+    coverage = pose_coverage(tables[recording], rows)
+    if not coverage.identifiable:
+        raise NotApplicable(coverage.reason)
+    positions = [v for _, v in cut_finite(tables[recording], rows, ACC)]
     fit = accelerometer.fit_cube(
         positions,
         gravity_m_s2,
@@ -72,7 +128,19 @@ def fit_acc_cube(
         method=method,
     )
     artifact = plain(fit)
-    artifact["gravity_m_s2"] = gravity_m_s2
+    artifact.update(gravity_m_s2=gravity_m_s2, recording=recording)
+    artifact["orientations"] = coverage.to_dict()
+    if len(positions) > MIN_CUBE_POSITIONS:
+        held = accelerometer.heldout_errors(positions, gravity_m_s2)
+        artifact.update(
+            heldout_error_before_m_s2=held.before.tolist(),
+            heldout_error_after_m_s2=held.after.tolist(),
+            heldout_predicted_std_m_s2=held.predicted_std.tolist(),
+        )
+    notes = segments.attrs.get("notes", {})
+    if recording in notes:  # how the poses were found (e.g. the tremor-adaptive detector)
+        artifact["segmentation"] = notes[recording]
+    artifact["calibration"] = cube_calibration(artifact).to_dict()
     if not figures:
         return artifact, {}
     return artifact, {"acc_cube": inertial_plots.plot_cube_magnitude_errors(fit)}

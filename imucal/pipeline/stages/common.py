@@ -1,5 +1,5 @@
-"""What the stage functions share: the JSON-ready copy of an artifact, the saturation test and
-the phases of a rotation3d recording.
+"""What the stage functions share: the JSON-ready copy of an artifact, the saturation test, the
+phases of a rotation3d recording and the sensors a recording holds.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from imucal.columns import ACC, GYR, MAG
 from imucal.fits.alignment import phase_samples
 
 ALIGNMENT_METHODS = ("full", "paper")
@@ -38,3 +39,15 @@ def _saturated(values: np.ndarray, limit: float) -> np.ndarray:
 def _phases(table: pd.DataFrame, segments: pd.DataFrame, sensor: str) -> dict[str, np.ndarray]:
     """Phase label -> the sensor's samples (n, 3) in that rotation3d phase."""
     return {label: values for label, (_, values) in phase_samples(table, segments, sensor).items()}
+
+
+def sensors_of(table: pd.DataFrame) -> tuple[str, ...]:
+    """Sensors with at least one finite sample in an ingested table."""
+    present = []
+    for sensor, columns in (("acc", ACC), ("gyr", GYR), ("mag", MAG)):
+        if (
+            all(c in table.columns for c in columns)
+            and np.isfinite(table[list(columns)].to_numpy(dtype=float)).all(axis=1).any()
+        ):
+            present.append(sensor)
+    return tuple(present)

@@ -15,13 +15,20 @@ import numpy as np
 import pandas as pd
 
 from imucal import errormodel, uncertainty
-from imucal.columns import AXES, GYR, TIME
+from imucal.columns import AXES, GYR
 from imucal.fits import gyroscope
 from imucal.fits.alignment import align_rotation_axis
 from imucal.fits.propagation import alignment_sensitivity, upper_bias_covariance
 from imucal.fits.ratetable import fit_rate_table, rate_table_crlb
-from imucal.pipeline.stages.common import ALIGNMENT_METHODS, _phases, _saturated, plain
-from imucal.segments.table import cut, rows_of
+from imucal.pipeline.outcome import NotApplicable
+from imucal.pipeline.stages.common import (
+    ALIGNMENT_METHODS,
+    _phases,
+    _saturated,
+    plain,
+    sensors_of,
+)
+from imucal.segments.table import cut, cut_finite, rows_of
 
 if TYPE_CHECKING:  # matplotlib is imported by the stages that draw, when they draw
     from matplotlib.figure import Figure
@@ -34,55 +41,67 @@ RATE_TABLE_RULE = (
 
 
 def estimate_gyr_bias(
-    static_tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame, *, figures: bool = True
+    tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame, *, figures: bool = True
 ) -> tuple[dict, dict[str, Figure]]:
     """Gyroscope bias (eqs. 34-35 and the plain mean) from the static recording.
 
-    Without a static recording, the static pauses of the other recordings are used.
+    Without a static recording with gyroscope samples, the rests and poses of the other
+    recordings given are used. Rests too short for a slope are left out and counted.
 
     Parameters
     ----------
-    static_tables : dict of str to DataFrame
-        Ingested recordings by name; 'static' is used when present, else 'rotation3d' and 'cube'.
+    tables : dict of str to DataFrame
+        Ingested recordings by name (rad/s); the paper's protocol gives 'static', or
+        'rotation3d' and 'cube' without it.
     segments : DataFrame
+        Segments table (its ``attrs['notes']`` name the settings that find short rests).
     figures : bool
         Draw the figure (the in-process chain does not need it).
 
     Returns
     -------
     artifact : dict
+        The bias of both estimators with their std, ``source`` (the recordings used) and the
+        count of left-out rests when there are any.
     figures : dict of str to Figure
         'gyr_bias': the static rates before and after bias removal (Figs. 16-17).
+
+    Raises
+    ------
+    NotApplicable
+        If no rest has gyroscope samples, or none is long enough.
     """
     from imucal.plots import inertial as inertial_plots
 
-    names = (
-        ["static"]
-        if "static" in static_tables
-        else [n for n in ("rotation3d", "cube") if n in static_tables]
-    )
+    with_gyr = [r for r in tables if "gyr" in sensors_of(tables[r])]
+    names = ["static"] if "static" in with_gyr else with_gyr
     pieces, times = [], []
     for name in names:
-        rows = rows_of(segments, name, "static")
-        if name == "cube":
-            rows = pd.concat([rows, rows_of(segments, name, "position")])
-        pieces += cut(static_tables[name], rows, GYR)
-        times += cut(static_tables[name], rows, (TIME,))
+        rows = rows_of(segments, name, "static", "position")
+        for t, values in cut_finite(tables[name], rows, GYR):
+            if len(values) >= 2:
+                pieces.append(values)
+                times.append(t)
     if not pieces:
-        raise ValueError(
-            f"no static segment found in the recordings {names}; the gyroscope bias needs a "
-            "static recording or static pauses"
-        )
+        # the segmentation's word on rests too short to count names the settings that find them
+        notes = segments.attrs.get("notes", {})
+        hints = [n for r, n in notes.items() if r in tables and "still interval" in n]
+        raise NotApplicable("; ".join(["no static segment with gyroscope samples", *hints]))
     pieces, keep, left_out = gyroscope.usable_static_segments(pieces)
+    if not pieces:
+        raise NotApplicable(
+            f"no static segment with at least {gyroscope.MIN_STATIC_SAMPLES} gyroscope samples "
+            f"({left_out['short_left_out']} shorter ones)"
+        )
     times = [x for x, k in zip(times, keep) if k]
     bias = gyroscope.estimate_bias(pieces)
     artifact = {**plain(bias), **left_out} if left_out["short_left_out"] else plain(bias)
     artifact["source"] = names
     if not figures:
         return artifact, {}
-    t = np.concatenate([x[:, 0] for x in times])
-    rates = np.vstack(pieces)
-    figure = inertial_plots.plot_gyro_bias(t, rates, bias.bias_ls_rad_s)
+    figure = inertial_plots.plot_gyro_bias(
+        np.concatenate(times), np.vstack(pieces), bias.bias_ls_rad_s
+    )
     return artifact, {"gyr_bias": figure}
 
 
