@@ -21,7 +21,7 @@ What a node reads is named by *source*:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -102,6 +102,9 @@ class Node:
         A recording without which the stage does not apply to a session.
     tolerates : tuple of str
         Arguments that may be missing or not run (the run decides what it does without them).
+    readings : tuple of str
+        The sensors whose readings it reads from the recordings ('acc', 'gyr', 'mag'); its
+        result depends on the others' only through the artifacts it reads.
     """
 
     name: str
@@ -112,6 +115,7 @@ class Node:
     outputs: tuple = ()
     needs: str | None = None
     tolerates: tuple = ()
+    readings: tuple = ()
 
     def applies(self, recordings: frozenset) -> bool:
         """The stage runs on a session with these ingested recordings."""
@@ -261,6 +265,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             _mag_step1_reads,
             _mag_step1,
             ("field_norm", "mag_refine_lm"),
+            readings=("mag",),
         ),
         Node(
             "mag_step2",
@@ -272,6 +277,7 @@ FULL_PROTOCOL: dict[str, Node] = {
                 _figure(k, "Magnetometer")
                 for k in ("mag_raw", "mag_step1", "mag_phases", "mag_step2")
             ),
+            readings=("mag",),
         ),
         Node(
             "acc_cube",
@@ -280,6 +286,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             _acc_cube,
             ("gravity_m_s2", "acc_limit_m_s2", "acc_cube"),
             (_figure("acc_cube", "Accelerometer"),),
+            readings=("acc",),
         ),
         Node(
             "acc_align",
@@ -287,6 +294,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             _fixed(lowpass="lowpass", segments="segments", acc_cube="acc_cube"),
             _acc_align,
             ("acc_alignment", *_ALIGNMENT),
+            readings=("acc",),
         ),
         Node(
             "gyr_bias",
@@ -294,6 +302,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             _gyr_bias_reads,
             _gyr_bias,
             outputs=(_figure("gyr_bias", "Gyroscope"),),
+            readings=("gyr",),
         ),
         Node(
             "gyr_align",
@@ -301,6 +310,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             _fixed(lowpass="lowpass", segments="segments", gyr_bias="gyr_bias"),
             _gyr_align,
             ("gyr_bias_estimator", "gyr_alignment", *_ALIGNMENT),
+            readings=("gyr",),
         ),
         Node(
             "gyr_scale",
@@ -317,6 +327,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             _gyr_scale,
             ("gyr_bias_estimator", "with_covariance"),
             tolerates=("acc_align", "mag_step2"),
+            readings=("acc", "gyr", "mag"),
         ),
         Node(
             "gyr_table",
@@ -326,6 +337,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             ("gyr_limit_rad_s",),
             (_figure("gyr_table", "Gyroscope"),),
             needs="ratetable",
+            readings=("gyr",),
         ),
         Node(
             "gyr_table_align",
@@ -334,6 +346,7 @@ FULL_PROTOCOL: dict[str, Node] = {
             _gyr_table_align,
             ("gyr_alignment", *_ALIGNMENT),
             needs="ratetable",
+            readings=("gyr",),
         ),
         Node(
             "gyr",
@@ -411,6 +424,40 @@ def node_inputs(node: Node, store: Mapping, recordings: frozenset) -> dict:
 
 def _checked_input(value: Any) -> Any:
     return checked(value) if isinstance(value, Mapping) else value
+
+
+def unaffected(
+    records: Mapping[str, Mapping],
+    changed: Collection[str],
+    recordings: frozenset,
+    *,
+    nodes: Mapping[str, Node] = FULL_PROTOCOL,
+) -> dict[str, Mapping]:
+    """The records of a session's stages that new readings of the ``changed`` sensors cannot
+    move: stages that read none of them, directly or through an earlier stage.
+
+    Parameters
+    ----------
+    records : dict of str to dict
+        Stage name -> artifact or not-run record of the session before the change.
+    changed : collection of str
+        Sensors whose readings changed ('acc', 'gyr', 'mag'); the others' are the same to the bit.
+    recordings : frozenset of str
+        The session's recordings.
+    nodes : dict of str to Node
+
+    Returns
+    -------
+    dict
+        The subset of ``records`` to hand to the runner as done.
+    """
+    kept: dict[str, Mapping] = {}
+    for node in nodes.values():
+        sources = set(node.reads(recordings).values()) & set(nodes)
+        moved = set(node.readings) & set(changed) or sources - set(kept)
+        if node.name in records and not moved:
+            kept[node.name] = records[node.name]
+    return kept
 
 
 def run_nodes(

@@ -13,13 +13,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
 import pandas as pd
 
 from imucal import errormodel
 from imucal.calibration import ImuCalibration
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_COLUMN_UNITS
 from imucal.io import to_jsonable
-from imucal.pipeline.full import PipelineOptions, calibrate_session
+from imucal.pipeline.full import PipelineOptions, SessionFit, calibrate_session
+from imucal.pipeline.graph import unaffected
 from imucal.pipeline.stages import apply_calibration
 from imucal.terms.heldout import heldout_comparison, pose_to_pose_comparison
 from imucal.terms.modelterms import TERMS, ModelTerms
@@ -43,19 +45,51 @@ def corrected_session(
     Returns
     -------
     dict of str to DataFrame
-        Readings ``o + K^-1 v`` per sensor, ``v`` calibrated with ``base`` and ``terms``.
+        Readings ``o + K^-1 v`` per sensor, ``v`` calibrated with ``base`` and ``terms``; a
+        sensor whose calibrated values the terms leave as they are keeps its readings to the
+        bit (:func:`changed_sensors`).
     """
     model = base.with_terms(terms)
+    metadata = {"units": SI_COLUMN_UNITS}
     out = {}
     for name, table in imu.items():
-        values, _ = apply_calibration(table, {"units": SI_COLUMN_UNITS}, model, source=name)
+        values, _ = apply_calibration(table, metadata, model, source=name)
+        paper, _ = apply_calibration(table, metadata, base.with_terms(ModelTerms()), source=name)
         fixed = table.copy()
         for s in SENSORS:
             cal = base.sensor(s)
             cols = list(SENSOR_COLUMNS[s])
-            fixed[cols] = errormodel.invert(cal.matrix, cal.bias, values[cols].to_numpy(float))
+            v = values[cols].to_numpy(float)
+            if not np.array_equal(v, paper[cols].to_numpy(float), equal_nan=True):
+                fixed[cols] = errormodel.invert(cal.matrix, cal.bias, v)
         out[name] = fixed
     return out
+
+
+def changed_sensors(imu: Mapping[str, pd.DataFrame], corrected: Mapping[str, pd.DataFrame]) -> set:
+    """The sensors whose readings differ between two versions of a session's recordings."""
+    return {
+        s
+        for s in SENSORS
+        for name, table in imu.items()
+        if not np.array_equal(
+            table[list(SENSOR_COLUMNS[s])].to_numpy(float),
+            corrected[name][list(SENSOR_COLUMNS[s])].to_numpy(float),
+            equal_nan=True,
+        )
+    }
+
+
+def recalibrate(
+    base: SessionFit, corrected: Mapping[str, pd.DataFrame], options: PipelineOptions
+) -> SessionFit:
+    """The paper's chain on the corrected session, the stages whose readings the correction did
+    not change taken from the session's fit as they are (:func:`imucal.pipeline.graph.
+    unaffected`)."""
+    done = unaffected(
+        base.extra["records"], changed_sensors(base.imu, corrected), frozenset(corrected)
+    )
+    return calibrate_session(corrected, base.reference, options, base.segments, done=done)
 
 
 def close_loop(
@@ -117,7 +151,7 @@ def close_loop(
             return {"terms": record, "calibration": None, "corrected": None}
         terms = ModelTerms(**found)
         corrected = corrected_session(imu, base.calibration, terms)
-        refit = calibrate_session(corrected, reference, options, segments)
+        refit = recalibrate(base, corrected, options)
         model = refit.calibration.with_terms(terms)
         pose_to_pose = pose_to_pose_comparison(base, base.calibration, model)
     except ValueError as err:
@@ -152,7 +186,7 @@ def _estimate(imu, reference, options, segments, record: dict, settings: TermSet
         if term.refits_session:
             # the later terms are estimated on the session without this term's effect
             fixed = corrected_session(imu, base.calibration, ModelTerms(**found))
-            fit = calibrate_session(fixed, reference, options, segments)
+            fit = recalibrate(base, fixed, options)
     return found, base
 
 

@@ -499,3 +499,28 @@ def test_the_loop_estimates_on_the_sessions_own_stage_files(twin, drift, tmp_pat
     assert runs[0] == []  # the base fit: every stage from its file
     assert len(runs) > 1  # the refit of the corrected session runs the chain
     assert again["calibration"].to_dict() == res["calibration"].to_dict()
+
+
+def test_the_refit_runs_only_the_stages_whose_readings_the_terms_change(twin, drift, monkeypatch):
+    # a gyroscope-only term leaves the accelerometer's and magnetometer's readings to the bit:
+    # their stages are taken from the session's fit, and the result is the whole chain's
+    from imucal.pipeline import full
+    from imucal.terms.loop import changed_sensors, recalibrate
+    from imucal.terms.modelterms import GSensitivity
+
+    imu, ref, fit, _ = drift
+    g = GSensitivity(np.diag([2e-4, -1e-4, 3e-4]), np.full((3, 3), 1e-5))
+    corrected = corrected_session(imu, fit.calibration, ModelTerms(g_sensitivity=g))
+    assert changed_sensors(imu, corrected) == {"gyr"}
+    runs = []
+
+    def counted(store, options, *, nodes):
+        runs.append(set(nodes))
+        return run_nodes(store, options, nodes=nodes)
+
+    run_nodes = full.run_nodes
+    monkeypatch.setattr(full, "run_nodes", counted)
+    refit = recalibrate(fit, corrected, twin.options)
+    assert runs[0] == {"gyr_bias", "gyr_align", "gyr_scale", "gyr_table", "gyr_table_align", "gyr"}
+    whole = calibrate_session(corrected, ref, twin.options, fit.segments)
+    assert refit.calibration.to_dict() == whole.calibration.to_dict()
