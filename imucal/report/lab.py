@@ -28,10 +28,10 @@ import pandas as pd
 import yaml
 
 import imucal
+import imucal.report.digest as digest
 from imucal.columns import SENSORS
 from imucal.constants import REFERENCE
 from imucal.pipeline.outcome import NOT_SHIPPED
-from imucal.report import digest
 from imucal.report.artifacts import _load_json, _optional_json, read_benchmarks
 from imucal.report.fields import collect_warnings, flatten_fields
 from imucal.report.figures import _caption, embed_figure, figure_section
