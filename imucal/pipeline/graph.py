@@ -485,7 +485,9 @@ def run_nodes(
         stage_guard` writes it). A node that does not apply to the session has no entry.
     """
     store = dict(store)
-    recordings = frozenset(k for k in store if k not in ("lowpass", "segments"))
+    # the recordings, not the derived tables nor the artifacts of stages already run
+    derived = {"lowpass", "segments", *FULL_PROTOCOL, *nodes}
+    recordings = frozenset(k for k in store if k not in derived)
     for node in nodes.values():
         if not node.applies(recordings):
             continue
