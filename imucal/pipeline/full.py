@@ -112,13 +112,13 @@ def calibrate_session(
     )
     records = {name: store[name] for name in FULL_PROTOCOL if name in store}
     artifacts = {name: usable(records.get(name)) for name in FULL_PROTOCOL}
-    for sensor in ("mag_step2", "acc_align", "gyr"):
-        reason = not_run_reason(store[sensor])
-        if reason:
-            raise ValueError(reason)
+    reasons = {name: not_run_reason(record) for name, record in records.items()}
+    for final in ("mag_step2", "acc_align", "gyr"):  # each sensor's calibration
+        if reasons[final]:
+            raise ValueError(reasons[final])
     # a stage that did not run although the calibration did (eq. 36 beside a rate table, the
     # rate table's fit beside eq. 36): the diagnosis goes on and says so
-    notes = [not_run_reason(r) for r in records.values() if not_run_reason(r)]
+    notes = [reason for reason in reasons.values() if reason]
     calibration = stages.combine_calibration(
         artifacts["acc_align"], artifacts["gyr"], artifacts["mag_step2"]
     )

@@ -147,10 +147,14 @@ def _mag_step2(i: Mapping, s: Mapping, draw: bool) -> tuple:
     return mag, plot_magnetometer_steps(i["rotation3d"], i["segments"], mag)
 
 
+def _recordings(i: Mapping) -> dict:
+    """The recordings among a node's inputs (a stage that chooses its own from them)."""
+    return {k: v for k, v in i.items() if k != "segments"}
+
+
 def _acc_cube(i: Mapping, s: Mapping, draw: bool) -> tuple:
-    tables = {k: v for k, v in i.items() if k != "segments"}
     return stages.fit_acc_cube(
-        tables,
+        _recordings(i),
         i["segments"],
         gravity_m_s2=s["gravity_m_s2"],
         saturation_limit_m_s2=s["acc_limit_m_s2"],
@@ -167,8 +171,7 @@ def _acc_align(i: Mapping, s: Mapping, draw: bool) -> tuple:
 
 
 def _gyr_bias(i: Mapping, s: Mapping, draw: bool) -> tuple:
-    tables = {k: v for k, v in i.items() if k != "segments"}
-    return stages.estimate_gyr_bias(tables, i["segments"], figures=draw)
+    return stages.estimate_gyr_bias(_recordings(i), i["segments"], figures=draw)
 
 
 def _gyr_align(i: Mapping, s: Mapping, draw: bool) -> tuple:

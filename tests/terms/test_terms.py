@@ -475,28 +475,35 @@ def test_term_std_follows_the_errors_over_sessions(twin, rms_z_band):
     assert not failed, failed
 
 
+def _count_stage_runs(monkeypatch) -> list[set]:
+    """The stages each call of the in-process runner runs, in call order."""
+    from imucal.pipeline import full
+
+    runs = []
+    run_nodes = full.run_nodes
+
+    def counted(store, options, *, nodes):
+        runs.append(set(nodes))
+        return run_nodes(store, options, nodes=nodes)
+
+    monkeypatch.setattr(full, "run_nodes", counted)
+    return runs
+
+
 def test_the_loop_estimates_on_the_sessions_own_stage_files(twin, drift, tmp_path, monkeypatch):
     # the workflow hands the loop the stage rules' JSON files: the loop then runs none of the
     # chain's stages for its base fit, and ships what a second run of the chain gives
     from imucal.io import read_json, write_json
-    from imucal.pipeline import full
 
     imu, ref, fit, res = drift
     files = {}
     for name, record in fit.extra["records"].items():
         write_json(record, tmp_path / f"{name}.json")
         files[name] = read_json(tmp_path / f"{name}.json")
-    runs = []
-
-    def counted(store, options, *, nodes):
-        runs.append(list(nodes))
-        return run_nodes(store, options, nodes=nodes)
-
-    run_nodes = full.run_nodes
-    monkeypatch.setattr(full, "run_nodes", counted)
+    runs = _count_stage_runs(monkeypatch)
     again = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=None,
                        settings=ON, fits=files)  # fmt: skip
-    assert runs[0] == []  # the base fit: every stage from its file
+    assert runs[0] == set()  # the base fit: every stage from its file
     assert len(runs) > 1  # the refit of the corrected session runs the chain
     assert again["calibration"].to_dict() == res["calibration"].to_dict()
 
@@ -504,7 +511,6 @@ def test_the_loop_estimates_on_the_sessions_own_stage_files(twin, drift, tmp_pat
 def test_the_refit_runs_only_the_stages_whose_readings_the_terms_change(twin, drift, monkeypatch):
     # a gyroscope-only term leaves the accelerometer's and magnetometer's readings to the bit:
     # their stages are taken from the session's fit, and the result is the whole chain's
-    from imucal.pipeline import full
     from imucal.terms.loop import changed_sensors, recalibrate
     from imucal.terms.modelterms import GSensitivity
 
@@ -512,14 +518,7 @@ def test_the_refit_runs_only_the_stages_whose_readings_the_terms_change(twin, dr
     g = GSensitivity(np.diag([2e-4, -1e-4, 3e-4]), np.full((3, 3), 1e-5))
     corrected = corrected_session(imu, fit.calibration, ModelTerms(g_sensitivity=g))
     assert changed_sensors(imu, corrected) == {"gyr"}
-    runs = []
-
-    def counted(store, options, *, nodes):
-        runs.append(set(nodes))
-        return run_nodes(store, options, nodes=nodes)
-
-    run_nodes = full.run_nodes
-    monkeypatch.setattr(full, "run_nodes", counted)
+    runs = _count_stage_runs(monkeypatch)
     refit = recalibrate(fit, corrected, twin.options)
     assert runs[0] == {"gyr_bias", "gyr_align", "gyr_scale", "gyr_table", "gyr_table_align", "gyr"}
     whole = calibrate_session(corrected, ref, twin.options, fit.segments)
