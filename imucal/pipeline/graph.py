@@ -8,7 +8,9 @@ on new data. The in-process chain (:func:`imucal.pipeline.full.calibrate_session
 diagnosis's twin, the closed loop and the checks use) runs the same nodes in the same order with
 :func:`run_nodes`, with the same settings (:meth:`Node.settings_of`) and the same outcome when a
 stage cannot run on the data (a not-run record, :mod:`imucal.pipeline.outcome`). The two paths
-therefore agree by construction.
+therefore agree by construction. The partial path's stages are nodes too
+(:data:`imucal.pipeline.partial.driver.PARTIAL_PROTOCOL`), run by the same runner
+(:func:`run_graph`) with the review of each final fit.
 
 What a node reads is named by *source*:
 
@@ -16,7 +18,9 @@ What a node reads is named by *source*:
 * ``lowpass``: the low-pass filtered rotation3d (table);
 * ``segments``: the segments table;
 * ``truth``: the dataset's ``truth.json`` where it has one (the workflow only);
-* another node's name: that node's artifact (dict).
+* another node's name: that node's artifact (dict);
+* ``session``: the partial path's session (its recordings, segments and references), from
+  which its stages choose what they fit.
 """
 
 from __future__ import annotations
@@ -463,13 +467,67 @@ def unaffected(
     return kept
 
 
+def run_graph(
+    store: Mapping[str, Any],
+    settings_for: Callable[[Node], Mapping],
+    nodes: Mapping[str, Node],
+    *,
+    review: Callable[[str, dict, Mapping], dict] | None = None,
+    reason: Callable[[Exception], str] = str,
+) -> dict[str, Any]:
+    """Run the nodes in order in process, without figures: the one runner of every chain.
+
+    Each node that applies to the session is run on its inputs from ``store``; its artifact, or
+    its not-run record when the data do not allow it (its fit or its conditions raise
+    ``ValueError``, or a stage it needs did not run), joins the store under its name for the
+    nodes after it.
+
+    Parameters
+    ----------
+    store : dict
+        The sources the chain starts from (recordings, derived tables, artifacts of stages
+        already run, and any other source the nodes read).
+    settings_for : callable
+        ``settings_for(node)``: the node's settings (its :attr:`Node.settings` keys).
+    nodes : dict of str to Node
+        The graph, in run order.
+    review : callable, optional
+        ``review(name, artifact, store) -> artifact``: checks a node's artifact before it is
+        kept (it may add warnings); a ``ValueError`` it raises makes the stage not run with
+        its message (a fit not shipped).
+    reason : callable
+        The not-run reason of the exception that stopped a node (default its message).
+
+    Returns
+    -------
+    dict
+        ``store`` with each node's artifact or not-run record under its name; a node that does
+        not apply to the session has no entry.
+    """
+    store = dict(store)
+    # the recordings, not the derived tables nor the artifacts of stages already run
+    derived = {"lowpass", "segments", *FULL_PROTOCOL, *nodes}
+    recordings = frozenset(k for k in store if k not in derived)
+    for node in nodes.values():
+        if not node.applies(recordings):
+            continue
+        try:
+            inputs = node_inputs(node, store, recordings)
+            artifact, _ = node.run(inputs, settings_for(node), False)
+            store[node.name] = review(node.name, artifact, store) if review else artifact
+        except (ValueError, StageNotRun) as err:
+            store[node.name] = not_run_record(node.name, reason(err))
+    return store
+
+
 def run_nodes(
     store: Mapping[str, Any],
     options: PipelineOptions,
     *,
     nodes: Mapping[str, Node] = FULL_PROTOCOL,
 ) -> dict[str, Any]:
-    """Run the nodes in order in process, without figures, as the workflow's rules run them.
+    """Run the paper's stages in process as the workflow's rules run them
+    (:func:`run_graph` with each node's settings from ``options``).
 
     Parameters
     ----------
@@ -487,16 +545,4 @@ def run_nodes(
         record when the data do not allow the stage (as :func:`~imucal.pipeline.outcome.
         stage_guard` writes it). A node that does not apply to the session has no entry.
     """
-    store = dict(store)
-    # the recordings, not the derived tables nor the artifacts of stages already run
-    derived = {"lowpass", "segments", *FULL_PROTOCOL, *nodes}
-    recordings = frozenset(k for k in store if k not in derived)
-    for node in nodes.values():
-        if not node.applies(recordings):
-            continue
-        try:
-            inputs = node_inputs(node, store, recordings)
-            store[node.name], _ = node.run(inputs, node.settings_of(options), False)
-        except (ValueError, StageNotRun) as err:
-            store[node.name] = not_run_record(node.name, str(err))
-    return store
+    return run_graph(store, lambda node: node.settings_of(options), nodes)

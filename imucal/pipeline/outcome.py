@@ -39,6 +39,11 @@ class NotApplicable(ValueError):
     stage's not-run record; the partial path lists it as not applicable."""
 
 
+class NotShipped(ValueError):
+    """A stage's fit ran but its calibration is refused (its message starts with
+    :data:`NOT_SHIPPED` and says why): the sensor's next, simpler stage is shipped."""
+
+
 class StageNotRun(Exception):
     """A stage cannot run because a stage it needs did not (the message says which and why)."""
 

@@ -21,9 +21,9 @@ Methods per sensor, best first (the first that runs gives the final calibration)
 
 The runners of each sensor live in :mod:`.magnetometer`, :mod:`.accelerometer` and
 :mod:`.gyroscope`, each with its condition and reason when it does not apply; they share the
-session's state (:mod:`.session`). :mod:`.driver` runs them and chooses the final calibration;
-:mod:`.listing` gives the stage listing, the artifacts per sensor and the figures. The public
-names are re-exported here.
+session's state (:mod:`.session`). :mod:`.driver` makes them nodes of the stage graph, runs them
+with the graph's runner and chooses the final calibration; :mod:`.listing` gives the stage
+listing, the artifacts per sensor and the figures. The public names are re-exported here.
 """
 
 from imucal.pipeline.outcome import NotApplicable

@@ -1,6 +1,6 @@
-"""The partial path's driver: the runner of each stage, the run of every stage the session allows
-in the registry's order, the review of a final fit, and the choice of each sensor's final
-calibration among the stages that ran.
+"""The partial path's driver: its stages as nodes of the stage graph, run by the graph's runner
+(:func:`imucal.pipeline.graph.run_graph`) in the registry's order with the review of each final
+fit, and the choice of each sensor's final calibration among the stages that ran.
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ from imucal.calibration import SensorCalibration
 from imucal.columns import SENSORS
 from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
+from imucal.pipeline.graph import Node, run_graph, usable
 from imucal.pipeline.options import FitMethods
-from imucal.pipeline.outcome import NOT_SHIPPED
+from imucal.pipeline.outcome import NOT_RUN, NOT_SHIPPED, NotShipped
 from imucal.pipeline.partial.accelerometer import (
     _acc_align,
     _acc_cube,
@@ -52,6 +53,33 @@ RUNNERS: dict[str, Callable[[_Session], dict]] = {
     "mag_reference": _mag_reference,
     "gyr_pose_to_pose": _gyr_pose_to_pose,
     "gyr_scale": _gyr_scale,
+}
+
+
+def _node(name: str, runner: Callable[[_Session], dict], earlier: tuple[str, ...]) -> Node:
+    """A stage of the partial path as a node of the stage graph: it reads the session and the
+    stages before it, and decides from them whether the session allows it (its runner raises
+    :class:`NotApplicable` with the reason when it does not)."""
+    sources = ("session", *earlier)
+
+    def run(inputs: Mapping, settings: Mapping, draw: bool) -> tuple:
+        session = inputs["session"]
+        session.done = {k: v for k, v in inputs.items() if k != "session" and usable(v) is not None}
+        return runner(session), {}
+
+    return Node(
+        name,
+        f"partial/{STAGES[name].sensor}.json",
+        lambda recordings: {source: source for source in sources},
+        run,
+        tolerates=sources,
+    )
+
+
+#: The partial path's stages in run order (the registry's), as nodes of the stage graph.
+PARTIAL_PROTOCOL: dict[str, Node] = {
+    name: _node(name, runner, tuple(RUNNERS)[:i])
+    for i, (name, runner) in enumerate(RUNNERS.items())
 }
 
 
@@ -122,37 +150,59 @@ def run_stages(
         methods,
         exact_rotation,
     )
+    store = run_graph(
+        {"session": session},
+        lambda node: {},
+        PARTIAL_PROTOCOL,
+        review=lambda name, artifact, store: _reviewed(name, artifact, store, session),
+        reason=_reason,
+    )
     outcomes = []
-    for name, runner in RUNNERS.items():
-        try:
-            artifact = runner(session)
-        except NotApplicable as why:
-            outcomes.append(Outcome(name, "skipped", f"not applicable: {why}"))
+    for name in PARTIAL_PROTOCOL:
+        artifact = store[name]
+        if NOT_RUN in artifact:
+            outcomes.append(Outcome(name, "skipped", artifact[NOT_RUN]["reason"]))
             continue
-        except ValueError as err:  # the fit's own message: too little or degenerate data
-            outcomes.append(Outcome(name, "skipped", f"could not be fitted: {err}"))
-            continue
-        # a calibration that does worse than nominal on left-out data, or lies outside its
-        # sensor's physical bounds on weak data, is not shipped (the sensor's next, simpler
-        # stage is); one outside them on strong data or undetermined carries a warning
-        review = _review(name, {**session.done, name: artifact}, session.methods, session.exact)
-        if review["refuse"]:
-            reason = f"{NOT_SHIPPED}: " + "; ".join(review["refuse"])
-            outcomes.append(Outcome(name, "skipped", reason))
-            continue
-        # (a stage shared with the full protocol may have warned of the same value already)
-        known = " ".join(artifact.get("warnings", []))
-        warn = [f"{name}: {w}" for w in review["warn"]]
-        warn = [w for w in warn if w.split(" against ")[0] not in known]
-        if warn:
-            artifact["warnings"] = [*artifact.get("warnings", []), *warn]
-        session.done[name] = artifact
         what = STAGES[name].what
         if "fallback" in artifact:  # the fit did worse than its fallback, which is shipped
             what += f"; fitted but not shipped ({artifact['fallback']['shipped']} is): "
             what += artifact["fallback"]["reason"]
         outcomes.append(Outcome(name, "run", what, artifact))
     return outcomes
+
+
+def _reason(err: Exception) -> str:
+    """The partial path's reason for a stage that did not run."""
+    if isinstance(err, NotShipped):
+        return str(err)
+    if isinstance(err, NotApplicable):
+        return f"not applicable: {err}"
+    return f"could not be fitted: {err}"  # the fit's own message: too little or degenerate data
+
+
+def _reviewed(name: str, artifact: dict, store: Mapping, session: _Session) -> dict:
+    """A stage's artifact after the review of its calibration (:func:`_review`).
+
+    A calibration that does worse than nominal on left-out data, or lies outside its sensor's
+    physical bounds on weak data, is not shipped (the sensor's next, simpler stage is); one
+    outside them on strong data or undetermined carries a warning.
+
+    Raises
+    ------
+    NotShipped
+        With the reasons of the refusal.
+    """
+    done = {k: v for k, v in store.items() if k in PARTIAL_PROTOCOL and usable(v) is not None}
+    review = _review(name, {**done, name: artifact}, session.methods, session.exact)
+    if review["refuse"]:
+        raise NotShipped(f"{NOT_SHIPPED}: " + "; ".join(review["refuse"]))
+    # (a stage shared with the full protocol may have warned of the same value already)
+    known = " ".join(artifact.get("warnings", []))
+    warn = [f"{name}: {w}" for w in review["warn"]]
+    warn = [w for w in warn if w.split(" against ")[0] not in known]
+    if warn:
+        artifact["warnings"] = [*artifact.get("warnings", []), *warn]
+    return artifact
 
 
 def _review(

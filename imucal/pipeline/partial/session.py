@@ -88,6 +88,7 @@ class _Session:
         self.sensors = {name: sensors_of(t) for name, t in self.tables.items()}
         self.notes = dict(notes)
         self.lowpass = dict(lowpass)
+        # the artifacts of the stages that ran before the one running (its node sets them)
         self.done: dict[str, dict] = {}
 
     @functools.cached_property
