@@ -13,9 +13,9 @@ from imucal.columns import ACC, MAG
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial
-from imucal.pipeline.graph import FULL_PROTOCOL, SETTINGS, run_nodes, usable
+from imucal.pipeline.graph import FULL_PROTOCOL, SETTINGS, Node, run_graph, run_nodes, usable
 from imucal.pipeline.options import PipelineOptions
-from imucal.pipeline.outcome import NotApplicable, not_run_reason
+from imucal.pipeline.outcome import NotApplicable, NotShipped, not_run_reason
 from imucal.pipeline.stages import fit_acc_cube
 from imucal.segments.filtering import lowpass_recording
 from imucal.segments.segmentation import segment_dataset
@@ -91,3 +91,49 @@ def test_the_tool_free_scale_is_tried_on_the_accelerometer_when_the_magnetometer
     assert "phase 'z'" in reason and "use the magnetometer" in reason
     assert "mag_step2" not in reason
     assert usable(store["gyr"]) is not None and usable(store["acc_align"]) is not None
+
+
+def test_the_runner_records_what_did_not_run_and_keeps_only_reviewed_results() -> None:
+    # a stage whose conditions fail, one that needs it, one that tolerates it, and one whose
+    # result the review refuses: each gets its record, and later stages see the records
+    def node(name: str, reads: dict, run, tolerates: tuple = ()) -> Node:
+        return Node(name, f"{name}.json", lambda recordings: reads, run, tolerates=tolerates)
+
+    def cannot(i, s, d):
+        raise NotApplicable("needs what this session lacks")
+
+    seen = {}
+
+    def keep(name: str):
+        def run(i, s, d):
+            seen[name] = dict(i)
+            return {"value": name}, {}
+
+        return run
+
+    nodes = {
+        n.name: n
+        for n in (
+            node("first", {"x": "x"}, cannot),
+            node("strict", {"first": "first"}, keep("strict")),
+            node("lenient", {"first": "first"}, keep("lenient"), tolerates=("first",)),
+            node("refused", {"x": "x"}, keep("refused")),
+            node("after", {"refused": "refused"}, keep("after"), tolerates=("refused",)),
+        )
+    }
+
+    def review(name: str, artifact: dict, store) -> dict:
+        if name == "refused":
+            raise NotShipped("fitted but not shipped: outside its bounds")
+        return {**artifact, "reviewed": True}
+
+    store = run_graph({"x": 1.0}, lambda n: {}, nodes, review=review)
+    assert not_run_reason(store["first"]) == "first did not run: needs what this session lacks"
+    assert not_run_reason(store["strict"]).startswith("strict did not run: first did not run")
+    assert "strict" not in seen
+    assert store["lenient"] == {"value": "lenient", "reviewed": True}
+    assert not_run_reason(seen["lenient"]["first"]) is not None  # the record, not a result
+    assert not_run_reason(store["refused"]) == (
+        "refused did not run: fitted but not shipped: outside its bounds"
+    )
+    assert usable(seen["after"]["refused"]) is None
