@@ -1,4 +1,4 @@
-from .checks import CountRange, LogChecks, check_count_range, check_log
+from .checks import CountRange, LogChecks, check_count_range, check_log, sensor_limits
 from .orientation import ingest_orientation_reference
 from .recording import (
     REF_TICK_MODULUS,

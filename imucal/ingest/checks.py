@@ -9,8 +9,9 @@ run them on a table held in memory.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -57,6 +58,12 @@ class LogChecks:
         self._packets = 0
         self._elapsed_s = 0.0
         self._odd: list[tuple[np.ndarray, ...]] = []
+
+    @property
+    def clipped(self) -> dict[str, int]:
+        """Per checked sensor, the rows so far with a reading at a limit of its range on any
+        axis (clipped samples)."""
+        return dict(self._clipped)
 
     @property
     def failed(self) -> bool:
@@ -182,7 +189,7 @@ class CountRange:
 
     A reading *at* a limit is a clipped (saturated) sample: the ADC outputs it whenever the
     input exceeds its range, it is legitimate and kept (the segmentation and the fits find
-    and leave out clipped samples). A count *beyond* a limit cannot come from that ADC: the
+    and leave out clipped samples); :attr:`clipped` counts them per sensor. A count *beyond* a limit cannot come from that ADC: the
     declared range is wrong or the logger overflowed. Such a log is refused, never kept.
 
     Parameters
@@ -210,6 +217,13 @@ class CountRange:
         self.rows = 0
         self._first: tuple[int, str, str, float] | None = None
         self._count = dict.fromkeys(self.limits, 0)
+        self._clipped = dict.fromkeys(self.limits, 0)
+
+    @property
+    def clipped(self) -> dict[str, int]:
+        """Per checked sensor, the rows so far with a reading at a limit of its range on any
+        axis (clipped samples)."""
+        return dict(self._clipped)
 
     @property
     def failed(self) -> bool:
@@ -224,6 +238,7 @@ class CountRange:
         start = self.rows
         self.rows += int(rows)
         for sensor, (lo, hi) in self.limits.items():
+            at_limit = np.zeros(int(rows), dtype=bool)
             for name in SENSOR_COLUMNS[sensor]:
                 if name not in columns:
                     continue
@@ -232,6 +247,9 @@ class CountRange:
                     values = pa.array(values, from_pandas=True)  # NaN: no sample
                 low_high = pc.min_max(values)
                 low, high = low_high["min"].as_py(), low_high["max"].as_py()
+                if low is not None and (low <= lo or high >= hi):
+                    at = pc.or_(pc.equal(values, lo), pc.equal(values, hi))
+                    at_limit |= pc.fill_null(at, False).to_numpy(zero_copy_only=False)
                 if low is None or (lo <= low and high <= hi):
                     continue
                 beyond = pc.fill_null(pc.or_(pc.less(values, lo), pc.greater(values, hi)), False)
@@ -240,6 +258,7 @@ class CountRange:
                 row = start + int(rows_beyond[0])
                 if self._first is None or row < self._first[0]:
                     self._first = (row, sensor, name, values[int(rows_beyond[0])].as_py())
+            self._clipped[sensor] += int(at_limit.sum())
 
     def finish(self) -> None:
         """Raise for the first count beyond the range (the count of all of them in the text)."""
@@ -270,8 +289,9 @@ def check_count_range(
     source: str | Path,
     limits: Mapping[str, tuple[int, int]],
     first_line: int | None,
-) -> None:
-    """Refuse raw counts beyond the ADC's declared range (see :class:`CountRange`).
+) -> dict[str, int]:
+    """Refuse raw counts beyond the ADC's declared range (see :class:`CountRange`); count
+    the samples at it.
 
     Parameters
     ----------
@@ -279,6 +299,11 @@ def check_count_range(
         Raw counts in columns ``acc_x`` ... ``mag_z`` (NaN where a sensor has no sample).
     source, limits, first_line
         As :class:`CountRange`.
+
+    Returns
+    -------
+    dict of str to int
+        Per sensor of ``limits``, the rows with a reading at a limit on any axis (clipped).
 
     Raises
     ------
@@ -290,3 +315,36 @@ def check_count_range(
     columns = {c: counts[c].to_numpy(dtype=float) for c in counts.columns}
     checks.update(columns, len(counts))
     checks.finish()
+    return checks.clipped
+
+
+def sensor_limits(
+    metadata: Iterable[Mapping[str, Any]], range_counts: Mapping[str, float]
+) -> dict[str, float]:
+    """The range in SI units of each sensor that recordings read in raw counts.
+
+    Parameters
+    ----------
+    metadata : iterable of mapping
+        The ingested recordings' metadata (``sensitivity`` in SI per count; ``source_units``
+        of a declared recording; a native CSV is read in counts).
+    range_counts : mapping
+        Sensor -> saturation limit of the raw counts (``Dataset.range_counts``).
+
+    Returns
+    -------
+    dict of str to float
+        Sensor -> ``range_counts x sensitivity``: a reading with ``|value| >=`` it is clipped.
+        Where recordings read a sensor with different sensitivities, the smallest (a reading
+        at it is clipped in one of them at least). Sensors no recording reads in counts are
+        absent: their range is not known.
+    """
+    limits: dict[str, float] = {}
+    for meta in metadata:
+        units = meta.get("source_units")
+        for sensor, factor in (meta.get("sensitivity") or {}).items():
+            if sensor not in range_counts or (units is not None and units.get(sensor) != "counts"):
+                continue
+            limit = float(range_counts[sensor]) * float(factor)
+            limits[sensor] = min(limits.get(sensor, limit), limit)
+    return limits

@@ -173,7 +173,9 @@ def ingest_recording(
         reference ``update_rate_hz`` and ``header``; for a declared recording ``reader``,
         ``files`` (path and sha256 of each), ``source_units``, ``streams``/``parts`` and
         ``sections`` (manual segment entries from the section list, when it names this
-        recording).
+        recording); ``clipped``: per sensor read in raw counts (a native CSV, or declared in
+        ``counts``), the samples with a reading at a limit of ``range_counts`` on any axis
+        (sensors read in SI units are absent: their range is not known).
 
     Raises
     ------
@@ -299,6 +301,7 @@ def _ingest_imu_csv(
     limits.finish()
     return {
         "format": io.IMU_CSV_FORMAT,
+        "clipped": limits.clipped,
         "sensitivity": dict(dataset.sensitivity),
         "first_line": 2,
         "sha256": stream.sha256,
@@ -372,8 +375,11 @@ def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, di
     table = rec.table
     first_line = rec.metadata.get("first_line")
     files = rec.metadata["files"]
+    clipped: dict[str, int] = {}
     for i, entry in enumerate(readers.declared_entries(dataset.readers[recording])):
-        _check_declared_counts(entry, f"{where} (file {i + 1})", dataset.count_range)
+        found = _check_declared_counts(entry, f"{where} (file {i + 1})", dataset.count_range)
+        for sensor, rows in found.items():
+            clipped[sensor] = clipped.get(sensor, 0) + rows
     if SEQ in table.columns:
         check_log(table, files[0]["path"] if len(files) == 1 else where, first_line or 0)
     meta: dict[str, Any] = {
@@ -382,6 +388,7 @@ def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, di
         "files": files,
         "sha256": files[0]["sha256"],
         "source_units": rec.metadata["source_units"],
+        "clipped": clipped,
         "sensitivity": _declared_sensitivity(dataset.readers[recording]),
         "first_line": first_line if len(files) == 1 else None,
         "field_norm_t": dataset.field_norm_t,
@@ -407,13 +414,14 @@ def _ingest_declared(recording: str, dataset: Dataset) -> tuple[pd.DataFrame, di
 
 def _check_declared_counts(
     entry: Mapping[str, Any], where: str, limits: Mapping[str, tuple[int, int]]
-) -> None:
+) -> dict[str, int]:
     """The raw counts (``counts - zero_counts``, in the file's own axes) of a declared
     one-file entry in ``counts`` within the ADC's range; the file is read again for them, in
-    its own row order so that the error names its line (its sample for MATLAB and HDF5)."""
+    its own row order so that the error names its line (its sample for MATLAB and HDF5).
+    Returns the rows at a limit per sensor in counts (:func:`check_count_range`)."""
     sensors = [s for s, unit in (entry.get("units") or {}).items() if unit == "counts"]
     if not sensors:
-        return
+        return {}
     wanted = {c for s in sensors for c in SENSOR_COLUMNS[s]}
     raw_entry = {
         **{k: v for k, v in entry.items() if k not in ("axes", "sort_by_time", "zero_counts")},
@@ -424,7 +432,7 @@ def _check_declared_counts(
         "rate_hz": 1.0,  # rows in file order; their times are not needed here
     }
     counts = readers.read_entry(raw_entry, where=where, field_norm_t=1.0)
-    check_count_range(
+    return check_count_range(
         counts.table,
         entry["file"],
         {s: limits[s] for s in sensors},

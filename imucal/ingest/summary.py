@@ -48,7 +48,8 @@ def summarize_recording(table: pd.DataFrame, metadata: Mapping[str, Any]) -> dic
         ``out_of_order_rows``, ``sensors`` (present), ``samples`` and ``sample_rate_hz`` per
         sensor, ``mag_samples``, ``mag_rate_hz``, ``notes`` (what could not be checked),
         ``extra_columns`` and the source's ``source``, ``format``, ``sha256``, ``files``,
-        ``source_units``, ``parts``. Unknown values are None, never NaN.
+        ``source_units``, ``parts``, ``clipped`` (per sensor read in raw counts, the samples
+        at a limit of its range). Unknown values are None, never NaN.
 
     Notes
     -----
@@ -129,6 +130,12 @@ def summarize_recording(table: pd.DataFrame, metadata: Mapping[str, Any]) -> dic
         span = float(t_own[-1] - t_own[0]) if t_own.size >= 2 else 0.0
         samples[sensor] = int(has.sum())
         sample_rate[sensor] = (t_own.size - 1) / span if span > 0 else None
+    clipped = {k: v for k, v in (metadata.get("clipped") or {}).items() if v}
+    if clipped:
+        notes.append(
+            "samples with a reading at a limit of the sensor's range (clipped, kept): "
+            + ", ".join(f"{sensor} {rows}" for sensor, rows in clipped.items())
+        )
     summary.update(
         sensors=sensors,
         samples=samples,
@@ -138,7 +145,7 @@ def summarize_recording(table: pd.DataFrame, metadata: Mapping[str, Any]) -> dic
         extra_columns=list(metadata.get("extra_columns", [])),
         notes=notes,
     )
-    for key in ("files", "source_units", "parts", "sections"):
+    for key in ("files", "source_units", "parts", "sections", "clipped"):
         if key in metadata:
             summary[key] = metadata[key]
     return summary

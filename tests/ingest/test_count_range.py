@@ -10,7 +10,8 @@ import pytest
 
 from imucal import io
 from imucal.columns import RAW_COLUMNS
-from imucal.ingest import ingest_recording, ingest_to_parquet
+from imucal.ingest import ingest_recording, ingest_to_parquet, sensor_limits
+from imucal.ingest.summary import summarize_recording
 from imucal.io.dataset import read_dataset
 
 SENS = {"acc": 0.00239501953125, "gyr": 0.0002664624812205083, "mag": 0.001}
@@ -53,9 +54,21 @@ def refusal(path: Path, tmp_path: Path) -> str:
 def test_readings_at_the_limits_are_clipped_samples_and_kept(tmp_path: Path) -> None:
     path = session(tmp_path, "range_counts: {gyr: 20000}\n")
     write_log(path, {5: 20000, 6: 20000, 40: -20000})
-    table, _ = ingest_recording(path, "rotation3d", read_dataset(tmp_path), "test")
+    dataset = read_dataset(tmp_path)
+    table, metadata = ingest_recording(path, "rotation3d", dataset, "test")
     counts = np.rint(table["gyr_x"].to_numpy() / SENS["gyr"])
     assert counts[5] == counts[6] == 20000 and counts[40] == -20000
+    # counted per sensor (in memory and streamed alike) and named in the summary
+    assert metadata["clipped"] == {"acc": 0, "gyr": 3, "mag": 0}
+    out = tmp_path / "out" / "r.parquet"
+    ingest_to_parquet(path, "rotation3d", dataset, "test", out, batch_bytes=128)
+    assert io.read_recording(out)[1]["clipped"] == metadata["clipped"]
+    summary = summarize_recording(table, metadata)
+    assert summary["clipped"] == metadata["clipped"]
+    assert any("clipped" in note and "gyr 3" in note for note in summary["notes"])
+    # the range in SI units that the fits leave clipped readings out by
+    limit = sensor_limits([metadata], dataset.range_counts)["gyr"]
+    assert np.count_nonzero(np.abs(table["gyr_x"].to_numpy()) >= limit) == 3
 
 
 def test_a_count_beyond_the_range_is_refused_with_file_line_and_range(tmp_path: Path) -> None:
