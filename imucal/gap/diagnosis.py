@@ -22,6 +22,7 @@ from collections.abc import Mapping
 import pandas as pd
 
 from imucal.gap.blocks import StaticBlocks, decimate_static_table, window_segments
+from imucal.gap.clipping import note_saturation
 from imucal.gap.effects import library
 from imucal.gap.locations import clip_fractions
 from imucal.gap.misalignment import misalignment_report
@@ -97,13 +98,7 @@ def diagnose(
         )  # fmt: skip
         result["fallback"] = f"{where} ({err}); the static recording alone is diagnosed"
         # clipping is seen in the readings themselves, with or without a twin
-        clipped = {s: f for s, f in clip_fractions(imu, options).items() if f > 0}
-        if clipped:
-            result["noted"] = ["saturation"]
-            result["saturation"] = {"clip_fraction": clipped}
-            # the fallback's scope cannot replay it, but its evidence is in the readings
-            result.get("not_observable", {}).pop("saturation", None)
-        return result
+        return note_saturation(result, clip_fractions(imu, options))
     t_null = time.perf_counter()
     models = library(settings.exclude)
     result = scored_diagnosis(

@@ -42,13 +42,17 @@ def gap_partial_scope(wildcards):
 
 
 def gap_partial_inputs(wildcards):
-    """A partial session's calibration and the recordings of its diagnosis's scope
-    (gap_partial_scope): its static recording, its recordings with an orientation reference
-    (with the references and the segments), its declared static poses with a temperature
-    channel, or all its recordings and segments, whose rests are scored."""
+    """A partial session's calibration, the ingest's summary (the clipped samples of every
+    recording) and the recordings of its diagnosis's scope (gap_partial_scope): its static
+    recording, its recordings with an orientation reference (with the references and the
+    segments), its declared static poses with a temperature channel, or all its recordings
+    and segments, whose rests are scored."""
     d = wildcards.dataset
     scope = gap_partial_scope(wildcards)
-    inputs = {"calibration": f"results/{d}/partial/calibration.json"}
+    inputs = {
+        "calibration": f"results/{d}/partial/calibration.json",
+        "summary": f"results/{d}/ingest/summary.json",
+    }
     if "static" in scope:
         inputs["static"] = f"results/{d}/ingest/static.parquet"
     if "reference" in scope:

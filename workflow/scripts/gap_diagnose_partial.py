@@ -5,6 +5,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.gap import DiagnosisSettings
+from imucal.gap.clipping import ingest_clip_fractions, note_saturation
 from imucal.gap.composite import diagnose_partial_session, diagnose_rests_scope, partial_scope
 from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.gap.motion import reference_part
@@ -61,6 +62,8 @@ else:
     result = diagnose_partial_session(
         static, motion=motion, reference_not_scored=not_scored, **common
     )
+# clipping is seen in the readings themselves, whatever the scope can replay
+note_saturation(result, ingest_clip_fractions(read_json(snakemake.input.summary)))
 write_json(result, snakemake.output.diagnosis)
 plot_gap_map(result).savefig(snakemake.output.gap_map, dpi=110)
 plot_effects(result).savefig(snakemake.output.effects, dpi=110)
