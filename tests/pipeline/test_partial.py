@@ -10,10 +10,12 @@ import pytest
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
+from imucal.columns import GYR
 from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial, registry
 from imucal.segments.segmentation import segment_dataset
+from imucal.segments.table import rows_of
 from imucal.sim import simulate
 
 REPO = Path(__file__).resolve().parents[2]
@@ -114,6 +116,49 @@ def test_hand_placed_poses_give_cube_fit_and_pose_to_pose_gyro(session):
     assert set(figures) == {"mag_raw", "mag_step1", "acc_cube", "gyr_pose_to_pose"}
     bars = figures["gyr_pose_to_pose"].axes[1].patches
     assert len(bars) == len(poses[(poses["recording"] == "poses")]) - 1  # one per interval
+
+
+def test_turns_through_clipped_gyro_readings_are_left_out_of_pose_to_pose(session):
+    # the cube's gyro clipped below the peak rate of five of its eleven turns: a clipped turn
+    # integrates too small an angle, so it is left out and named, and the rest still fit
+    dataset, tables, segments, truth = session
+    poses = segments.copy()
+    poses.loc[poses["recording"] == "cube", "recording"] = "poses"
+    rows = rows_of(poses, "poses", "position", "static")
+    w = tables["cube"][list(GYR)].to_numpy()
+    middles = ((rows["start_index"] + rows["end_index"]) // 2).to_numpy()
+    peaks = np.array([np.abs(w[a : b + 1]).max() for a, b in zip(middles[:-1], middles[1:])])
+    labels = rows["label"].astype(str).to_numpy()
+    names = [f"{a}-{b}" for a, b in zip(labels[:-1], labels[1:])]
+
+    def pose_to_pose(limit: float):
+        clipped = tables["cube"].copy()
+        clipped[list(GYR)] = np.clip(w, -limit, limit)
+        outcomes = partial.run_stages(
+            {"poses": clipped, "static": tables["static"]},
+            poses,
+            gravity_m_s2=dataset.gravity_m_s2,
+            saturation_rad_s=limit,
+        )
+        return {o.name: o for o in outcomes}["gyr_pose_to_pose"]
+
+    limit = 0.9 * np.sort(peaks)[-4]
+    fit = pose_to_pose(limit)
+    assert fit.status == "run"
+    assert fit.artifact["left_out_clipped"] == [n for n, p in zip(names, peaks) if p > limit]
+    assert len(fit.artifact["left_out_clipped"]) == 5
+    assert any("5 turns between poses left out" in x for x in fit.artifact["warnings"])
+    q, _ = errormodel.upper_triangular_factor(np.array(truth["acc"]["matrix"]))
+    # seen: 0.8 std with the clipped turns left out (3.5 std with them in)
+    assert_matrix_within_its_std(
+        fit.artifact["calibration"], "gyr", q.T @ np.array(truth["gyr"]["matrix"])
+    )
+    # too few turns left: refused with the count, not fitted on clipped turns
+    refused = pose_to_pose(0.99 * np.sort(peaks)[4])
+    assert refused.status == "skipped"
+    assert "4 of 11 turns between poses without clipped gyroscope readings, expected >= 5" in (
+        refused.reason
+    )
 
 
 def test_a_fit_that_fails_on_the_data_is_skipped_with_its_message(session):

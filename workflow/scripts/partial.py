@@ -5,6 +5,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.calibration import FORMAT_VERSION
+from imucal.ingest import sensor_limits
 from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial
@@ -19,7 +20,10 @@ methods = FitMethods.of(settings["methods"])
 
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 names = [n for n in dataset.recordings if n != "reference"]
-tables = {name: read_recording(snakemake.input[name])[0] for name in names}
+ingested = {name: read_recording(snakemake.input[name]) for name in names}
+tables = {name: table for name, (table, _) in ingested.items()}
+# readings at a sensor's range are clipped: the fits leave them out where the range is known
+limits = sensor_limits((meta for _, meta in ingested.values()), dataset.range_counts)
 _, segment_meta = read_recording(snakemake.input.segments)
 references = {}
 for path in snakemake.input.orientation:
@@ -34,6 +38,8 @@ outcomes = partial.run_stages(
     gravity_m_s2=dataset.gravity_m_s2,
     field_norm=dataset.field_norm,
     ratetable=dataset.ratetable,
+    saturation_m_s2=limits.get("acc"),
+    saturation_rad_s=limits.get("gyr"),
     references=references,
     reference_where={name: dataset.reference_where(name) for name in references},
     methods=methods,

@@ -6,6 +6,9 @@ segments, which methods can run, runs them in dependency order and records every
 ``run`` or ``skipped`` with the reason. A stage that applies but cannot be fitted from these data
 (too few poses, a direction not excited, ...) is skipped with the fit's own message, so a partial
 session never fails as a whole; errors that are not about the data (bugs) still propagate.
+Where the recordings give the sensors' ranges (raw counts and ``range_counts``), readings at a
+range are clipped: the cube fit and the rate table leave them out, and the gyroscope fits that
+integrate turns (known rotations, pose to pose) leave out the turns that hold one.
 
 Methods per sensor, best first (the first that runs gives the final calibration):
 

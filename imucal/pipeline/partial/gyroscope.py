@@ -111,7 +111,18 @@ def _gyr_known_rotation(s: _Session) -> dict:
         "needs rotation sections of known angle (a ferraris recording, "
         "or rotation3d phases with angle_deg) with gyroscope data",
     )
-    _need(len(rows) >= 3, f"{len(rows)} rotation sections with a known angle, expected >= 3")
+    sections = cut_finite(s.tables[recording], rest_to_rest(s.segments, recording, rows), GYR)
+    clipped = _clipped_turns(
+        [w for _, w in sections], [str(x) for x in rows["label"]], s.saturation_rad_s
+    )
+    keep = [label not in clipped for label in rows["label"].astype(str)]
+    rows, sections = rows[keep], [c for c, k in zip(sections, keep) if k]
+    _need(
+        len(rows) >= 3,
+        f"{len(rows)} rotation sections with a known angle"
+        + (f" without clipped readings ({len(clipped)} left out)" if clipped else "")
+        + ", expected >= 3",
+    )
     known = np.array(
         [np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()]
     )
@@ -119,7 +130,7 @@ def _gyr_known_rotation(s: _Session) -> dict:
     # wander added where the blocks show it) enters every integral times its duration
     bias, bias_std = stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)
     fit = ferraris.fit_known_rotations(
-        cut_finite(s.tables[recording], rest_to_rest(s.segments, recording, rows), GYR),
+        sections,
         known,
         bias,
         noise_std_rad_s=np.asarray(s.done["gyr_bias"]["noise_std_rad_s"], dtype=float),
@@ -128,6 +139,32 @@ def _gyr_known_rotation(s: _Session) -> dict:
     )
     artifact = stages.plain(fit)
     artifact.update(recording=recording, calibration=fit.calibration.to_dict())
+    return _with_clipped(artifact, clipped, "rotation sections")
+
+
+def _clipped_turns(
+    readings: list[np.ndarray], labels: list[str], limit_rad_s: float | None
+) -> list[str]:
+    """Labels of the turns whose gyro readings (m, 3 each, rad/s) reach the sensor's range.
+
+    A clipped reading is smaller than the rate it stands for, so the angle integrated over its
+    turn is too small by an unknown amount: such a turn would pull the scale fitted on it (a
+    few degrees on a 90-degree turn is a few per cent of scale, far beyond its standard
+    deviation). None when the range is not known (recordings in SI units).
+    """
+    if limit_rad_s is None:
+        return []
+    return [label for label, w in zip(labels, readings) if stages.at_range(w, limit_rad_s).any()]
+
+
+def _with_clipped(artifact: dict, clipped: list[str], what: str) -> dict:
+    """The artifact with the turns left out for clipped readings, and a warning naming them."""
+    if clipped:
+        artifact["left_out_clipped"] = clipped
+        artifact.setdefault("warnings", []).append(
+            f"{len(clipped)} {what} left out: their gyroscope readings reach the sensor's range "
+            f"(clipped, so their integrated angle is too small): {', '.join(clipped)}"
+        )
     return artifact
 
 
@@ -224,20 +261,34 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
         "needs >= 6 static poses in a poses or cube recording with "
         "accelerometer and gyroscope data",
     )
-    directions, intervals = pose_intervals(s.tables[recording], s.poses(recording), acc)
+    poses = s.poses(recording)
+    directions, intervals = pose_intervals(s.tables[recording], poses, acc)
+    covariance = pose_direction_covariance(s.tables[recording], poses, acc)
+    names = [
+        f"{a}-{b}" for a, b in zip(poses["label"].astype(str)[:-1], poses["label"].astype(str)[1:])
+    ]
+    clipped = _clipped_turns([w for _, w in intervals], names, s.saturation_rad_s)
+    keep = np.array([name not in clipped for name in names])
+    _need(
+        keep.sum() >= posetopose.MIN_INTERVALS,
+        f"{keep.sum()} of {len(names)} turns between poses without clipped gyroscope readings, "
+        f"expected >= {posetopose.MIN_INTERVALS} (a clipped turn's integrated angle is too "
+        "small)",
+    )
+    if covariance is not None:  # over (start directions, end directions), three per turn
+        rows = np.flatnonzero(np.repeat(np.concatenate([keep, keep]), 3))
+        covariance = covariance[np.ix_(rows, rows)]
     fit = posetopose.fit_pose_to_pose(
-        directions[:-1],
-        directions[1:],
-        intervals,
+        directions[:-1][keep],
+        directions[1:][keep],
+        [interval for interval, k in zip(intervals, keep) if k],
         _bias(s),
         bias_std_rad_s=stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)[1],
-        direction_covariance=pose_direction_covariance(
-            s.tables[recording], s.poses(recording), acc
-        ),
+        direction_covariance=covariance,
     )
     artifact = stages.plain(fit)
     artifact.update(recording=recording, calibration=fit.calibration.to_dict())
-    return artifact
+    return _with_clipped(artifact, clipped, "turns between poses")
 
 
 def _gyr_scale(s: _Session) -> dict:

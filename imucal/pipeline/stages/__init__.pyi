@@ -15,7 +15,7 @@ from .calibration import (
     plot_validation,
     validate_session,
 )
-from .common import ALIGNMENT_METHODS, plain
+from .common import ALIGNMENT_METHODS, at_range, plain
 from .gyroscope import (
     RATE_TABLE_RULE,
     align_gyr,

@@ -31,8 +31,9 @@ def plain(obj):
     return obj
 
 
-def _saturated(values: np.ndarray, limit: float) -> np.ndarray:
-    """Rows of ``values`` (n, 3) with any axis at or beyond the sensor range ``limit``."""
+def at_range(values: np.ndarray, limit: float) -> np.ndarray:
+    """Rows of ``values`` (n, 3) with any axis at or beyond the sensor range ``limit`` (clipped
+    readings)."""
     return np.any(np.abs(values) >= limit, axis=1)
 
 

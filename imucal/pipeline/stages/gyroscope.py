@@ -24,7 +24,7 @@ from imucal.pipeline.outcome import NotApplicable
 from imucal.pipeline.stages.common import (
     ALIGNMENT_METHODS,
     _phases,
-    _saturated,
+    at_range,
     plain,
     sensors_of,
 )
@@ -215,7 +215,7 @@ def fit_gyr_table(
     runs = cut(ratetable, rows, GYR)
     keep, warnings = [], []
     for label, run in zip(rows["label"], runs, strict=True):
-        n_sat = int(_saturated(run, saturation_limit_rad_s).sum())
+        n_sat = int(at_range(run, saturation_limit_rad_s).sum())
         if n_sat:
             warnings.append(f"rate-table run {label}: {n_sat} saturated samples, run left out")
         keep.append(n_sat == 0)
