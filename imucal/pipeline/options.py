@@ -100,6 +100,10 @@ class PipelineOptions:
         the alignments their covariance for residuals correlated in time (else the plain one).
         The diagnosis's twin replicas go without: nothing they are measured by reads it. It
         does not change the fitted values.
+    ranges : dict or None
+        Sensor -> its range in SI units where the recordings give it (a partial session's,
+        :func:`imucal.ingest.sensor_limits`); a sensor absent has no known range. None: every
+        sensor's is ``range_counts x sensitivity`` (a full-protocol session's native CSVs).
     """
 
     gravity_m_s2: float
@@ -113,6 +117,7 @@ class PipelineOptions:
     methods: FitMethods = field(default_factory=FitMethods)
     held_by_hand: tuple = ()
     with_covariance: bool = True
+    ranges: Mapping | None = None
 
     @classmethod
     def of_dataset(cls, dataset: Dataset, **settings: Any) -> PipelineOptions:
@@ -129,8 +134,12 @@ class PipelineOptions:
             **settings,
         )
 
-    def limit(self, sensor: str) -> float:
-        """Sensor range in SI units."""
+    def limit(self, sensor: str) -> float | None:
+        """Sensor range in SI units (a reading with ``|value| >=`` it is clipped); None when it
+        is not known (nothing is then left out as clipped)."""
+        if self.ranges is not None:
+            value = self.ranges.get(sensor)
+            return None if value is None else float(value)
         return float(self.range_counts[sensor]) * float(self.sensitivity[sensor])
 
 

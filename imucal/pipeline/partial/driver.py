@@ -17,7 +17,7 @@ from imucal.columns import SENSORS
 from imucal.fits.propagation import upper_bias_covariance
 from imucal.pipeline import stages
 from imucal.pipeline.graph import Node, run_graph, usable
-from imucal.pipeline.options import FitMethods
+from imucal.pipeline.options import FitMethods, PipelineOptions
 from imucal.pipeline.outcome import NOT_RUN, NOT_SHIPPED, NotShipped
 from imucal.pipeline.partial.accelerometer import (
     _acc_align,
@@ -135,21 +135,21 @@ def run_stages(
     list of Outcome
         One per stage of :data:`STAGES`.
     """
-    session = _Session(
-        tables,
-        segments,
+    # one options object for the stages' settings, as the in-process chain's
+    ranges = {"acc": saturation_m_s2, "gyr": saturation_rad_s}
+    options = PipelineOptions(
         gravity_m_s2,
-        field_norm,
+        {},
+        {},
         ratetable,
-        saturation_m_s2,
-        saturation_rad_s,
-        notes or {},
-        {"order": lowpass_order, "cutoff_hz": lowpass_cutoff_hz},
-        references,
-        reference_where,
-        methods,
+        field_norm,
         exact_rotation,
+        lowpass_order,
+        lowpass_cutoff_hz,
+        methods or FitMethods(),
+        ranges={sensor: value for sensor, value in ranges.items() if value is not None},
     )
+    session = _Session(tables, segments, options, notes or {}, references, reference_where)
     store = run_graph(
         {"session": session},
         lambda node: {},

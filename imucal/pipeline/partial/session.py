@@ -12,7 +12,8 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from imucal.pipeline.options import FitMethods
+from imucal.pipeline.graph import FULL_PROTOCOL, SETTINGS
+from imucal.pipeline.options import PipelineOptions
 from imucal.pipeline.outcome import NotApplicable
 from imucal.pipeline.registry import STAGES, split_held_out
 from imucal.pipeline.stages.common import sensors_of
@@ -59,20 +60,14 @@ class _Session:
         self,
         tables: Mapping[str, pd.DataFrame],
         segments: pd.DataFrame,
-        gravity_m_s2: float,
-        field_norm: float,
-        ratetable: Mapping | None,
-        saturation_m_s2: float | None,
-        saturation_rad_s: float | None,
+        options: PipelineOptions,
         notes: Mapping[str, str],
-        lowpass: Mapping[str, float],
         references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
         reference_where: Mapping[str, str] | None = None,
-        methods: FitMethods | None = None,
-        exact_rotation: bool = True,
     ):
-        self.methods = methods or FitMethods()
-        self.exact = exact_rotation
+        self.options = options
+        self.methods = options.methods
+        self.exact = options.exact_rotation
         self.references = dict(references or {})
         # a held-out recording is validated on, never fitted on (registry.split_held_out)
         held = split_held_out(self.references)[1]
@@ -80,37 +75,23 @@ class _Session:
         self.held_out_tables = {k: tables[k] for k in held if k in tables}
         self.reference_where = dict(reference_where or {})
         self.segments = segments
-        self.gravity_m_s2 = gravity_m_s2
-        self.field_norm = field_norm
-        self.ratetable = ratetable
-        self.saturation_m_s2 = saturation_m_s2
-        self.saturation_rad_s = saturation_rad_s
+        self.gravity_m_s2 = options.gravity_m_s2
+        self.ratetable = options.ratetable
+        self.saturation_rad_s = options.limit("gyr")
         self.sensors = {name: sensors_of(t) for name, t in self.tables.items()}
         self.notes = dict(notes)
-        self.lowpass = dict(lowpass)
         # the artifacts of the stages that ran before the one running (its node sets them)
         self.done: dict[str, dict] = {}
 
     @functools.cached_property
     def settings(self) -> dict:
-        """The settings of the full protocol's stages (:data:`imucal.pipeline.graph.SETTINGS`)
-        as this session takes them; an unknown range leaves nothing out (the cube fit takes
-        None for it, the rate table's an infinite limit)."""
-        return {
-            **dataclasses.asdict(self.methods),
-            "exact": self.exact,
-            "with_covariance": True,
-            "gravity_m_s2": self.gravity_m_s2,
-            "field_norm": self.field_norm,
-            "acc_limit_m_s2": self.saturation_m_s2,
-            "gyr_limit_rad_s": np.inf if self.saturation_rad_s is None else self.saturation_rad_s,
-        }
+        """The settings of the stages (:data:`imucal.pipeline.graph.SETTINGS`) from the
+        session's options; a range that is not known is None (nothing is left out)."""
+        return {key: setting(self.options) for key, setting in SETTINGS.items()}
 
     def run_node(self, name: str, **inputs) -> dict:
         """The artifact of a stage the full protocol shares, run as its node
         (:data:`imucal.pipeline.graph.FULL_PROTOCOL`) on ``inputs``."""
-        from imucal.pipeline.graph import FULL_PROTOCOL
-
         node = FULL_PROTOCOL[name]
         return node.run(inputs, {k: self.settings[k] for k in node.settings}, False)[0]
 
@@ -119,7 +100,8 @@ class _Session:
         """The low-pass filtered rotation3d recording (both alignment stages use it)."""
         from imucal.segments.filtering import lowpass_recording
 
-        return lowpass_recording(self.tables["rotation3d"], **self.lowpass)
+        order, cutoff = self.options.lowpass_order, self.options.lowpass_cutoff_hz
+        return lowpass_recording(self.tables["rotation3d"], order=order, cutoff_hz=cutoff)
 
     def with_sensor(self, recording: str, sensor: str) -> bool:
         return recording in self.tables and sensor in self.sensors[recording]

@@ -191,12 +191,13 @@ def fit_gyr_table(
     ratetable: pd.DataFrame,
     segments: pd.DataFrame,
     *,
-    saturation_limit_rad_s: float,
+    saturation_limit_rad_s: float | None,
     figures: bool = True,
 ) -> tuple[dict, dict[str, Figure]]:
     """Rate-table step 1 (eq. 33, vector form): full matrix and bias from the run means.
 
-    Runs with saturated samples are left out with a warning; the fit is refused (by
+    Runs with saturated samples (at ``saturation_limit_rad_s``; None: the range is not known,
+    nothing is left out) are left out with a warning; the fit is refused (by
     :func:`imucal.fits.ratetable.fit_rate_table`) only when too few runs remain. ``figures``
     False skips the figure (the in-process chain does not need it).
 
@@ -215,7 +216,8 @@ def fit_gyr_table(
     runs = cut(ratetable, rows, GYR)
     keep, warnings = [], []
     for label, run in zip(rows["label"], runs, strict=True):
-        n_sat = int(at_range(run, saturation_limit_rad_s).sum())
+        limit = saturation_limit_rad_s
+        n_sat = 0 if limit is None else int(at_range(run, limit).sum())
         if n_sat:
             warnings.append(f"rate-table run {label}: {n_sat} saturated samples, run left out")
         keep.append(n_sat == 0)
