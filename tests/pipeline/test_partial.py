@@ -211,6 +211,18 @@ def test_known_angle_hand_turns_on_rotation3d_phases(session):
     assert_matrix_within_its_std(
         final["sensors"]["gyr"]["calibration"], "gyr", truth["gyr"]["matrix"]
     )
+    # a gyroscope range below the turns' rates clips every section: none is fitted on
+    clipped = partial.run_stages(
+        {k: tables[k] for k in ("rotation3d", "static")},
+        seg,
+        gravity_m_s2=dataset.gravity_m_s2,
+        saturation_rad_s=0.05,
+    )
+    refused = next(o for o in clipped if o.name == "gyr_known_rotation")
+    assert refused.status == "skipped"
+    assert "0 rotation sections with a known angle without clipped readings (3 left out)" in (
+        refused.reason
+    )
 
 
 def test_rotation_sections_run_from_rest_to_rest():

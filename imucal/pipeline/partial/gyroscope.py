@@ -112,11 +112,9 @@ def _gyr_known_rotation(s: _Session) -> dict:
         "or rotation3d phases with angle_deg) with gyroscope data",
     )
     sections = cut_finite(s.tables[recording], rest_to_rest(s.segments, recording, rows), GYR)
-    clipped = _clipped_turns(
-        [w for _, w in sections], [str(x) for x in rows["label"]], s.saturation_rad_s
-    )
-    keep = [label not in clipped for label in rows["label"].astype(str)]
-    rows, sections = rows[keep], [c for c, k in zip(sections, keep) if k]
+    hit = _clipped_turns([w for _, w in sections], s.saturation_rad_s)
+    clipped = [str(label) for label, h in zip(rows["label"], hit) if h]
+    rows, sections = rows[~hit], [c for c, h in zip(sections, hit) if not h]
     _need(
         len(rows) >= 3,
         f"{len(rows)} rotation sections with a known angle"
@@ -142,19 +140,17 @@ def _gyr_known_rotation(s: _Session) -> dict:
     return _with_clipped(artifact, clipped, "rotation sections")
 
 
-def _clipped_turns(
-    readings: list[np.ndarray], labels: list[str], limit_rad_s: float | None
-) -> list[str]:
-    """Labels of the turns whose gyro readings (m, 3 each, rad/s) reach the sensor's range.
+def _clipped_turns(readings: list[np.ndarray], limit_rad_s: float | None) -> np.ndarray:
+    """Which turns have gyro readings (m, 3 each, rad/s) at the sensor's range, shape (n_turn,).
 
     A clipped reading is smaller than the rate it stands for, so the angle integrated over its
     turn is too small by an unknown amount: such a turn would pull the scale fitted on it (a
     few degrees on a 90-degree turn is a few per cent of scale, far beyond its standard
-    deviation). None when the range is not known (recordings in SI units).
+    deviation). All False when the range is not known (recordings in SI units).
     """
     if limit_rad_s is None:
-        return []
-    return [label for label, w in zip(labels, readings) if stages.at_range(w, limit_rad_s).any()]
+        return np.zeros(len(readings), dtype=bool)
+    return np.array([bool(stages.at_range(w, limit_rad_s).any()) for w in readings], dtype=bool)
 
 
 def _with_clipped(artifact: dict, clipped: list[str], what: str) -> dict:
@@ -267,8 +263,8 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
     names = [
         f"{a}-{b}" for a, b in zip(poses["label"].astype(str)[:-1], poses["label"].astype(str)[1:])
     ]
-    clipped = _clipped_turns([w for _, w in intervals], names, s.saturation_rad_s)
-    keep = np.array([name not in clipped for name in names])
+    keep = ~_clipped_turns([w for _, w in intervals], s.saturation_rad_s)
+    clipped = [name for name, k in zip(names, keep) if not k]
     _need(
         keep.sum() >= posetopose.MIN_INTERVALS,
         f"{keep.sum()} of {len(names)} turns between poses without clipped gyroscope readings, "
