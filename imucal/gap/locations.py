@@ -122,9 +122,12 @@ def _timing(fit: SessionFit, half) -> dict:
 
 def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> dict[str, float]:
     """Per sensor, the fraction of its samples (all recordings, one time half or all) within
-    1.5 LSB of its range (``options.limit``: ``range_counts`` of dataset.yaml)."""
+    1.5 LSB of its range (``options.limit``: ``range_counts`` of dataset.yaml); sensors whose
+    range is not known are left out."""
     out = {}
     for s in SENSORS:
+        if options.limit(s) is None:
+            continue
         n = hit = 0
         for table in tables.values():
             x = column_values(table, SENSOR_COLUMNS[s])[_time_half(len(table), half)]

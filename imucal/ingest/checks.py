@@ -60,12 +60,6 @@ class LogChecks:
         self._odd: list[tuple[np.ndarray, ...]] = []
 
     @property
-    def clipped(self) -> dict[str, int]:
-        """Per checked sensor, the rows so far with a reading at a limit of its range on any
-        axis (clipped samples)."""
-        return dict(self._clipped)
-
-    @property
     def failed(self) -> bool:
         """A row already breaks the order (raised by :meth:`finish`)."""
         return self._nonfinite is not None or self._back is not None or self._seq_range is not None
@@ -321,13 +315,13 @@ def check_count_range(
 def sensor_limits(
     metadata: Iterable[Mapping[str, Any]], range_counts: Mapping[str, float]
 ) -> dict[str, float]:
-    """The range in SI units of each sensor that recordings read in raw counts.
+    """The range in SI units of the accelerometer and the gyroscope of a session's recordings.
 
     Parameters
     ----------
     metadata : iterable of mapping
-        The ingested recordings' metadata (``sensitivity`` in SI per count; ``source_units``
-        of a declared recording; a native CSV is read in counts).
+        The ingested recordings' metadata (``sensors`` present, ``sensitivity`` in SI per
+        count, ``source_units`` of a declared recording; a native CSV is read in counts).
     range_counts : mapping
         Sensor -> saturation limit of the raw counts (``Dataset.range_counts``).
 
@@ -335,16 +329,19 @@ def sensor_limits(
     -------
     dict of str to float
         Sensor -> ``range_counts x sensitivity``: a reading with ``|value| >=`` it is clipped.
-        Where recordings read a sensor with different sensitivities, the smallest (a reading
-        at it is clipped in one of them at least). Sensors no recording reads in counts are
-        absent: their range is not known.
+        Only where every recording that holds the sensor reads it in raw counts with that one
+        range; otherwise the sensor is absent (its range is not known for all of them, and a
+        limit taken from one recording would call readings of another clipped).
     """
-    limits: dict[str, float] = {}
+    ranges: dict[str, set[float]] = {}
     for meta in metadata:
         units = meta.get("source_units")
-        for sensor, factor in (meta.get("sensitivity") or {}).items():
-            if sensor not in range_counts or (units is not None and units.get(sensor) != "counts"):
+        sensitivity = meta.get("sensitivity") or {}
+        for sensor in ("acc", "gyr"):
+            if sensor not in meta.get("sensors", ()):
                 continue
-            limit = float(range_counts[sensor]) * float(factor)
-            limits[sensor] = min(limits.get(sensor, limit), limit)
-    return limits
+            counts = units is None or units.get(sensor) == "counts"
+            known = counts and sensor in range_counts and sensor in sensitivity
+            limit = float(range_counts[sensor]) * float(sensitivity[sensor]) if known else None
+            ranges.setdefault(sensor, set()).add(limit)
+    return {s: v.pop() for s, v in ranges.items() if len(v) == 1 and None not in v}

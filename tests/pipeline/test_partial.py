@@ -261,3 +261,21 @@ def test_a_fit_worse_than_nominal_on_left_out_positions_is_not_shipped():
     bad = {**good, "heldout_error_after_m_s2": [0.5] * 10}
     (reason,) = _review("acc_cube", {"acc_cube": bad})["refuse"]
     assert "worse than the nominal calibration (RMS 0.5 against 0.3 over 10 left-out" in reason
+
+
+def test_a_review_that_fails_is_a_bug_and_stops_the_run(session, monkeypatch):
+    # only a refused fit is the data's verdict; an error inside the review must not pass
+    # for "could not be fitted" and ship the next, simpler stage
+    from imucal.validation import plausibility
+
+    def broken(*args, **kwargs):
+        raise ValueError("shapes (3,) and (2,) not aligned")
+
+    monkeypatch.setattr(plausibility, "review_fit", broken)
+    dataset, tables, segments, _ = session
+    with pytest.raises(RuntimeError, match="the review of .* failed: shapes"):
+        partial.run_stages(
+            {k: tables[k] for k in ("rotation3d", "static")},
+            segments,
+            gravity_m_s2=dataset.gravity_m_s2,
+        )

@@ -193,7 +193,10 @@ def _reviewed(name: str, artifact: dict, store: Mapping, session: _Session) -> d
         With the reasons of the refusal.
     """
     done = {k: v for k, v in store.items() if k in PARTIAL_PROTOCOL and usable(v) is not None}
-    review = _review(name, {**done, name: artifact}, session.methods, session.exact)
+    try:
+        review = _review(name, {**done, name: artifact}, session.methods, session.exact)
+    except ValueError as err:  # the review is not the data's verdict: a failure is a bug
+        raise RuntimeError(f"the review of {name}'s calibration failed: {err}") from err
     if review["refuse"]:
         raise NotShipped(f"{NOT_SHIPPED}: " + "; ".join(review["refuse"]))
     # (a stage shared with the full protocol may have warned of the same value already)
