@@ -183,8 +183,9 @@ class CountRange:
 
     A reading *at* a limit is a clipped (saturated) sample: the ADC outputs it whenever the
     input exceeds its range, it is legitimate and kept (the segmentation and the fits find
-    and leave out clipped samples); :attr:`clipped` counts them per sensor. A count *beyond* a limit cannot come from that ADC: the
-    declared range is wrong or the logger overflowed. Such a log is refused, never kept.
+    and leave out clipped samples); :attr:`clipped` counts them per sensor. A count *beyond* a
+    limit cannot come from that ADC: the declared range is wrong or the logger overflowed. Such
+    a log is refused, never kept.
 
     Parameters
     ----------

@@ -260,9 +260,8 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
     poses = s.poses(recording)
     directions, intervals = pose_intervals(s.tables[recording], poses, acc)
     covariance = pose_direction_covariance(s.tables[recording], poses, acc)
-    names = [
-        f"{a}-{b}" for a, b in zip(poses["label"].astype(str)[:-1], poses["label"].astype(str)[1:])
-    ]
+    labels = poses["label"].astype(str).tolist()
+    names = [f"{a}-{b}" for a, b in zip(labels[:-1], labels[1:])]
     keep = ~_clipped_turns([w for _, w in intervals], s.saturation_rad_s)
     clipped = [name for name, k in zip(names, keep) if not k]
     _need(

@@ -215,8 +215,8 @@ def fit_gyr_table(
         raise ValueError("no rate-table run was segmented (the segmentation notes say why)")
     runs = cut(ratetable, rows, GYR)
     keep, warnings = [], []
+    limit = saturation_limit_rad_s
     for label, run in zip(rows["label"], runs, strict=True):
-        limit = saturation_limit_rad_s
         n_sat = 0 if limit is None else int(at_range(run, limit).sum())
         if n_sat:
             warnings.append(f"rate-table run {label}: {n_sat} saturated samples, run left out")
