@@ -1,4 +1,5 @@
-"""Shared fixtures: where the shared folder (paper, conformance session, real data) lives."""
+"""Shared fixtures: where the shared folder (paper, conformance session, real data) lives, and
+a dataset's module recordings ingested in memory."""
 
 from __future__ import annotations
 
@@ -37,3 +38,22 @@ def rms_z_limits(n: int, false_alarm: float = 1e-4) -> tuple[float, float]:
 def rms_z_band():
     """:func:`rms_z_limits` for the multi-seed checks of reported standard deviations."""
     return rms_z_limits
+
+
+def _ingest_imu(dataset) -> dict:
+    """Every module recording of a dataset (the reference left out), ingested in memory, by
+    name."""
+    from imucal.ingest import ingest_recording
+
+    return {
+        name: ingest_recording(path, recording=name, dataset=dataset, imucal_version="test")[0]
+        for name, path in dataset.recordings.items()
+        if name != "reference"
+    }
+
+
+@pytest.fixture(scope="session")
+def ingest_imu():
+    """``ingest_imu(dataset) -> {name: table}``: the module recordings, as the workflow's
+    ingest gives them."""
+    return _ingest_imu

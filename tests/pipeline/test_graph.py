@@ -10,7 +10,6 @@ import pandas as pd
 import pytest
 
 from imucal.columns import ACC, MAG
-from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial
 from imucal.pipeline.graph import FULL_PROTOCOL, SETTINGS, Node, run_graph, run_nodes, usable
@@ -25,13 +24,9 @@ G = 9.81
 
 
 @pytest.fixture(scope="module")
-def demo():
+def demo(ingest_imu):
     dataset = read_dataset(REPO / "data" / "demo")
-    imu = {
-        name: ingest_recording(path, recording=name, dataset=dataset, imucal_version="test")[0]
-        for name, path in dataset.recordings.items()
-        if name != "reference"
-    }
+    imu = ingest_imu(dataset)
     options = PipelineOptions.of_dataset(dataset, with_covariance=False)
     segments = segment_dataset(imu, ratetable=dict(dataset.ratetable), fallback=True)
     return imu, segments, options

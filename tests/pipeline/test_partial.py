@@ -11,7 +11,6 @@ import pytest
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
 from imucal.columns import GYR
-from imucal.ingest import ingest_recording
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial, registry
 from imucal.segments.segmentation import segment_dataset
@@ -22,16 +21,12 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def session(tmp_path_factory):
+def session(tmp_path_factory, ingest_imu):
     """A simulated paper session (seed 3), ingested and segmented like the workflow does."""
     folder = tmp_path_factory.mktemp("partial") / "s"
     simulate(folder, preset="paper", seed=3, static_s=30)
     dataset = read_dataset(folder)
-    tables = {
-        name: ingest_recording(path, recording=name, dataset=dataset, imucal_version="test")[0]
-        for name, path in dataset.recordings.items()
-        if name != "reference"
-    }
+    tables = ingest_imu(dataset)
     segments = segment_dataset(tables, ratetable=dataset.ratetable)
     truth = json.loads((folder / "truth.json").read_text())
     return dataset, tables, segments, truth

@@ -41,15 +41,11 @@ def calibrate(folder: Path) -> tuple[dict, dict, dict]:
     return fit.calibration.to_dict(), truth, inputs
 
 
-def test_without_covariance_the_chain_fits_the_same_values():
+def test_without_covariance_the_chain_fits_the_same_values(ingest_imu):
     # the twin's replicas run the chain without the uncertainty propagation: only the
     # covariance goes, the same arithmetic gives the fitted values (equal to rounding)
     dataset = read_dataset(REPO / "data" / "demo")
-    imu = {
-        name: ingest_recording(path, recording=name, dataset=dataset, imucal_version="test")[0]
-        for name, path in dataset.recordings.items()
-        if name != "reference"
-    }
+    imu = ingest_imu(dataset)
     options = PipelineOptions.of_dataset(dataset)
     full = calibrate_session(imu, None, options)
     bare = calibrate_session(imu, None, replace(options, with_covariance=False), full.segments)
