@@ -3,6 +3,8 @@
 # names the final targets; see workflow/rules/ for the stages and imucal/ for the numerics.
 from snakemake.utils import min_version, validate
 
+from imucal.terms import TermSettings
+
 min_version("8.0")
 
 
@@ -10,6 +12,8 @@ configfile: "config/config.yaml"
 
 
 validate(config, "workflow/schemas/config.schema.yaml")
+# the section `terms` is made of the registered model terms' switches and options
+config["terms"] = TermSettings.from_config(config["terms"]).to_config()
 
 
 include: "workflow/rules/datasets.smk"

@@ -1,7 +1,7 @@
 """Calibration parameters of the three sensors, as frozen dataclasses with a versioned dict form.
 
 ``calibrated = matrix @ (reading - bias)`` with ``reading = counts * sensitivity`` in SI units
-(the magnetometer normalised), plus the optional model terms of :mod:`imucal.terms.modelterms`
+(the magnetometer normalised), plus the optional model terms of :mod:`imucal.modelterms`
 (temperature polynomials, g-sensitivity, magnetometer delay). Files are written and read by
 :mod:`imucal.io`. Format 2 adds the key ``terms`` (present only when a term is in the model);
 format 1 files are read as calibrations without terms.
@@ -17,8 +17,8 @@ import numpy as np
 
 from imucal import errormodel
 from imucal.columns import SENSORS, SI_UNITS
-from imucal.terms.modelterms import ModelTerms
-from imucal.terms.term import Samples
+from imucal.modelterms import ModelTerms
+from imucal.modelterms.contract import Samples
 from imucal.uncertainty import PARAMETERS, calibrated_covariance
 
 #: Version of the calibration file format written by this package (2: optional ``terms``).
@@ -204,7 +204,7 @@ class ImuCalibration:
         """Calibrate the readings of the three sensors with the whole model.
 
         The paper's ``matrix @ (reading - bias)`` (eq. 11) with every term the model has, in the
-        order of :mod:`imucal.terms.modelterms`.
+        order of :mod:`imucal.modelterms`.
 
         Parameters
         ----------
@@ -226,7 +226,7 @@ class ImuCalibration:
         calibrated : dict of str to ndarray, shape (n, 3)
             Frame B, SI.
         flags : dict
-            Term name -> what its check flags (:meth:`~imucal.terms.term.ModelTerm.check`), for
+            Term name -> what its check flags (:meth:`~imucal.modelterms.contract.ModelTerm.check`), for
             the terms that flag something; a temperature term: per sensor, how many samples are
             outside its calibrated span (within the margin), ``{'temperature': {sensor:
             {...}}}``. Empty without terms.
@@ -266,7 +266,7 @@ class ImuCalibration:
         parameters, first order: the bias and matrix through their covariance
         (:func:`imucal.uncertainty.calibrated_covariance`, its diagonal) plus each term's
         coefficients through their standard deviations (taken as independent of each other
-        and of the bias and matrix; :mod:`imucal.terms.modelterms`). Left out: the reading's own
+        and of the bias and matrix; :mod:`imucal.modelterms`). Left out: the reading's own
         noise, and one sensor's parameters reaching another through a term (the gyroscope's
         through the lever arm's and the magnetometer delay's rate, the accelerometer's through
         the g-sensitivity): second order in the small terms.

@@ -71,7 +71,7 @@ def test_non_finite_refused():
 def _with_terms(rng=None):
     """The calibration of :func:`make_calibration` with every model term; with ``rng`` each
     coefficient drawn about its value with its standard deviation."""
-    from imucal.terms.modelterms import (
+    from imucal.modelterms import (
         GSensitivity,
         LeverArm,
         MagDelay,
@@ -106,7 +106,7 @@ def test_every_registered_term_round_trips_through_the_json():
     :func:`_with_terms`) is the same text after ``to_dict -> JSON -> from_dict -> to_dict``."""
     import json
 
-    from imucal.terms.registry import term_names
+    from imucal.modelterms.registry import term_names
 
     cal = _with_terms(np.random.default_rng(3))
     assert cal.terms.names() == list(term_names())
@@ -157,7 +157,7 @@ def test_temperature_variance_uses_the_bias_covariance_round_trip():
     """An axis's correlated bias coefficients: the calibrated variance is ``d^T C d`` with
     ``d = (dT, dT^2)``, as the spread of calibrations with coefficients drawn from ``C``; the
     covariance survives the dict."""
-    from imucal.terms.modelterms import TemperaturePolynomial
+    from imucal.modelterms import TemperaturePolynomial
 
     rng = np.random.default_rng(5)
     cov = np.array([[1e-10, -0.9e-11], [-0.9e-11, 1e-12]])  # strongly anti-correlated

@@ -13,7 +13,7 @@ Conventions, from Kalibr's source (ethz-asl/kalibr, ``aslam_offline_calibration/
 
 Ours is ``v_B = K (v_m - b)`` in the platform frame B. Inverted: ``K_a^-1 = M_a R_iB`` (lower
 times rotation) fixes i (``v_i = R_iB v_B``), and ``K_g^-1 R_iB^T = M_g C_gyro_i``. Our
-g-sensitivity (``w_B = K_g (w_m - b) - G a_B``, :mod:`imucal.terms.modelterms`) adds
+g-sensitivity (``w_B = K_g (w_m - b) - G a_B``, :mod:`imucal.modelterms`) adds
 ``K_g^-1 G a_B = K_g^-1 G R_iB^T a_i`` to ``w_m``: ``A = K_g^-1 G R_iB^T C_gyro_i^T`` (zero when
 the model has none). Kalibr estimates the biases itself (a spline); ours are
 given as ``imucal_acc_bias`` and ``imucal_gyr_bias`` with ``imucal_R_i_B``, keys Kalibr ignores.

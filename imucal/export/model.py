@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from imucal.calibration import SensorCalibration
+from imucal.modelterms import ModelTerms
 from imucal.noise import sensor_noise
-from imucal.terms.modelterms import ModelTerms
 
 #: The IMU topic written when none is given (the one in Kalibr's and OpenVINS's examples).
 ROSTOPIC = "/imu0"
@@ -91,7 +91,7 @@ def g_sensitivity(calibration: Mapping) -> np.ndarray:
 
 def terms_not_written(calibration: Mapping, fmt: str) -> list[str]:
     """Header lines naming the model terms of a calibration.json content that the export
-    format ``fmt`` cannot carry (each term's :meth:`~imucal.terms.term.ModelTerm.export_note`);
+    format ``fmt`` cannot carry (each term's :meth:`~imucal.modelterms.contract.ModelTerm.export_note`);
     empty when there are none."""
     terms = ModelTerms.from_dict(calibration.get("terms", {}))
     notes = [note for note in (term.export_note(fmt) for term in terms.values()) if note]

@@ -14,7 +14,7 @@ Conventions, from OpenVINS's source (rpng/open_vins):
 
 Ours is ``v_B = K (v_m - b)``. With the IMU frame I = B: ``K = R_XtoIMU D`` with ``D`` lower
 triangular (rotation times lower), so ``T = D^-1`` (lower) and ``R_IMUtoX = R_XtoIMU^T``.
-Our g-sensitivity (``w_B = K (w_m - b) - G a_B``, :mod:`imucal.terms.modelterms`) is
+Our g-sensitivity (``w_B = K (w_m - b) - G a_B``, :mod:`imucal.modelterms`) is
 ``K_g T_g a_I``: ``T_g = K_g^-1 G`` (zero when the model has none). OpenVINS estimates the biases; ours are given as
 ``imucal_acc_bias`` and ``imucal_gyr_bias`` for initial values (keys OpenVINS does not read).
 The header is ``%YAML 1.0`` and a document start: OpenCV's YAML reader (which OpenVINS uses)

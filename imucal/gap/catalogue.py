@@ -11,7 +11,7 @@ either an estimator (its :class:`~imucal.gap.effects.EffectModel` there, with th
 moves) or the reason that scope cannot observe it (the scope's not-observable table, which the
 diagnosis writes into ``diagnosis.json``); :func:`contract_violations` lists every effect that
 has neither or both, and the tests walk it. The effect behind each model term of the closed
-loop is the term's own (:mod:`imucal.terms.registry`); the contract checks that it is one the
+loop is the term's own (:mod:`imucal.modelterms.registry`); the contract checks that it is one the
 protocol's diagnosis can estimate.
 """
 
@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from imucal.terms.registry import registered_terms
+from imucal.modelterms import registered_terms
 
 #: The scopes of the diagnosis, in the order the report lists them.
 SCOPES = ("protocol", "static", "motion", "rests", "field_fit")
@@ -40,10 +40,10 @@ PROTOCOL_NOT_OBSERVABLE = {
     "raises the noise the static detector's threshold is set from",
 }
 
-#: The effect each optional model term of the closed loop answers (each term states its own).
-TERM_OF_EFFECT = {term.effect: term.name for term in registered_terms()}
-#: The same map from the term's side.
-EFFECT_OF_TERM = {term: effect for effect, term in TERM_OF_EFFECT.items()}
+
+def term_of_effect() -> dict[str, str]:
+    """Effect -> the registered model term that answers it (each term states its effect)."""
+    return {term.effect: term.name for term in registered_terms()}
 
 
 @dataclass(frozen=True)
@@ -95,6 +95,7 @@ def catalogue() -> dict[str, Entry]:
     from imucal.sim.effects import EFFECTS
 
     libraries = scope_libraries()
+    terms = term_of_effect()
     out = {}
     for name, cls in EFFECTS.items():
         doc = (cls.__doc__ or "").strip().splitlines()
@@ -109,7 +110,7 @@ def catalogue() -> dict[str, Entry]:
             not_observable={
                 scope: reasons[name] for scope, (_, reasons) in libraries.items() if name in reasons
             },
-            term=TERM_OF_EFFECT.get(name),
+            term=terms.get(name),
         )
     return out
 
@@ -131,7 +132,7 @@ def contract_violations() -> list[str]:
             elif name not in library and name not in reasons:
                 problems.append(f"{scope}: {name!r} has neither an estimator nor a reason")
     protocol = scope_libraries()["protocol"][0]
-    for effect, term in TERM_OF_EFFECT.items():
+    for effect, term in term_of_effect().items():
         if effect not in protocol:
             problems.append(f"term {term!r}: its effect {effect!r} has no protocol estimator")
     return problems

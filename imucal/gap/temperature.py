@@ -47,9 +47,9 @@ import numpy as np
 from imucal.columns import AXES, GYR, SENSOR_COLUMNS, TIME, column_values, temperature_column
 from imucal.fits.wander import fit_with_wander
 from imucal.gap import session as st
+from imucal.modelterms.temperature import TemperaturePolynomial
 from imucal.pipeline.full import SessionFit, calibrated
 from imucal.segments.table import row_bounds
-from imucal.terms.model.temperature import TemperaturePolynomial
 
 #: Highest order of a scale polynomial: the scale is seen only in rate-table runs (one axis's
 #: runs span a fraction of a kelvin) and in the gravity along an axis, too little for a curve.

@@ -15,11 +15,11 @@ import pandas as pd
 
 from imucal.columns import AXES
 from imucal.constants import REFERENCE
+from imucal.modelterms import ModelTerms
 from imucal.report.artifacts import _load_json
 from imucal.report.figures import embed_figure
 from imucal.report.numbers import format_number, format_value
 from imucal.terms.comparison import gap_comparison
-from imucal.terms.modelterms import ModelTerms
 
 #: Titles and units of the paper's tables in ``tables.csv`` (key: the ``table`` column).
 TABLE_TITLES = {

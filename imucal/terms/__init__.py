@@ -1,14 +1,14 @@
-"""The optional model terms and the closed loop that estimates them where the gap diagnosis
-accepts their effect.
+"""The closed loop: the optional model terms estimated where the gap diagnosis accepts their
+effect, and folded into the calibration.
 
-The contract of a term (:mod:`.term`), the terms themselves, one module each (:mod:`.model`:
-correction, variance, dict form, report rows, export note), and their registry
-(:mod:`.registry`). Their estimators: temperature polynomials (:mod:`imucal.gap.temperature`), the
-gyroscope's g-sensitivity (:mod:`.gsensitivity`), the accelerometer's lever arm on the rate
-table (:mod:`.leverarm`), the magnetometer's delay (:mod:`.magdelay`); the temperature terms
-held out across static poses (:mod:`.poseholdout`, its intervals over long blocks in
-:mod:`.blockspread`), the switch per term (:mod:`.selection`) and
-the loop that folds them into the calibration (:mod:`.loop`).
+The terms themselves (their contract, one module each, their registry) are part of the model
+(:mod:`imucal.modelterms`). Here: their estimators, found by the term's name
+(:mod:`.estimators`: temperature polynomials from :mod:`imucal.gap.temperature`, the
+gyroscope's g-sensitivity :mod:`.gsensitivity`, the accelerometer's lever arm on the rate table
+:mod:`.leverarm`, the magnetometer's delay :mod:`.magdelay`); the temperature terms held out
+across static poses (:mod:`.poseholdout`, its intervals over long blocks in
+:mod:`.blockspread`); the switch per term (:mod:`.selection`) and the loop that folds them into
+the calibration (:mod:`.loop`).
 """
 
 import lazy_loader

@@ -1,3 +1,4 @@
+from .estimators import estimator_of, register_estimator, unregister_estimator
 from .gsensitivity import fit_g_sensitivity
 from .leverarm import fit_lever_arm
 from .loop import (
@@ -8,13 +9,4 @@ from .loop import (
 )
 from .magdelay import fit_mag_delay
 from .poseholdout import hold_out_poses, hold_out_recording
-from .registry import (
-    declaration_problems,
-    register,
-    registered_terms,
-    term_class,
-    term_names,
-    unregister,
-)
-from .selection import EFFECT_OF_TERM, TermSettings, decide, final_calibration
-from .term import ModelTerm, ReportRow, Samples, ValueTerm
+from .selection import TermSettings, decide, final_calibration

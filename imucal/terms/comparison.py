@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from imucal.terms.selection import EFFECT_OF_TERM
+from imucal.modelterms.registry import term_class
 
 
 def gap_comparison(before: Mapping, after: Mapping, in_model: list) -> dict | None:
@@ -49,7 +49,7 @@ def gap_comparison(before: Mapping, after: Mapping, in_model: list) -> dict | No
     except (KeyError, TypeError):
         return None
     still = list(after.get("explained", []))
-    untaken = [t for t in in_model if EFFECT_OF_TERM.get(t) in still]
+    untaken = [t for t in in_model if term_class(t).effect in still]
     if untaken:
         verdict = f"short of the prediction: the diagnosis after still explains the effect of {', '.join(untaken)}"
     elif left["achieved"] != left["predicted"]:

@@ -6,8 +6,8 @@ import numpy as np
 
 from imucal.gap import session as st
 from imucal.gap.temperature import heldout_residuals, select_model
+from imucal.modelterms.gsensitivity import GSensitivity
 from imucal.pipeline.full import SessionFit
-from imucal.terms.model.gsensitivity import GSensitivity
 
 
 def fit_g_sensitivity(fit: SessionFit) -> tuple[GSensitivity | None, dict]:

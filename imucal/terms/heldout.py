@@ -27,10 +27,10 @@ from scipy.spatial.transform import Rotation
 from imucal.calibration import ImuCalibration
 from imucal.columns import ACC, GYR, SI_COLUMN_UNITS, TIME
 from imucal.gap import session as st
+from imucal.modelterms.registry import term_class
 from imucal.pipeline.full import SessionFit
 from imucal.pipeline.stages import apply_calibration
 from imucal.segments.table import row_bounds
-from imucal.terms.registry import term_class
 
 #: The held-out residual of the gyroscope's terms that no estimator fits on.
 POSE_TO_POSE = (
@@ -98,8 +98,8 @@ def heldout_comparison(term: str, evidence: Mapping, diagnosis: Mapping | None) 
     ----------
     term : str
         A registered term's name; its class reads the evidence
-        (:meth:`~imucal.terms.term.ModelTerm.heldout_rms`) and says what was held out
-        (:attr:`~imucal.terms.term.ModelTerm.heldout_residual`).
+        (:meth:`~imucal.modelterms.contract.ModelTerm.heldout_rms`) and says what was held out
+        (:attr:`~imucal.modelterms.contract.ModelTerm.heldout_residual`).
     evidence : dict
         The term's evidence from its estimator.
     diagnosis : dict or None

@@ -16,8 +16,8 @@ import pandas as pd
 
 from imucal.columns import AXES
 from imucal.gap import session as st
+from imucal.modelterms.leverarm import LeverArm
 from imucal.pipeline.full import SessionFit, calibrated
-from imucal.terms.model.leverarm import LeverArm
 
 METHOD = (
     "calibrated acc means of the rate-table plateaus against w w^T - |w|^2 I (w the run's "

@@ -20,12 +20,12 @@ from imucal import errormodel
 from imucal.calibration import ImuCalibration
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_COLUMN_UNITS
 from imucal.io import to_jsonable
+from imucal.modelterms import ModelTerms, term_class, term_names
 from imucal.pipeline.full import PipelineOptions, SessionFit, calibrate_session
 from imucal.pipeline.graph import unaffected
 from imucal.pipeline.stages import apply_calibration
+from imucal.terms.estimators import estimator_of
 from imucal.terms.heldout import heldout_comparison, pose_to_pose_comparison
-from imucal.terms.modelterms import TERMS, ModelTerms
-from imucal.terms.registry import term_class
 from imucal.terms.selection import TermSettings, decide
 
 
@@ -133,9 +133,9 @@ def close_loop(
         (:func:`imucal.terms.heldout.pose_to_pose_comparison`).
     """
     record = {}
-    for term in TERMS:
+    for term in term_names():
         wanted, reason = decide(term, settings, diagnosis)
-        record[term] = {"setting": getattr(settings, term), "included": wanted, "reason": reason}
+        record[term] = {"setting": settings.switch(term), "included": wanted, "reason": reason}
     if not any(r["included"] for r in record.values()):
         return {"terms": record, "calibration": None, "corrected": None}
     try:
@@ -178,12 +178,11 @@ def _estimate(imu, reference, options, segments, record: dict, settings: TermSet
     for name, r in record.items():
         if not r["included"]:
             continue
-        term = term_class(name)
-        value, r["evidence"] = term.estimate(fit, settings)
+        value, r["evidence"] = estimator_of(name)(fit, **settings.options.get(name, {}))
         if value is None:
             continue
         found[name] = value
-        if term.refits_session:
+        if term_class(name).refits_session:
             # the later terms are estimated on the session without this term's effect
             fixed = corrected_session(imu, base.calibration, ModelTerms(**found))
             fit = recalibrate(base, fixed, options)

@@ -6,8 +6,8 @@ import numpy as np
 
 from imucal.columns import AXES
 from imucal.gap import session as st
+from imucal.modelterms.magdelay import MagDelay
 from imucal.pipeline.full import SessionFit
-from imucal.terms.model.magdelay import MagDelay
 
 
 def fit_mag_delay(fit: SessionFit) -> tuple[MagDelay | None, dict]:

@@ -21,7 +21,7 @@ the residual RMS per pose, sensor and axis for
   fit poses' samples.
 
 The held-out pose is compared on its samples within the fit poses' temperature span widened by
-``margin_c`` (where the term calibrates; beyond it :class:`imucal.terms.modelterms.TemperaturePolynomial`
+``margin_c`` (where the term calibrates; beyond it :class:`imucal.modelterms.TemperaturePolynomial`
 refuses), all three on the same samples. The term is fitted to block means of ``block_s`` (the
 drift; the white noise averages out), the regression to the samples as ``IMUcalibrate`` does;
 the comparison is on every sample and on the block means. The residuals of a drift are

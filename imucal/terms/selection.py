@@ -7,68 +7,101 @@ calibration is the session's final one (:func:`final_calibration`).
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
-from imucal.gap.catalogue import EFFECT_OF_TERM
-from imucal.terms.modelterms import TERMS
-
-SWITCHES = ("off", "on", "auto")
+from imucal.modelterms.registry import (
+    option_key,
+    settings_schema,
+    term_class,
+    term_names,
+)
 
 
 @dataclass(frozen=True)
 class TermSettings:
-    """The config section ``terms`` (defaults are the schema's).
+    """The config section ``terms``: a switch per registered term and the terms' options.
+
+    Made with :meth:`from_config`, which validates the section against the schema of the
+    registered terms (:func:`imucal.modelterms.registry.settings_schema`) and fills in its
+    defaults; a term registered later than the settings were made is 'off' in them.
 
     Attributes
     ----------
-    temperature, g_sensitivity, mag_delay, lever_arm : str
-        'off', 'on' or 'auto' (YAML's unquoted off/on arrive as False/True and are read so).
-    temperature_max_order : int
-        Highest order of a bias polynomial tried (>= 1).
-    temperature_min_span_c : float
-        Smallest temperature span (K) of the resting segments for a polynomial.
-    temperature_margin_c : float
-        How far outside the calibrated span (K) ``apply`` still calibrates (flagged).
+    switches : dict of str to str
+        Term -> 'off', 'on' or 'auto'.
+    options : dict of str to dict
+        Term -> its options (option -> value, in the term's units); the keyword arguments of
+        its estimator.
     """
 
-    temperature: str = "auto"
-    g_sensitivity: str = "auto"
-    mag_delay: str = "auto"
-    lever_arm: str = "auto"
-    temperature_max_order: int = 3
-    temperature_min_span_c: float = 2.0
-    temperature_margin_c: float = 1.0
-
-    def __post_init__(self) -> None:
-        for term in TERMS:
-            value = getattr(self, term)
-            if isinstance(value, bool):
-                value = "on" if value else "off"
-                object.__setattr__(self, term, value)
-            if value not in SWITCHES:
-                raise ValueError(f"terms.{term} is {value!r}; expected one of {SWITCHES}")
-        if self.temperature_max_order < 1:
-            raise ValueError(
-                f"terms.temperature_max_order must be >= 1, got {self.temperature_max_order}"
-            )
+    switches: Mapping[str, str]
+    options: Mapping[str, Mapping]
 
     @classmethod
-    def from_config(cls, section: Mapping) -> TermSettings:
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(section) - known)
+    def from_config(cls, section: Mapping | None = None, **overrides) -> TermSettings:
+        """The settings of a config's section ``terms`` (empty: every default), with
+        ``overrides`` (config keys) on top.
+
+        Raises
+        ------
+        ValueError
+            Naming the key that is unknown (with the closest known one) or malformed, and what
+            was expected.
+        """
+        import jsonschema
+
+        schema = settings_schema()
+        section = {**(section or {}), **overrides}
+        known = schema["properties"]
+        unknown = sorted(set(section) - set(known))
         if unknown:
-            raise ValueError(f"unknown terms settings {unknown}; known: {sorted(known)}")
-        return cls(**section)
+            hints = []
+            for key in unknown:
+                close = difflib.get_close_matches(key, known, n=1)
+                hints.append(f"{key!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+            raise ValueError(f"unknown terms settings {', '.join(hints)}; known: {sorted(known)}")
+        values = {key: section.get(key, prop["default"]) for key, prop in known.items()}
+        try:
+            jsonschema.validate(values, schema)
+        except jsonschema.ValidationError as err:
+            where = ".".join(map(str, err.absolute_path))
+            raise ValueError(f"terms.{where}: {err.message}") from None
+        switches, options = {}, {}
+        for name in term_names():
+            switch = values[name]
+            switches[name] = ("on" if switch else "off") if isinstance(switch, bool) else switch
+            options[name] = {
+                option: values[option_key(name, option)] for option in term_class(name).options
+            }
+        return cls(switches, options)
+
+    @classmethod
+    def only(cls, switch: str = "off", **switches: str) -> TermSettings:
+        """Every term at ``switch`` but those named (term -> switch), options at their
+        defaults."""
+        return cls.from_config({name: switch for name in term_names()} | switches)
+
+    def switch(self, term: str) -> str:
+        """'off', 'on' or 'auto' ('off' for a term these settings do not hold)."""
+        return self.switches.get(term, "off")
+
+    def to_config(self) -> dict:
+        """The section ``terms`` these settings are made of (every key, defaults filled in)."""
+        out: dict = dict(self.switches)
+        for name, opts in self.options.items():
+            out.update({option_key(name, option): value for option, value in opts.items()})
+        return out
 
     def wanted(self) -> list[str]:
         """Terms not switched off."""
-        return [t for t in TERMS if getattr(self, t) != "off"]
+        return [t for t in term_names() if self.switch(t) != "off"]
 
     @property
     def needs_diagnosis(self) -> bool:
         """Whether a term is 'auto' (decided on the session's diagnosis)."""
-        return any(getattr(self, t) == "auto" for t in TERMS)
+        return any(self.switch(t) == "auto" for t in term_names())
 
 
 def decide(term: str, settings: TermSettings, diagnosis: Mapping | None) -> tuple[bool, str]:
@@ -77,7 +110,7 @@ def decide(term: str, settings: TermSettings, diagnosis: Mapping | None) -> tupl
     Parameters
     ----------
     term : str
-        One of :data:`imucal.terms.modelterms.TERMS`.
+        A registered term's name (:func:`imucal.modelterms.term_names`).
     settings : TermSettings
     diagnosis : dict or None
         diagnosis.json of the session (needed for 'auto').
@@ -87,12 +120,12 @@ def decide(term: str, settings: TermSettings, diagnosis: Mapping | None) -> tupl
     include : bool
     reason : str
     """
-    switch = getattr(settings, term)
+    switch = settings.switch(term)
     if switch == "off":
         return False, "off in the config"
     if switch == "on":
         return True, "on in the config"
-    effect = EFFECT_OF_TERM[term]
+    effect = term_class(term).effect
     records = {e["name"]: e for e in (diagnosis or {}).get("effects", [])}
     if effect not in records:
         return False, f"auto: the diagnosis did not estimate {effect} on this session"

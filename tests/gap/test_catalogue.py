@@ -8,9 +8,8 @@ import pytest
 
 from imucal.gap import catalogue
 from imucal.gap.static import NOT_OBSERVABLE
+from imucal.modelterms import term_class, term_names
 from imucal.sim.effects import EFFECTS
-from imucal.terms.modelterms import TERMS
-from imucal.terms.selection import EFFECT_OF_TERM
 
 
 def test_every_effect_has_an_estimator_or_a_reason_in_every_scope():
@@ -33,8 +32,8 @@ def test_the_contract_names_an_effect_without_estimator_or_reason(monkeypatch):
     assert "static: 'no_such_effect' is not an effect of the simulator" in problems
 
 
-@pytest.mark.parametrize("term", TERMS)
+@pytest.mark.parametrize("term", term_names())
 def test_every_model_term_answers_an_effect_the_protocol_estimates(term):
-    effect = EFFECT_OF_TERM[term]
+    effect = term_class(term).effect
     entry = catalogue.catalogue()[effect]
     assert entry.term == term and "protocol" in entry.estimated

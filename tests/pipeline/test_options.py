@@ -50,7 +50,7 @@ OTHER_CONFIG = {
     "accelerometer": {"cube_method": "samples", "alignment_method": "paper"},
     "gyroscope": {"bias_estimator": "mean", "alignment_method": "paper"},
 }
-G_ONLY = TermSettings("off", "on", "off", "off")
+G_ONLY = TermSettings.only(g_sensitivity="on")
 
 
 def _validated(config: dict) -> dict:

@@ -5,8 +5,7 @@ term has each part of the contract."""
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, fields
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -15,13 +14,18 @@ import yaml
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import ACC, GYR, TIME
-from imucal.gap.catalogue import EFFECT_OF_TERM, contract_violations
-from imucal.terms.modelterms import ModelTerms
-from imucal.terms.registry import register, registered_terms, unregister
+from imucal.gap.catalogue import contract_violations, term_of_effect
+from imucal.modelterms import (
+    ModelTerm,
+    ModelTerms,
+    ReportRow,
+    register,
+    registered_terms,
+    settings_schema,
+    unregister,
+)
+from imucal.terms.estimators import missing_estimators
 from imucal.terms.selection import TermSettings
-from imucal.terms.term import ModelTerm, ReportRow
-
-SCHEMA = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "config.schema.yaml"
 
 
 @dataclass(frozen=True)
@@ -32,13 +36,10 @@ class FieldOffset(ModelTerm):
     name = "field_offset"
     effect = "platform_magnetic"
     exported_by = frozenset({"kalibr"})
+    switch_description = "a constant field offset (normalised)"
 
     offset: np.ndarray
     std: np.ndarray
-
-    @classmethod
-    def estimate(cls, fit, settings):
-        return None, {"refused": "the toy term has no estimator"}
 
     def correct(self, values, samples):
         return {**values, "mag": values["mag"] - self.offset}
@@ -166,15 +167,28 @@ def test_a_registered_term_is_named_by_the_exports_that_cannot_carry_it(toy):
 
 
 def test_every_registered_term_has_each_part_of_the_contract():
-    """An effect the protocol's diagnosis estimates and a config switch with its default in the
-    schema (the methods are checked when the class is registered: an abstract one left refuses
-    it; the round trip of every term: tests/test_calibration.py)."""
+    """An effect the protocol's diagnosis estimates, an estimator, and a config switch with its
+    default and its options in the config's schema (the methods are checked when the class is
+    registered: an abstract one left refuses it; the round trip of every term:
+    tests/test_calibration.py)."""
     assert not contract_violations()
-    schema = yaml.safe_load(SCHEMA.read_text())["properties"]["terms"]["properties"]
-    switches = {f.name for f in fields(TermSettings)}
+    assert not missing_estimators()
+    schema = settings_schema()["properties"]
+    settings = TermSettings.from_config()
     for term in registered_terms():
-        assert EFFECT_OF_TERM[term.name] == term.effect
-        assert term.name in schema and term.name in switches, term.name
+        assert term_of_effect()[term.effect] == term.name
+        assert schema[term.name]["default"] == settings.switch(term.name) == "auto"
+        assert set(settings.options[term.name]) == set(term.options), term.name
+        for option in term.options:
+            assert f"{term.name}_{option}" in schema, (term.name, option)
+
+
+def test_a_registered_term_has_a_config_switch(toy):
+    assert TermSettings.from_config(field_offset="on").switch("field_offset") == "on"
+    assert "field_offset" in TermSettings.from_config().wanted()
+    assert settings_schema()["properties"]["field_offset"]["description"].startswith(
+        "a constant field offset (normalised): off, on, or auto"
+    )
 
 
 def test_a_term_without_every_part_is_refused():
@@ -186,4 +200,4 @@ def test_a_term_without_every_part_is_refused():
         register(Incomplete)
     with pytest.raises(ValueError, match="registered already"):
         register(registered_terms()[0])
-    assert "incomplete" not in EFFECT_OF_TERM
+    assert "incomplete" not in term_of_effect().values()

@@ -15,9 +15,7 @@ import pytest
 from imucal import errormodel
 from imucal.calibration import ImuCalibration, SensorCalibration
 from imucal.columns import ACC, GYR, MAG, SI_COLUMN_UNITS, TIME
-from imucal.pipeline.stages import apply_calibration
-from imucal.terms.heldout import heldout_comparison
-from imucal.terms.modelterms import (
+from imucal.modelterms import (
     GSensitivity,
     LeverArm,
     MagDelay,
@@ -25,8 +23,10 @@ from imucal.terms.modelterms import (
     TemperaturePolynomial,
     TemperatureTerm,
 )
-from imucal.terms.registry import declaration_problems, register, registered_terms, unregister
-from imucal.terms.term import ReportRow, ValueTerm
+from imucal.modelterms.contract import ReportRow, ValueTerm
+from imucal.modelterms.registry import declaration_problems, register, registered_terms, unregister
+from imucal.pipeline.stages import apply_calibration
+from imucal.terms.heldout import heldout_comparison
 
 G_UNIT = "rad/s per m/s^2 (frame B; row: gyro axis, column: specific-force axis)"
 R_UNIT = "m (frame B; accelerometer relative to the rate table's rotation centre)"
@@ -126,14 +126,11 @@ class FieldRamp(ValueTerm):
     value_field, std_field, value_shape = "ramp", "ramp_std", (3,)
     unit = "normalised/s"
     report_label = "field ramp"
+    switch_description = "a field that ramps in time (normalised/s)"
 
     ramp: np.ndarray
     ramp_std: np.ndarray
     method: str = ""
-
-    @classmethod
-    def estimate(cls, fit, settings):
-        return None, {"refused": "the toy term has no estimator"}
 
     def check(self, samples):
         late = int(np.sum(samples.t_s > 0.2))

@@ -10,12 +10,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from imucal.calibration import ImuCalibration
 from imucal.columns import ACC, GYR, MAG, SENSORS, SI_COLUMN_UNITS
 from imucal.gap import session as st
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
+from imucal.modelterms import (
+    LeverArm,
+    ModelTerms,
+    TemperaturePolynomial,
+    TemperatureTerm,
+    settings_schema,
+)
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.pipeline.stages import apply_calibration, calibration_of_what_ran
 from imucal.sim import ProtocolConfig, make_effect, make_truth
@@ -29,12 +35,11 @@ from imucal.terms import (
     final_calibration,
     terms_summary,
 )
-from imucal.terms.modelterms import LeverArm, ModelTerms, TemperaturePolynomial, TemperatureTerm
 
 SHORT = ProtocolConfig(static_s=120.0, run_plateau_s=3.0, run_pause_s=1.5)
 RANGE = {"acc": 32767, "gyr": 32767, "mag": 32767}
 RATETABLE = {"axes": list(SHORT.ratetable_axes), "rates_dps": list(SHORT.rates_dps)}
-ON = TermSettings("on", "on", "on", "on")
+ON = TermSettings.only("on")
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -119,7 +124,7 @@ def test_g_sensitivity_recovers_the_simulated_matrix_within_3_std(twin):
 
 def test_mag_delay_recovers_the_mean_age_of_the_held_sample_within_3_std(twin):
     effect = make_effect("mag_latency", rate_hz=75.0, delay_s=0.05)
-    imu, _, _, res = _loop(twin, 11, (effect,), TermSettings("off", "off", "on", "off"))
+    imu, _, _, res = _loop(twin, 11, (effect,), TermSettings.only(mag_delay="on"))
     m = res["calibration"].terms.mag_delay
     # the truth is the mean age of the field values rotation3d carries (every 10th packet):
     # with the 75 Hz clock only two ages recur there, and their mean is the nominal
@@ -133,12 +138,19 @@ def test_mag_delay_recovers_the_mean_age_of_the_held_sample_within_3_std(twin):
 
 
 def test_temperature_refused_without_a_channel_and_below_the_span(twin, drift):
-    _, _, _, res = _loop(twin, 11, (), TermSettings("on", "off", "off"))
+    _, _, _, res = _loop(
+        twin,
+        11,
+        (),
+        TermSettings.from_config({"temperature": "on", "g_sensitivity": "off", "mag_delay": "off"}),
+    )
     assert res["calibration"] is None
     assert "no temperature channel" in res["terms"]["temperature"]["reason"]
     imu, ref, fit, _ = drift
     res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=None,
-                     settings=TermSettings("on", "off", "off", temperature_min_span_c=8.0))  # fmt: skip
+                     settings=TermSettings.from_config(
+                         {"temperature": "on", "g_sensitivity": "off", "mag_delay": "off"},
+                         temperature_min_span_c=8.0))  # fmt: skip
     assert res["calibration"] is None
     assert "below the 8 K" in res["terms"]["temperature"]["reason"]
 
@@ -156,8 +168,8 @@ def test_auto_on_a_clean_session_adds_nothing_and_is_byte_identical_to_off(twin,
     )
     files = {}
     for name, settings in (
-        ("auto", TermSettings()),
-        ("off", TermSettings("off", "off", "off", "off")),
+        ("auto", TermSettings.from_config()),
+        ("off", TermSettings.only("off")),
     ):
         res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=diagnosis,
                          settings=settings)  # fmt: skip
@@ -176,24 +188,34 @@ def test_decide_follows_the_switch_and_the_diagnosis():
             {"name": "g_sensitivity", "accepted": False, "heldout_shrink": 0.1, "note": ""},
         ],
     }
-    assert decide("temperature", TermSettings(), diagnosis) == (
+    assert decide("temperature", TermSettings.from_config(), diagnosis) == (
         True, "auto: the diagnosis accepts temperature_drift, held-out shrink 0.80 "
         "(at least 0.3 needed)",
     )  # fmt: skip
-    include, reason = decide("g_sensitivity", TermSettings(), diagnosis)
+    include, reason = decide("g_sensitivity", TermSettings.from_config(), diagnosis)
     assert not include and "does not accept g_sensitivity, held-out shrink 0.10" in reason
-    assert decide("mag_delay", TermSettings(), diagnosis)[0] is False
-    assert decide("temperature", TermSettings(temperature=False), diagnosis) == (
+    assert decide("mag_delay", TermSettings.from_config(), diagnosis)[0] is False
+    assert decide("temperature", TermSettings.from_config(temperature=False), diagnosis) == (
         False, "off in the config",
     )  # fmt: skip
-    with pytest.raises(ValueError, match="expected one of"):
-        TermSettings(temperature="sometimes")
+    with pytest.raises(ValueError, match=r"terms\.temperature: 'sometimes' is not one of"):
+        TermSettings.from_config(temperature="sometimes")
 
 
 def test_settings_defaults_are_the_schemas():
-    schema = yaml.safe_load((REPO / "workflow/schemas/config.schema.yaml").read_text())
-    props = schema["properties"]["terms"]["properties"]
-    assert TermSettings.from_config({k: v["default"] for k, v in props.items()}) == TermSettings()
+    props = settings_schema()["properties"]
+    defaults = TermSettings.from_config()
+    assert TermSettings.from_config({k: v["default"] for k, v in props.items()}) == defaults
+    assert defaults.to_config() == {k: v["default"] for k, v in props.items()}
+    assert defaults.options["temperature"] == {"max_order": 3, "min_span_c": 2.0, "margin_c": 1.0}
+
+
+def test_a_misspelt_terms_setting_is_named_with_the_closest_one():
+    with pytest.raises(ValueError, match=r"'temperature_max_ordr' \(did you mean "
+                       r"'temperature_max_order'\?\)"):  # fmt: skip
+        TermSettings.from_config(temperature_max_ordr=2)
+    with pytest.raises(ValueError, match=r"terms\.temperature_max_order: 0 is less than"):
+        TermSettings.from_config(temperature_max_order=0)
 
 
 def _with_temperature(calibration: ImuCalibration, margin_c: float = 1.0) -> ImuCalibration:
@@ -274,7 +296,7 @@ def test_report_section_lists_the_terms_and_the_gap_before_and_after(drift, tmp_
 
 def test_lever_arm_recovers_the_simulated_r_within_3_std(twin):
     effect = make_effect("lever_arm")
-    _, _, _, res = _loop(twin, 11, (effect,), TermSettings("off", "off", "off", lever_arm="on"))
+    _, _, _, res = _loop(twin, 11, (effect,), TermSettings.only(lever_arm="on"))
     r = res["calibration"].terms.lever_arm
     true = np.array([effect.x_m, effect.y_m, effect.z_m])
     assert np.all(np.abs(r.r_m - true) < 3 * r.std_m), (r.r_m, true, r.std_m)
@@ -327,7 +349,7 @@ def test_lever_arm_heldout_improvement_reaches_the_diagnosis_prediction(twin):
                          settings=DiagnosisSettings(replicas=8))  # fmt: skip
     fit = calibrate_session(imu, ref, twin.options)
     res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=diagnosis,
-                     settings=TermSettings("off", "off", "off", "auto"))  # fmt: skip
+                     settings=TermSettings.only(lever_arm="auto"))  # fmt: skip
     r = res["terms"]["lever_arm"]
     assert r["included"], r["reason"]
     h = r["heldout"]
@@ -420,7 +442,7 @@ def test_competing_explanations_get_the_right_terms_with_their_coefficients(twin
     assert named == set(COMPETING[case]), (diagnosis["explained"], diagnosis["confusable"])
     fit = calibrate_session(imu, ref, twin.options)
     res = close_loop(imu, ref, twin.options, segments=fit.segments, diagnosis=diagnosis,
-                     settings=TermSettings("auto", "auto", "off", "off"))  # fmt: skip
+                     settings=TermSettings.only(temperature="auto", g_sensitivity="auto"))  # fmt: skip
     terms = res["calibration"].terms
     want = {"temperature": "temperature_drift" in COMPETING[case],
             "g_sensitivity": "g_sensitivity" in COMPETING[case]}  # fmt: skip
@@ -457,7 +479,7 @@ def test_term_std_follows_the_errors_over_sessions(twin, rms_z_band):
     true_r = np.array([lever.x_m, lever.y_m, lever.z_m])
     z = {"g_sensitivity": [], "lever_arm": [], "temperature": []}
     for seed in range(20, 28):
-        terms = _loop(twin, seed, effects, TermSettings("on", "on", "off", "on"))[3]
+        terms = _loop(twin, seed, effects, TermSettings.only("on", mag_delay="off"))[3]
         terms = terms["calibration"].terms
         z["g_sensitivity"].append(
             ((terms.g_sensitivity.matrix - true_g) / terms.g_sensitivity.std).ravel()
@@ -511,8 +533,8 @@ def test_the_loop_estimates_on_the_sessions_own_stage_files(twin, drift, tmp_pat
 def test_the_refit_runs_only_the_stages_whose_readings_the_terms_change(twin, drift, monkeypatch):
     # a gyroscope-only term leaves the accelerometer's and magnetometer's readings to the bit:
     # their stages are taken from the session's fit, and the result is the whole chain's
+    from imucal.modelterms import GSensitivity
     from imucal.terms.loop import changed_sensors, recalibrate
-    from imucal.terms.modelterms import GSensitivity
 
     imu, ref, fit, _ = drift
     g = GSensitivity(np.diag([2e-4, -1e-4, 3e-4]), np.full((3, 3), 1e-5))

@@ -253,7 +253,7 @@ def apply_calibration(
     """Calibrate the three sensors of an ingested recording to frame B.
 
     Every term of the calibration's model is used (:meth:`ImuCalibration.calibrate`) with what
-    of the recording it needs (:attr:`imucal.terms.term.ModelTerm.needs`): the temperature
+    of the recording it needs (:attr:`imucal.modelterms.contract.ModelTerm.needs`): the temperature
     column (rows without a reading interpolated in time), the sample times. With
     ``parameter_std`` the table gains, per calibrated column, the standard deviation that the
     calibration's parameter covariance gives the sample
@@ -277,7 +277,7 @@ def apply_calibration(
         Same rows and columns, sensor values calibrated (NaN magnetometer rows stay NaN).
     metadata : dict
         With ``calibrated`` = True, and ``model_terms`` (the terms used) and what each term
-        reports of its flags (:meth:`imucal.terms.term.ModelTerm.flag_report`; a temperature
+        reports of its flags (:meth:`imucal.modelterms.contract.ModelTerm.flag_report`; a temperature
         term: ``temperature_outside_span``, per sensor the fraction of samples outside the
         calibrated span but within its margin, and the farthest distance in K) when the model
         has terms.

@@ -24,7 +24,7 @@ TEMPERATURE_COLUMN = "temp_c"
 class GSensitivity(Effect):
     """Gyroscope output proportional to specific force: ``w_B += G a_B``, a full 3x3 matrix.
 
-    The parameterisation of the model term :class:`imucal.terms.modelterms.GSensitivity`: ``G`` acts
+    The parameterisation of the model term :class:`imucal.modelterms.GSensitivity`: ``G`` acts
     in frame B (calibrated rate from calibrated specific force), so the raw reading moves by
     ``K^-1 G a_B`` (``K`` the true gyro matrix); the diagonal is the g-sensitivity of each axis
     along its own direction, the off-diagonal elements the cross-axis part.
@@ -119,7 +119,7 @@ class TemperatureDrift(Effect):
     sensor-frame input ``u = matrix^-1 true`` (what the sensing element sees), axis ``j`` of a
     reading becomes ``(1 + s_j dT) u_j + bias_j + b_j dT + noise``; the truth holds at
     ``start_c``. This is the model term's parameterisation
-    (:class:`imucal.terms.modelterms.TemperaturePolynomial` at order 1, ``reference_c = start_c``,
+    (:class:`imucal.modelterms.TemperaturePolynomial` at order 1, ``reference_c = start_c``,
     ``bias[0] = b``, ``scale[0] = s``): per axis of the raw reading, either sign.
 
     Parameters

@@ -1,22 +1,26 @@
 """The registry of model terms: every term once, in the order the model applies them.
 
-A term is a :class:`~imucal.terms.term.ModelTerm` in a module of :mod:`imucal.terms.model`;
-adding one to :data:`BUILT_IN` is its whole registration, which refuses a class with a part left
-abstract or a declaration the loops over the terms read missing (:func:`declaration_problems`). The calibration, its dict form, the
-closed loop, the report's coefficients, the exports' notes and the catalogue's map from effects
-to terms (:data:`imucal.gap.catalogue.TERM_OF_EFFECT`) read the terms from here.
+A term is a :class:`~imucal.modelterms.contract.ModelTerm` in a module of :mod:`imucal.modelterms`;
+adding one to :data:`BUILT_IN` (or calling :func:`register`) is its whole registration, which
+refuses a class with a part left abstract or a declaration the loops over the terms read missing
+(:func:`declaration_problems`). The calibration, its dict form, the closed loop, the config's
+section ``terms`` (:func:`settings_schema`), the report's coefficients, the exports' notes and the
+catalogue's map from effects to terms (:func:`imucal.gap.catalogue.term_of_effect`) read the terms
+from here.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import inspect
+from collections.abc import Mapping
 
-from imucal.terms.model.gsensitivity import GSensitivity
-from imucal.terms.model.leverarm import LeverArm
-from imucal.terms.model.magdelay import MagDelay
-from imucal.terms.model.temperature import TemperatureTerm
-from imucal.terms.term import SAMPLE_INPUTS, ModelTerm, ValueTerm
+from imucal.modelterms.contract import SAMPLE_INPUTS, ModelTerm, ValueTerm
+from imucal.modelterms.gsensitivity import GSensitivity
+from imucal.modelterms.leverarm import LeverArm
+from imucal.modelterms.magdelay import MagDelay
+from imucal.modelterms.temperature import TemperatureTerm
 
 #: The package's terms, in the order they are applied: the temperature on the reading (before
 #: the matrix), the g-sensitivity with the calibrated specific force, the lever arm with the
@@ -41,9 +45,19 @@ def declaration_problems(term: type[ModelTerm]) -> list[str]:
         One sentence per problem, naming the attribute and what was expected.
     """
     problems = []
-    for attr in ("name", "effect"):
+    for attr in ("name", "effect", "switch_description"):
         if not isinstance(getattr(term, attr, None), str):
             problems.append(f"no {attr} (a str)")
+    options = getattr(term, "options", None)
+    if not isinstance(options, Mapping):
+        problems.append("options is not a mapping of option -> JSON schema")
+    else:
+        for option, schema in options.items():
+            if not (isinstance(option, str) and option.isidentifier()):
+                problems.append(f"option {option!r} is not an identifier")
+            elif not (isinstance(schema, Mapping) and "default" in schema
+                      and isinstance(schema.get("description"), str)):  # fmt: skip
+                problems.append(f"option {option!r} has no default and description in its schema")
     for attr in ("exported_by", "needs"):
         if not isinstance(getattr(term, attr, None), frozenset):
             problems.append(f"{attr} is not a frozenset")
@@ -69,6 +83,42 @@ def declaration_problems(term: type[ModelTerm]) -> list[str]:
             if not (isinstance(getattr(term, attr, None), str) and getattr(term, attr)):
                 problems.append(f"no {attr} (a non-empty str)")
     return problems
+
+
+#: The values of a term's switch in the config: YAML's unquoted off/on arrive as False/True.
+SWITCHES = ("off", "on", "auto")
+#: The switch of a term the config does not set: estimated where the diagnosis accepts its effect.
+DEFAULT_SWITCH = "auto"
+
+
+def option_key(term: str, option: str) -> str:
+    """The config key of a term's option (``terms.<term>_<option>``)."""
+    return f"{term}_{option}"
+
+
+def settings_schema() -> dict:
+    """The JSON schema of the config's section ``terms``, made of the registered terms: per term
+    its switch (:data:`SWITCHES`, default :data:`DEFAULT_SWITCH`) and its options (their schemas,
+    with defaults and units, as the term declares them), nothing else."""
+    properties = {}
+    for term in registered_terms():
+        properties[term.name] = {
+            "type": ["string", "boolean"],
+            "enum": [*SWITCHES, False, True],
+            "default": DEFAULT_SWITCH,
+            "description": f"{term.switch_description}: off, on, or auto (when the diagnosis "
+            f"accepts {term.effect})",
+        }
+        for option, schema in term.options.items():
+            properties[option_key(term.name, option)] = copy.deepcopy(dict(schema))
+    return {
+        "description": "optional model terms of the calibration, the closed loop (imucal.terms, "
+        "docs/model-terms.md)",
+        "type": "object",
+        "additionalProperties": False,
+        "default": {},
+        "properties": properties,
+    }
 
 
 def register(term: type[ModelTerm]) -> type[ModelTerm]:

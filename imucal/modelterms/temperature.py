@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from imucal.columns import SENSORS, SI_UNITS, TEMPERATURE_COLUMNS
-from imucal.terms.term import ModelTerm, ReportRow, Samples
+from imucal.modelterms.contract import ModelTerm, ReportRow, Samples
 
 #: Sensors a temperature polynomial may be estimated for.
 TEMPERATURE_SENSORS = ("acc", "gyr")
@@ -248,6 +248,22 @@ class TemperatureTerm(ModelTerm, Mapping):
     heldout_residual = (
         "|a| - g of resting means, rate-table runs left out, each predicted from the others (m/s^2)"
     )
+    switch_description = "temperature polynomials of bias and scale per axis"
+    options = {
+        "max_order": {
+            "type": "integer", "minimum": 1, "default": 3,
+            "description": "highest order of a bias polynomial tried (the held-out test picks one)",
+        },
+        "min_span_c": {
+            "type": "number", "exclusiveMinimum": 0, "default": 2.0,
+            "description": "smallest temperature span of the resting segments for a polynomial (K)",
+        },
+        "margin_c": {
+            "type": "number", "minimum": 0, "default": 1.0,
+            "description": "how far outside the calibrated temperature span apply still "
+            "calibrates, flagged (K); beyond it apply refuses",
+        },
+    }  # fmt: skip
 
     polynomials: Mapping[str, TemperaturePolynomial]
 
@@ -274,18 +290,6 @@ class TemperatureTerm(ModelTerm, Mapping):
 
     def __len__(self) -> int:
         return len(self.polynomials)
-
-    @classmethod
-    def estimate(cls, fit: Any, settings: Any) -> tuple[TemperatureTerm | None, dict]:
-        from imucal.gap.temperature import fit_temperature
-
-        polys, evidence = fit_temperature(
-            fit,
-            max_order=settings.temperature_max_order,
-            min_span_c=settings.temperature_min_span_c,
-            margin_c=settings.temperature_margin_c,
-        )
-        return (cls(polys) if polys else None), evidence
 
     @classmethod
     def heldout_rms(cls, evidence: Mapping) -> tuple[float, float, int] | None:

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from imucal.terms.term import Samples, ValueTerm
+from imucal.modelterms.contract import Samples, ValueTerm
 
 
 @dataclass(frozen=True)
@@ -35,16 +34,11 @@ class GSensitivity(ValueTerm):
     value_field, std_field, value_shape = "matrix", "std", (3, 3)
     unit = "rad/s per m/s^2 (frame B; row: gyro axis, column: specific-force axis)"
     report_label = "g-sensitivity G"
+    switch_description = "gyroscope g-sensitivity matrix (rad/s per m/s^2)"
 
     matrix: np.ndarray
     std: np.ndarray
     method: str = ""
-
-    @classmethod
-    def estimate(cls, fit: Any, settings: Any) -> tuple[GSensitivity | None, dict]:
-        from imucal.terms.gsensitivity import fit_g_sensitivity
-
-        return fit_g_sensitivity(fit)
 
     def correct(self, values: Mapping[str, np.ndarray], samples: Samples) -> dict:
         return {**values, "gyr": values["gyr"] - values["acc"] @ self.matrix.T}

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from imucal.terms.term import Samples, ValueTerm
+from imucal.modelterms.contract import Samples, ValueTerm
 
 #: Time (s) over which the lever arm's angular acceleration is taken (central difference of the
 #: rate ``LEVER_ARM_DIFF_S`` apart): long enough that the gyroscope's white noise, divided by it,
@@ -106,16 +105,13 @@ class LeverArm(ValueTerm):
     value_field, std_field, value_shape = "r_m", "std_m", (3,)
     unit = "m (frame B; accelerometer relative to the rate table's rotation centre)"
     report_label = "lever arm r"
+    switch_description = (
+        "lever arm of the accelerometer from the rate table's rotation centre (m, frame B)"
+    )
 
     r_m: np.ndarray
     std_m: np.ndarray
     method: str = ""
-
-    @classmethod
-    def estimate(cls, fit: Any, settings: Any) -> tuple[LeverArm | None, dict]:
-        from imucal.terms.leverarm import fit_lever_arm
-
-        return fit_lever_arm(fit)
 
     @staticmethod
     def _sensed(omega: np.ndarray, w_dot: np.ndarray, r: np.ndarray) -> np.ndarray:

@@ -1,60 +1,13 @@
-"""Optional terms of the calibration model beyond the paper's bias and matrix.
-
-The paper's model is ``calibrated = K (reading - o)`` (eq. 11). A calibration may add terms the
-gap diagnosis has shown a session needs (``docs/model-terms.md``); with all of them the
-calibrated values of one sample are
-
-1. temperature (per sensor, per axis): ``v = K (reading - o - b(dT)) / (1 + s(dT))``
-   elementwise inside the bracket, with ``dT = T - reference_c`` and the polynomials
-   ``b(dT) = sum_k bias[k-1] dT^k``, ``s(dT) = sum_k scale[k-1] dT^k`` (k = 1 .. order; the
-   constant term is the paper's bias and matrix, which hold at ``reference_c``);
-2. g-sensitivity of the gyroscope: ``w_B = v_gyr - G a_B`` with ``a_B`` the calibrated
-   specific force of the same sample (``G`` in rad/s per m/s^2, frame B);
-3. lever arm of the accelerometer from the rotation centre of the rate table:
-   ``a_B = v_acc - w_B x (w_B x r) - dw_B/dt x r`` (``r`` in m, frame B; ``w_B`` the gyroscope's
-   calibrated rate of the same sample, its derivative over :data:`LEVER_ARM_DIFF_S`);
-4. magnetometer delay against acc/gyro: ``m_B = v_mag - delay (w_B x v_mag)``, the first-order
-   advance of a field that turns in B at ``-w_B`` by the delay (s).
-
-Each term is one module of :mod:`imucal.terms.model` keeping the contract of
-:class:`imucal.terms.term.ModelTerm` (its correction, variance, dict form, report rows, export
-note and estimator), registered in :mod:`imucal.terms.registry`, whose order is the order above.
-This module holds :class:`ModelTerms`, the terms of one calibration, and re-exports the terms'
-classes.
-"""
+"""The terms of one calibration (:class:`ModelTerms`): name -> fitted term, in the registry's
+order."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from typing import Any
 
-from imucal.terms.model.gsensitivity import GSensitivity
-from imucal.terms.model.leverarm import LEVER_ARM_DIFF_S, LeverArm, angular_acceleration
-from imucal.terms.model.magdelay import MagDelay
-from imucal.terms.model.temperature import (
-    TEMPERATURE_SENSORS,
-    TemperaturePolynomial,
-    TemperatureTerm,
-)
-from imucal.terms.registry import term_class, term_names
-from imucal.terms.term import ModelTerm
-
-__all__ = [
-    "LEVER_ARM_DIFF_S",
-    "TEMPERATURE_SENSORS",
-    "TERMS",
-    "GSensitivity",
-    "LeverArm",
-    "MagDelay",
-    "ModelTerms",
-    "TemperaturePolynomial",
-    "TemperatureTerm",
-    "angular_acceleration",
-]
-
-#: Names of the package's optional terms, in the order they are applied
-#: (:data:`imucal.terms.registry.BUILT_IN`).
-TERMS = term_names()
+from imucal.modelterms.contract import ModelTerm
+from imucal.modelterms.registry import term_class, term_names
 
 
 class ModelTerms(Mapping):

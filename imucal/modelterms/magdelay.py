@@ -9,11 +9,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from imucal.terms.term import Samples, ValueTerm
+from imucal.modelterms.contract import Samples, ValueTerm
 
 
 @dataclass(frozen=True)
@@ -33,16 +32,11 @@ class MagDelay(ValueTerm):
     value_field, std_field, value_shape = "delay_s", "std_s", ()
     unit = "s"
     report_label = "magnetometer delay"
+    switch_description = "magnetometer delay behind acc/gyro (s)"
 
     delay_s: float
     std_s: float
     method: str = ""
-
-    @classmethod
-    def estimate(cls, fit: Any, settings: Any) -> tuple[MagDelay | None, dict]:
-        from imucal.terms.magdelay import fit_mag_delay
-
-        return fit_mag_delay(fit)
 
     def correct(self, values: Mapping[str, np.ndarray], samples: Samples) -> dict:
         """Takes ``delay (w_B x m_B)`` from the calibrated field."""

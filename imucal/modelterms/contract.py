@@ -1,7 +1,7 @@
 """The contract every optional model term keeps, and what its correction sees of a recording.
 
 A term of the calibration model (``docs/model-terms.md``) is one class deriving from
-:class:`ModelTerm`, registered once (:mod:`imucal.terms.registry`). The class states its name
+:class:`ModelTerm`, registered once (:mod:`imucal.modelterms.registry`). The class states its name
 (its key in ``calibration.json`` and in the config's ``terms``), the effect of the catalogue it
 answers (:mod:`imucal.gap.catalogue`), the export formats that carry it, what of a recording its
 correction needs and what its estimator holds out; an instance is a fitted term: its
@@ -12,7 +12,7 @@ exports loop over the registered terms; none of them names one. A term that is o
 with its standard deviation, a unit and a method derives from :class:`ValueTerm`, which writes
 its check, dict form and report row from its declared field names, shape, unit and label.
 
-The model's chain (eq. 11 with the terms, :mod:`imucal.terms.modelterms`): the bracket of each sensor
+The model's chain (eq. 11 with the terms, :mod:`imucal.modelterms`): the bracket of each sensor
 (``reading - bias``, corrected by the terms that act on the reading before the matrix), the
 matrix, then the terms that act on the calibrated values, in the registry's order.
 """
@@ -98,6 +98,19 @@ class ModelTerm(ABC):
     heldout_residual : str or None
         What the estimator's held-out residual is (for terms.json and the report; units in
         parentheses), None when the estimator holds nothing out (:meth:`heldout_rms`).
+    switch_description : str
+        What the term is, with its unit: the description of its switch ``terms.<name>`` in the
+        config (off, on, or auto when the diagnosis accepts :attr:`effect`).
+    options : dict of str to dict
+        The term's own settings: option -> the JSON schema of the config key
+        ``terms.<name>_<option>`` (type, bounds, ``default`` and a ``description`` with the
+        unit). The config schema's section ``terms`` is made of the registered terms'
+        switches and options (:func:`imucal.modelterms.registry.settings_schema`), and the
+        term's estimator receives its options as keyword arguments.
+
+    The estimator of a term is not part of its class: it needs the fitted session, which lives
+    in the layers above the model, and is found by the term's name in
+    :mod:`imucal.terms.estimators`.
     """
 
     name: ClassVar[str]
@@ -106,29 +119,13 @@ class ModelTerm(ABC):
     refits_session: ClassVar[bool] = False
     needs: ClassVar[frozenset] = frozenset()
     heldout_residual: ClassVar[str | None] = None
-
-    @classmethod
-    @abstractmethod
-    def estimate(cls, fit: Any, settings: Any) -> tuple[ModelTerm | None, dict]:
-        """The term fitted on a session calibrated with the paper's model.
-
-        Parameters
-        ----------
-        fit : imucal.pipeline.full.SessionFit
-        settings : imucal.terms.selection.TermSettings
-
-        Returns
-        -------
-        term : ModelTerm or None
-            None when the data do not support it (``evidence['refused']`` says why).
-        evidence : dict
-            JSON-ready record of the estimate (held-out RMS, what was used, or the refusal).
-        """
+    switch_description: ClassVar[str]
+    options: ClassVar[Mapping[str, Mapping]] = {}
 
     @classmethod
     def heldout_rms(cls, evidence: Mapping) -> tuple[float, float, int] | None:
         """The held-out RMS without and with the term and the number of held-out values, from
-        the evidence of :meth:`estimate`; None when the term or this estimate has none.
+        the evidence of its estimator (:mod:`imucal.terms.estimators`); None when the term or this estimate has none.
 
         By default the evidence's ``heldout_rms`` (``without``, ``with`` and ``values``, or the
         evidence's ``segments`` for the number); a term whose estimator records it otherwise
