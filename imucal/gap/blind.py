@@ -18,6 +18,7 @@ import numpy as np
 
 from imucal.sim import ProtocolConfig, make_truth, simulate_session, write_session
 from imucal.sim.effects import CANONICAL, make_effect, stream_rng
+from imucal.sim.outside import make_outside
 
 #: The blind sessions: the default protocol with a 120 s static recording (shorter rate-table
 #: plateaus, 4 s, split runs in the automatic segmentation).
@@ -123,11 +124,12 @@ def spec_effects(spec: Mapping) -> tuple:
     """The simulator effects of a session spec.
 
     ``effects`` (a list of ``{"effect": name, "params": {...}}``) when the spec has it, else
-    the single ``effect`` (None for none) at its realistic magnitude.
+    the single ``effect`` (None for none) at its realistic magnitude; an effect of the library
+    or one outside it (:mod:`imucal.sim.outside`).
     """
     if "effects" in spec:
-        return tuple(make_effect(e["effect"], **e["params"]) for e in spec["effects"])
-    return () if spec["effect"] is None else (make_effect(spec["effect"]),)
+        return tuple(make_outside(e["effect"], **e["params"]) for e in spec["effects"])
+    return () if spec["effect"] is None else (make_outside(spec["effect"]),)
 
 
 def render_blind_session(spec: Mapping, folder: str | Path, sealed: str | Path) -> None:
