@@ -465,13 +465,18 @@ def headline(
     missing = dict(calibration.get("missing", {}))
     out = []
     for sensor in ("acc", "gyr", "mag"):
-        # its stage's warnings, and those of the validation that name it
+        # its stage's warnings, those of the validation that name it and the temperature
+        # hold-out's flags of its axes
         name = SENSOR_TITLES[sensor].lower()
         own = [
             w["text"]
             for w in warnings
             if str(w.get("source", "")).startswith(sensor)
             or (str(w.get("source", "")).startswith("validation") and name in w["text"].lower())
+            or (
+                str(w.get("source", "")).startswith("temperature_holdout")
+                and f" {sensor} " in f" {w['text']}"
+            )
         ]
         own = list(dict.fromkeys(_short(t) for t in own))
         if sensor in missing:

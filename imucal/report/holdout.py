@@ -31,11 +31,13 @@ def holdout_section(path: str | Path | None) -> dict | None:
     -------
     dict or None
         ``reason`` (the stage did not run) or ``rows`` (per held-out pose, sensor and axis:
-        the three residual RMS in display units with their standard errors over long blocks,
-        the ratios to none and of the term to the regression with their 95 % intervals (with
-        the fits' scatter; for the term against the regression also given the fits), the
-        two verdicts, the order and the compared fraction), ``summary`` (the same over all held-out
-        poses), ``units``, ``settings``, ``poses``, ``warnings``.
+        every method's residual RMS in display units with its standard error over long
+        blocks, the ratios to none and of the term to each peer with their 95 % intervals
+        (with the fits' scatter, and given the fits) and verdicts, whether the term is taken,
+        its flags, the order and the compared fraction), ``summary`` (the same over all
+        held-out poses), ``methods`` and ``peers``, ``flagged`` (the rows with a flag),
+        ``shipped`` (per sensor and axis, the term that ships or why not), ``units``,
+        ``settings``, ``poses``, ``warnings``.
     """
     if path is None:
         return None
@@ -45,6 +47,8 @@ def holdout_section(path: str | Path | None) -> dict | None:
     reason = not_run_reason(d)
     if reason:
         return {"reason": reason}
+
+    peers = [m for m in d.get("methods", {}) if m not in ("none", "term")]
 
     def row(c: Mapping, label: str) -> dict:
         factor = DISPLAY_UNITS[c["sensor"]][1]
@@ -62,18 +66,20 @@ def holdout_section(path: str | Path | None) -> dict | None:
             "sensor": c["sensor"],
             "axis": c["axis"],
             "order": c.get("order", ", ".join(str(o) for o in c.get("orders", []))),
-            "none": rms("none"),
-            "term": rms("term"),
-            "regression": rms("regression"),
-            "term_ratio": ratio("term_ratio"),
-            "regression_ratio": ratio("regression_ratio"),
-            "term_vs_regression": ratio("term_vs_regression", 4),
-            "given_fits": ratio("term_vs_regression", 4, "ci95_given_fits"),
-            "verdict": c["verdict"],
-            "verdict_given_fits": c.get("verdict_given_fits", "-"),
+            "rms": [rms(m) for m in ("none", "term", *peers)],
+            "ratios": [ratio(f"{m}_ratio") for m in ("term", *peers)],
+            "versus": [
+                f"{ratio(f'term_vs_{p}', 4)}; given the fits "
+                f"{ratio(f'term_vs_{p}', 4, 'ci95_given_fits')}: {c['verdicts'][p]}"
+                for p in peers
+            ],
+            "taken": "yes" if c["taken"] else "no",
+            "flags": c["flags"],
             "fraction": _number(c.get("fraction", math.nan), 2),
         }
 
+    rows = [row(c, c["held_out"]) for c in d["cells"]]
+    summary = [row(s, "all") for s in d["summary"]]
     return {
         "reason": None,
         "recording": d["recording"],
@@ -86,8 +92,12 @@ def holdout_section(path: str | Path | None) -> dict | None:
             }
             for p in d["poses"]
         ],  # fmt: skip
-        "rows": [row(c, c["held_out"]) for c in d["cells"]],
-        "summary": [row(s, "all") for s in d["summary"]],
+        "rows": rows,
+        "summary": summary,
+        "methods": d["methods"],
+        "peers": peers,
+        "flagged": [r for r in summary + rows if r["flags"]],
+        "shipped": d.get("shipped", []),
         "units": {s: DISPLAY_UNITS[s][0] for s in d["sensors"]},
         "warnings": d.get("warnings", []),
     }

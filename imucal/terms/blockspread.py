@@ -84,7 +84,10 @@ def block_index(t_s: np.ndarray, block_s: float, origin_s: float) -> np.ndarray:
 
 
 def spread(
-    squares: Mapping[str, tuple], ids: np.ndarray, fit_influence: Mapping[str, np.ndarray]
+    squares: Mapping[str, tuple],
+    ids: np.ndarray,
+    fit_influence: Mapping[str, np.ndarray],
+    comparisons: Sequence[tuple[str, str, str]],
 ) -> dict:
     """Standard errors of the RMS and 95 % intervals of their ratios over long blocks.
 
@@ -109,37 +112,35 @@ def spread(
     near a method's best fit its loss from the fit's scatter is quadratic and always positive,
     which it leaves out.
 
-    Two questions, two intervals and two verdicts: ``..._given_fits`` (the held-out samples
-    alone) says whether these fitted models differ on this pose by more than its noise; the
-    interval with the fits' scatter whether the two methods differ by more than their fits
-    scatter, as they would on another recording of the same part.
+    Two questions, two intervals: ``..._given_fits`` (the held-out samples alone) says whether
+    these fitted models differ on this pose by more than its noise; the interval with the
+    fits' scatter whether the two methods differ by more than their fits scatter, as they
+    would on another recording of the same part.
 
     Parameters
     ----------
     squares : mapping of str to (ndarray, ndarray)
-        Method (``none``, ``term``, ``regression``) -> sums of its squared residuals over the
-        held-out blocks and the samples per block, each shape (B,).
+        Method (``none``, ``term``, a peer) -> sums of its squared residuals over the held-out
+        blocks and the samples per block, each shape (B,).
     ids : ndarray of int, shape (B,)
         The held-out blocks' indices among all blocks of the session (see ``fit_influence``).
     fit_influence : mapping of str to ndarray, shape (C,)
         Method -> per block of the session, its influence through the fit on the method's
         held-out sum of squares (unit of the squares; zero for the blocks no fit saw and for
         a method without coefficients).
+    comparisons : sequence of (str, str, str)
+        The ratios to compute: (name, numerator method, denominator method).
 
     Returns
     -------
     dict
-        ``rms_<method>_se``; ``term_ratio``, ``regression_ratio`` (to none) and
-        ``term_vs_regression``, each with ``..._ci95`` and ``..._ci95_given_fits``;
-        ``verdict`` and ``verdict_given_fits`` (the term ``better``, ``worse`` or ``within
-        noise`` against the regression, on either interval of ``term_vs_regression``);
-        ``clusters`` (B held-out blocks) and ``fit_clusters`` (blocks of the fits that are
-        not held out).
+        ``rms_<method>_se``; per comparison its RMS ratio ``<name>`` with ``<name>_ci95`` and
+        ``<name>_ci95_given_fits``; ``clusters`` (B held-out blocks) and ``fit_clusters``
+        (blocks of the fits that are not held out).
     """
     counts = next(iter(squares.values()))[1]
     n, b = counts.sum(), len(counts)
-    names = (("term_ratio", "term", "none"), ("regression_ratio", "regression", "none"),
-             ("term_vs_regression", "term", "regression"))  # fmt: skip
+    names = list(comparisons)
     held = np.zeros(len(next(iter(fit_influence.values()))), bool)
     held[ids] = True
     fitted = ~held & np.any([f != 0 for f in fit_influence.values()], axis=0)
@@ -147,7 +148,6 @@ def spread(
     if b < 2 or not n:
         nan = float("nan")
         out |= {f"rms_{m}_se": nan for m in squares}
-        out |= {"verdict": "within noise", "verdict_given_fits": "within noise"}
         for name, *_ in names:
             out |= {name: nan, f"{name}_ci95": [nan, nan], f"{name}_ci95_given_fits": [nan, nan]}
         return out
@@ -171,13 +171,12 @@ def spread(
         out[f"{name}_ci95_given_fits"] = given_fits
         # the fits' scatter only widens (Satterthwaite's degrees of freedom could narrow it)
         out[f"{name}_ci95"] = [min(with_fits[0], given_fits[0]), max(with_fits[1], given_fits[1])]
-    out["verdict"] = verdict_of(out["term_vs_regression_ci95"])
-    out["verdict_given_fits"] = verdict_of(out["term_vs_regression_ci95_given_fits"])
     return out
 
 
 def verdict_of(interval: Sequence[float]) -> str:
-    """The term against the regression from the interval of their RMS ratio."""
+    """The term against another method from the interval of their RMS ratio (NaN: within
+    noise)."""
     lo, hi = interval
     return "better" if hi < 1.0 else "worse" if lo > 1.0 else "within noise"
 

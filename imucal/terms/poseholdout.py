@@ -16,23 +16,29 @@ the residual RMS per pose, sensor and axis for
   among those that do, the one-standard-error rule of
   :func:`imucal.gap.temperature.select_model` picks, so an axis where no polynomial carries
   over from one fit pose to another gets no term;
-* ``regression``: the approach of scikit-diveMove's ``IMUcalibrate`` (Luque): per axis, a
-  linear regression of the static signal on temperature with one intercept, pooled over the
-  fit poses' samples.
+* the peers (:mod:`imucal.terms.thermalpeers`): scikit-diveMove's ``IMUcalibrate`` (Luque),
+  one line ``signal ~ temperature`` per period with its own intercept, each fit pose's model
+  applied on its own (``imucal_1``, ``imucal_2``: the earlier and the later fit pose), and
+  PX4's per-axis cubic in temperature (``cubic``) on the fit poses, each pose's median removed.
 
 The held-out pose is compared on its samples within the fit poses' temperature span widened by
 ``margin_c`` (where the term calibrates; beyond it :class:`imucal.modelterms.TemperaturePolynomial`
-refuses), all three on the same samples. The term is fitted to block means of ``block_s`` (the
-drift; the white noise averages out), the regression to the samples as ``IMUcalibrate`` does;
-the comparison is on every sample and on the block means. The residuals of a drift are
+refuses), every method on the same samples. The term is fitted to block means of ``block_s``
+(the drift; the white noise averages out), the peers to the samples as they do; the
+comparison is on every sample and on the block means. The residuals of a drift are
 correlated over hours, so the uncertainty counts blocks of ``se_block_s`` as the independent
 observations (an effective sample size of one per block): a standard error per RMS and a 95 %
 interval per ratio, in two forms. Given the fits, the interval holds the held-out samples'
 noise: it says whether these fitted models differ on this pose (``verdict_given_fits``). With
 the fits' scatter (each fit block's influence on the fitted coefficients through the noise,
 carried to the held-out residual) it says whether the two methods differ by more than their
-fits scatter (``verdict``). The term is better or worse than the regression where an interval
-excludes 1, else within noise. The order's choice is taken as given.
+fits scatter (``verdict``). The term is better or worse than a peer where an interval excludes 1,
+else within noise. The order's choice is taken as given.
+
+A cell where the term is worse than no term held out, or resolvably worse than a peer (the
+interval of term / peer with the fits' scatter above 1), is flagged and the term is not taken
+there (:func:`imucal.terms.thermalship.judge_cell`); what ships is decided per axis from the
+cells (:func:`imucal.terms.thermalship.shipped_fit`).
 """
 
 from __future__ import annotations
@@ -55,7 +61,24 @@ from imucal.columns import (
     temperature_column,
 )
 from imucal.segments.table import row_bounds, rows_of
-from imucal.terms.blockspread import block_index, block_sums, cluster_mean, influence, spread
+from imucal.terms.blockspread import (
+    block_index,
+    block_sums,
+    cluster_mean,
+    influence,
+    spread,
+    verdict_of,
+)
+from imucal.terms.thermalpeers import (
+    PeerFit,
+    median_filtered,
+    peer_label,
+    peer_names,
+    per_period_line,
+    px4_cubic,
+    smoothed,
+)
+from imucal.terms.thermalship import judge_cell
 
 #: The fewest poses a hold-out needs: one held out, at least two to fit on.
 MIN_POSES = 3
@@ -155,7 +178,7 @@ def _powers(d_t: np.ndarray, order: int) -> np.ndarray:
     )
 
 
-def _term_design(temps: Sequence[np.ndarray], order: int, reference_c: float) -> np.ndarray:
+def term_design(temps: Sequence[np.ndarray], order: int, reference_c: float) -> np.ndarray:
     """Design of :func:`fit_term`: one constant column per pose, then ``dT .. dT^order``."""
     sizes = [len(t) for t in temps]
     constants = np.zeros((sum(sizes), len(temps)))
@@ -189,7 +212,7 @@ def fit_term(
     if order == 0:
         return np.zeros(0)
     coef, *_ = np.linalg.lstsq(
-        _term_design(temps, order, reference_c), np.concatenate(values), rcond=None
+        term_design(temps, order, reference_c), np.concatenate(values), rcond=None
     )
     return coef[len(temps) :]
 
@@ -335,12 +358,12 @@ def hold_out_poses(
     margin_c: float,
     se_block_s: float,
 ) -> dict:
-    """Held-out residual RMS per pose x sensor x axis: no term, the project's term, regression.
+    """Held-out residual RMS per pose x sensor x axis: no term, the project's term, the peers.
 
     Parameters
     ----------
     poses : sequence of PoseSeries
-        At least :data:`MIN_POSES` poses with samples, the same sensors each.
+        At least :data:`MIN_POSES` poses with samples, the same sensors each, in time order.
     block_s : float
         Block length (s) of the term's fit (block means) and of the block comparison.
     max_order : int
@@ -354,27 +377,27 @@ def hold_out_poses(
     Returns
     -------
     dict
-        ``cells``: one per held-out pose, sensor and axis, with ``held_out``, ``sensor``,
-        ``axis``, ``unit``, ``samples`` (compared), ``fraction`` (of the pose's samples within
-        the span), ``rms_none``, ``rms_term``, ``rms_regression`` (samples, constant removed)
-        and their standard errors (``rms_none_se`` ...), the ratios ``term_ratio``,
-        ``regression_ratio`` (to none) and ``term_vs_regression`` each with its 95 % interval
-        (``..._ci95``, with the fits' scatter) and the interval given the fits
-        (``..._ci95_given_fits``), ``verdict`` and ``verdict_given_fits`` (the term
-        ``better``, ``worse`` or ``within noise`` against the regression: either interval
-        below, above or around 1), ``clusters``
-        and ``fit_clusters`` (the held-out blocks of ``se_block_s`` and those of the fit poses
-        behind them, :func:`~imucal.terms.blockspread.spread`), the same RMS of the block means
-        (``blocks_none`` ...), ``order`` (chosen on the fit poses alone, :func:`nested_order`),
-        ``inner_rms`` (order -> RMS of the fit poses predicted from each other), ``coef``
-        (``c_1 .. c_order``, unit per K^k), ``reference_c``, ``regression_slope`` (unit per K).
+        ``methods``: the compared methods (``none``, ``term``, then the peers of
+        :func:`imucal.terms.thermalpeers.peer_names`: ``imucal_1`` .. one per fit pose in
+        time order, and ``cubic``) with their labels. ``cells``: one per held-out pose, sensor and axis, with
+        ``held_out``, ``sensor``, ``axis``, ``unit``, ``samples`` (compared), ``fraction`` (of
+        the pose's samples within the span), ``rms_<method>`` (samples, constant removed) and
+        its standard error ``rms_<method>_se``, the ratio of each method to none
+        ``<method>_ratio`` and of the term to each peer ``term_vs_<peer>``, each with its 95 %
+        interval with the fits' scatter (``..._ci95``) and given the fits
+        (``..._ci95_given_fits``), ``verdicts`` (per peer, the term ``better``, ``worse`` or
+        ``within noise`` with the fits' scatter) and ``verdicts_given_fits``, ``flags``,
+        ``flagged`` and ``taken`` (:func:`~imucal.terms.thermalship.judge_cell`), ``clusters``
+        and ``fit_clusters`` (:func:`~imucal.terms.blockspread.spread`), the RMS of the block
+        means (``blocks_<method>``), ``order`` (chosen on the fit poses alone,
+        :func:`nested_order`), ``inner_rms``, ``coef`` (``c_1 .. c_order``, unit per K^k),
+        ``reference_c`` and ``peer_coef`` (per peer, its coefficients and reference).
         ``orders``: per sensor and axis the order of each held-out pose and ``outer_rms``, the
-        RMS over all held-out samples of every order (for comparison only: choosing on it
-        would choose on the reported residuals). ``warnings``: poses with fewer than three
-        blocks of ``se_block_s`` (:func:`_short_poses`). ``summary``: per sensor and axis, the RMS
-        over all held-out samples of each method, its standard error and the ratios with their
-        intervals (the blocks of all poses as clusters). ``poses``: label, samples,
-        temperature span.
+        RMS over all held-out samples of every order. ``summary``: per sensor and axis, the
+        same figures over all held-out samples (the blocks of all poses as clusters), with its
+        flags. ``shipped``: per sensor and axis the term the hold-out takes, fitted on every
+        pose (:func:`_shipped`). ``warnings``: poses with fewer than three blocks of
+        ``se_block_s`` (:func:`_short_poses`) and the flagged cells. ``poses``: label, samples, temperature span.
 
     Raises
     ------
@@ -405,31 +428,20 @@ def hold_out_poses(
     blocks = [_blocks(p, block_s) for p in poses]
     # every se_block_s block of every pose, numbered across the session (the fits' clusters)
     first = np.cumsum([0] + [_block_count(p, se_block_s) for p in poses])
+    labels = [first[k] + block_index(p.t_s, se_block_s, p.t_s[0]) for k, p in enumerate(poses)]
+    filtered = {
+        "smoothed": [{s: smoothed(p.values[s]) for s in sensors} for p in poses],
+        "median": [{s: median_filtered(p.values[s]) for s in sensors} for p in poses],
+    }
     folds = []
-    for h, held in enumerate(poses):
+    for h in range(len(poses)):
         fit = [p for p in range(len(poses)) if p != h]
         lo, hi = _span([poses[p].temp_c for p in fit], margin_c)
-        pooled_t = np.concatenate([poses[p].temp_c for p in fit])
-        regressors = np.column_stack([np.ones_like(pooled_t), pooled_t])
-        labels = np.concatenate([
-            first[p] + block_index(poses[p].t_s, se_block_s, poses[p].t_s[0]) for p in fit
-        ])  # fmt: skip
-        # the regression's scatter is that of the noise through its (fixed) design: the steps
-        # between the poses' levels are the same in every repetition, so its noise is taken
-        # from a fit with one constant per pose, not from its own one-intercept residuals
-        per_pose = _term_design([poses[p].temp_c for p in fit], 1, 0.0)
-        slopes, slope_influence = {}, {}
-        for s in sensors:
-            y = np.vstack([poses[p].values[s] for p in fit])
-            slopes[s] = np.linalg.lstsq(regressors, y, rcond=None)[0][1]
-            noise = y - per_pose @ np.linalg.lstsq(per_pose, y, rcond=None)[0]
-            slope_influence[s] = influence(regressors, noise, labels, first[-1])[:, 1]
         folds.append({
-            "fit": fit, "inside": _inside(poses, fit, h, margin_c), "slopes": slopes,
-            "slope_influence": slope_influence, "first": first, "held": h,
+            "fit": fit, "inside": _inside(poses, fit, h, margin_c), "first": first, "held": h,
             "block_in": (blocks[h][0] >= lo) & (blocks[h][0] <= hi), "se_block_s": se_block_s,
         })  # fmt: skip
-    cells, orders, summary = [], [], []
+    cells, orders, summary, shipped = [], [], [], []
     for s in sensors:
         for j, axis in enumerate(AXES):
             outer = {k: [] for k in range(max_order + 1)}
@@ -445,16 +457,27 @@ def hold_out_poses(
                     outer[k].append(block_sums(_centred(r) ** 2, held.t_s[inside], se_block_s))
                 fitted = _residual(poses, blocks, fold["fit"], held, inside, s, j, order, margin_c)
                 term_influence = _term_influence(blocks, fold, s, j, order, fitted[2])
-                cell, parts = _cell(held, blocks[h], fold, s, j, order, fitted, term_influence)
+                peers = _peer_fits(poses, filtered, labels, fold, s, j)
+                cell, parts = _cell(held, blocks[h], fold, s, j, order, fitted, term_influence,
+                                    peers)  # fmt: skip
                 cells.append({**cell, "inner_rms": inner})
                 group.append((cell, parts))
+            chosen, outer_rms = choose_order(outer)
             orders.append({
                 "sensor": s, "axis": axis,
                 "by_pose": {c["held_out"]: c["order"] for c, _ in group},
-                "outer_rms": choose_order(outer)[1],
+                "outer_rms": outer_rms, "outer_order": chosen,
             })  # fmt: skip
             summary.append(_summary(group))
+            shipped.append(
+                _shipped(poses, blocks, first, se_block_s, s, j, group, chosen, margin_c)
+            )
     return {
+        "methods": {
+            "none": "no temperature term",
+            "term": "this project's temperature term",
+            **{m: peer_label(m) for m in peer_names(len(poses) - 1)},
+        },
         "poses": [
             {
                 "label": p.label,
@@ -466,8 +489,19 @@ def hold_out_poses(
         "orders": orders,
         "cells": cells,
         "summary": summary,
-        "warnings": _short_poses(poses, se_block_s),
+        "shipped": shipped,
+        "warnings": _short_poses(poses, se_block_s) + _flag_warnings(cells + summary),
     }
+
+
+def _flag_warnings(cells: Sequence[Mapping]) -> list[str]:
+    """One warning per flagged cell: where the term is not taken, and why."""
+    return [
+        f"{c.get('held_out', 'all poses')} {c['sensor']} {c['axis']}: {'; '.join(c['flags'])}; "
+        "the term is not taken there"
+        for c in cells
+        if c["flags"]
+    ]
 
 
 def _short_poses(poses: Sequence[PoseSeries], se_block_s: float) -> list[str]:
@@ -505,13 +539,32 @@ def _term_influence(
     the session), shape (C, order)."""
     fit = fold["fit"]
     temps = [blocks[p][0] for p in fit]
-    design = _term_design(temps, order, reference_c)
+    design = term_design(temps, order, reference_c)
     y = np.concatenate([blocks[p][1][sensor][:, j] for p in fit])
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     labels = np.concatenate(
         [fold["first"][p] + block_index(blocks[p][2], fold["se_block_s"], 0.0) for p in fit]
     )
     return influence(design, y - design @ coef, labels, fold["first"][-1])[:, len(fit) :]
+
+
+def _peer_fits(poses, filtered, labels, fold, sensor: str, j: int) -> dict:
+    """The peers' models of one axis fitted on the fold's fit poses: ``imucal_k`` on fit pose
+    k alone (smoothed), ``cubic`` on all of them (median-filtered)."""
+    fit, n_clusters = fold["fit"], int(fold["first"][-1])
+    out = {
+        f"imucal_{k}": per_period_line(
+            poses[p].temp_c, filtered["smoothed"][p][sensor][:, j], labels[p], n_clusters
+        )
+        for k, p in enumerate(fit, 1)
+    }
+    out["cubic"] = px4_cubic(
+        [poses[p].temp_c for p in fit],
+        [filtered["median"][p][sensor][:, j] for p in fit],
+        [labels[p] for p in fit],
+        n_clusters,
+    )
+    return out
 
 
 def _cell(
@@ -523,48 +576,71 @@ def _cell(
     order: int,
     fitted: tuple,
     term_influence: np.ndarray,
+    peers: Mapping[str, PeerFit],
 ) -> tuple[dict, tuple]:
-    """One held-out pose, sensor and axis: the three methods' residual RMS with their spread,
-    and what :func:`~imucal.terms.blockspread.spread` takes (per method the block sums of the
-    squared residuals and the samples per block, the blocks' indices, the fits' influence on
-    the sums of squares)."""
+    """One held-out pose, sensor and axis: every method's residual RMS with their spread,
+    the flags, and what :func:`~imucal.terms.blockspread.spread` takes (per method the block
+    sums of the squared residuals and the samples per block, the blocks' indices, the fits'
+    influence on the sums of squares)."""
     residual, coef, reference_c = fitted
-    inside, slope = fold["inside"], fold["slopes"][sensor][j]
+    inside = fold["inside"]
     y, temp, t_s = held.values[sensor][inside, j], held.temp_c[inside], held.t_s[inside]
     block_t, block_v, _ = block
     yb, tb = block_v[sensor][fold["block_in"], j], block_t[fold["block_in"]]
-    r = {"none": _centred(y), "term": _centred(residual), "regression": _centred(y - slope * temp)}
+    r = {"none": _centred(y), "term": _centred(residual)}
+    powers = {"term": _powers(temp - reference_c, order)}
+    coefficients = {"term": term_influence}
+    blocks_rms = {"none": _rms(_centred(yb)),
+                  "term": _rms(_centred(yb - _predict(coef, tb, reference_c)))}  # fmt: skip
+    for name, peer in peers.items():
+        r[name] = _centred(y - peer.predict(temp))
+        powers[name], coefficients[name] = peer.powers(temp), peer.influence
+        blocks_rms[name] = _rms(_centred(yb - peer.predict(tb)))
     se_block_s, origin = fold["se_block_s"], held.t_s[0]
     squares = {m: block_sums(v**2, t_s, se_block_s, origin) for m, v in r.items()}
     ids = fold["first"][fold["held"]] + np.unique(block_index(t_s, se_block_s, origin))
     # d(sum of squares) / d(coefficient) on the held-out samples, times each block's influence
-    powers = _powers(temp - reference_c, order)
-    grad_term = -2.0 * r["term"] @ (powers - powers.mean(axis=0))
-    grad_slope = -2.0 * r["regression"] @ (temp - temp.mean())
-    fit_influence = {
-        "none": np.zeros(len(term_influence)),
-        "term": term_influence @ grad_term,
-        "regression": fold["slope_influence"][sensor][:, j] * grad_slope,
-    }
-    return {
+    fit_influence = {"none": np.zeros(len(term_influence))}
+    for m, x in powers.items():
+        fit_influence[m] = coefficients[m] @ (-2.0 * r[m] @ (x - x.mean(axis=0)))
+    stats = spread(squares, ids, fit_influence, _comparisons(peers))
+    cell = {
         "held_out": held.label, "sensor": sensor, "axis": AXES[j], "unit": SI_UNITS[sensor],
         "samples": int(inside.sum()), "fraction": float(inside.mean()),
-        **{f"rms_{m}": _rms(v) for m, v in r.items()}, **spread(squares, ids, fit_influence),
-        "blocks": int(fold["block_in"].sum()),
-        "blocks_none": _rms(_centred(yb)),
-        "blocks_term": _rms(_centred(yb - _predict(coef, tb, reference_c))),
-        "blocks_regression": _rms(_centred(yb - slope * tb)),
+        **{f"rms_{m}": _rms(v) for m, v in r.items()}, **stats,
+        **_verdicts(stats, peers), "blocks": int(fold["block_in"].sum()),
+        **{f"blocks_{m}": v for m, v in blocks_rms.items()},
         "order": order, "coef": coef.tolist(), "reference_c": reference_c,
-        "regression_slope": float(slope),
-    }, (squares, ids, fit_influence)  # fmt: skip
+        "peer_coef": {m: {"coef": p.coef.tolist(), "reference_c": p.reference_c}
+                      for m, p in peers.items()},
+    }  # fmt: skip
+    return {**cell, **judge_cell(cell, list(peers), order > 0)}, (squares, ids, fit_influence)
+
+
+def _comparisons(peers: Sequence[str]) -> list[tuple[str, str, str]]:
+    """The ratios of a cell: each method to none, the term to each peer."""
+    methods = ["term", *peers]
+    return [(f"{m}_ratio", m, "none") for m in methods] + [
+        (f"term_vs_{p}", "term", p) for p in peers
+    ]
+
+
+def _verdicts(stats: Mapping, peers: Sequence[str]) -> dict:
+    return {
+        "verdicts": {p: verdict_of(stats[f"term_vs_{p}_ci95"]) for p in peers},
+        "verdicts_given_fits": {
+            p: verdict_of(stats[f"term_vs_{p}_ci95_given_fits"]) for p in peers
+        },
+    }
 
 
 def _summary(group: Sequence[tuple[Mapping, tuple]]) -> dict:
     """One sensor and axis over every held-out sample of its poses: each method's RMS, its
     standard error and the ratios' intervals (the blocks of every pose as clusters, a pose's
-    blocks both held out and, for the other poses' predictions, fitted on)."""
+    blocks both held out and, for the other poses' predictions, fitted on), with its flags."""
     cells = [c for c, _ in group]
-    methods = ("none", "term", "regression")
+    methods = list(group[0][1][0])
+    peers = [m for m in methods if m not in ("none", "term")]
     squares = {
         m: tuple(np.concatenate([sq[m][i] for _, (sq, _, _) in group]) for i in (0, 1))
         for m in methods
@@ -572,11 +648,55 @@ def _summary(group: Sequence[tuple[Mapping, tuple]]) -> dict:
     ids = np.concatenate([i for _, (_, i, _) in group])
     fit_influence = {m: sum(f[m] for _, (_, _, f) in group) for m in methods}
     n = squares["none"][1].sum()
-    return {
+    stats = spread(squares, ids, fit_influence, _comparisons(peers))
+    out = {
         "sensor": cells[0]["sensor"], "axis": cells[0]["axis"], "unit": cells[0]["unit"],
         **{f"rms_{m}": float(np.sqrt(v[0].sum() / n)) if n else float("nan")
            for m, v in squares.items()},
-        **spread(squares, ids, fit_influence), "orders": [c["order"] for c in cells],
+        **stats, **_verdicts(stats, peers), "orders": [c["order"] for c in cells],
+    }  # fmt: skip
+    judged = judge_cell(out, peers, any(c["order"] for c in cells))
+    return {**out, **judged, "taken": all(c["taken"] for c in cells) and judged["taken"]}
+
+
+def _shipped(poses, blocks, first, se_block_s: float, sensor: str, j: int, group, order: int,
+             margin_c: float) -> dict:  # fmt: skip
+    """The term of one axis that ships, fitted on the block means of every pose.
+
+    It ships where the hold-out takes it in every held-out pose (:func:`judge_cell`: order
+    >= 1, not worse than no term, not resolvably worse than a peer) and over all of them, at
+    the order :func:`choose_order` picks with every pose predicted from the others. The
+    coefficients' covariance is cluster-robust (every block of ``se_block_s`` one cluster,
+    with the factor C / (C - 1)); ``mean_drift`` is the drift's mean over the poses' samples
+    (how far the poses' mean level, as a bias fitted on them holds it, lies from the level at
+    ``reference_c``).
+    """
+    cells = [c for c, _ in group]
+    out = {"sensor": sensor, "axis": AXES[j]}
+    refused = [f"{c['held_out']}: " + ("; ".join(c["flags"]) or "no order carries over")
+               for c in cells if not c["taken"]]  # fmt: skip
+    if refused or order == 0:
+        reason = "; ".join(refused) or "no order carries over to every pose"
+        return {**out, "taken": False, "reason": reason}
+    temps = [b[0] for b in blocks]
+    lo, hi = _span([p.temp_c for p in poses], 0.0)
+    reference_c = round(0.5 * (lo + hi), 2)
+    design = term_design(temps, order, reference_c)
+    y = np.concatenate([b[1][sensor][:, j] for b in blocks])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    block_labels = np.concatenate(
+        [first[k] + block_index(b[2], se_block_s, 0.0) for k, b in enumerate(blocks)]
+    )
+    n_clusters = int(first[-1])
+    spread_of = influence(design, y - design @ coef, block_labels, n_clusters)[:, len(poses) :]
+    covariance = n_clusters / (n_clusters - 1) * spread_of.T @ spread_of
+    all_temp = np.concatenate([p.temp_c for p in poses])
+    return {
+        **out, "taken": True, "reason": "taken in every held-out pose", "order": order,
+        "coef": coef[len(poses) :].tolist(), "coef_std": np.sqrt(np.diag(covariance)).tolist(),
+        "covariance": covariance.tolist(), "reference_c": reference_c, "span_c": [lo, hi],
+        "margin_c": margin_c, "unit": SI_UNITS[sensor],
+        "mean_drift": float(np.mean(_predict(coef[len(poses) :], all_temp, reference_c))),
     }  # fmt: skip
 
 
