@@ -169,6 +169,17 @@ class SensorCalibration:
         )
 
 
+#: The method of a sensor a partial session's calibration does not calibrate (its ``missing``):
+#: read as the identity, so that applying the calibration passes its readings through, said.
+NOT_CALIBRATED = "not calibrated"
+
+
+def _not_calibrated(sensor: str, reason: str) -> SensorCalibration:
+    return SensorCalibration(
+        sensor, np.zeros(3), np.eye(3), SI_UNITS[sensor], method=f"{NOT_CALIBRATED}: {reason}"
+    )
+
+
 @dataclass(frozen=True)
 class ImuCalibration:
     """Calibration of accelerometer, gyroscope and magnetometer, all in frame B.
@@ -318,10 +329,24 @@ class ImuCalibration:
         """The same bias and matrices with ``terms``."""
         return ImuCalibration(self.acc, self.gyr, self.mag, terms)
 
+    @property
+    def not_calibrated(self) -> dict:
+        """Sensor -> why it is not calibrated (the ``missing`` of a partial session)."""
+        prefix = f"{NOT_CALIBRATED}: "
+        return {
+            s: self.sensor(s).method[len(prefix) :]
+            for s in SENSORS
+            if self.sensor(s).method.startswith(prefix)
+        }
+
     def to_dict(self) -> dict:
         out: dict = {"format_version": FORMAT_VERSION, "frame": FRAME, "convention": CONVENTION}
+        missing = self.not_calibrated
         for s in SENSORS:
-            out[s] = self.sensor(s).to_dict()
+            if s not in missing:
+                out[s] = self.sensor(s).to_dict()
+        if missing:
+            out["missing"] = missing
         if not self.terms.empty:
             out["terms"] = self.terms.to_dict()
         return out
@@ -336,8 +361,19 @@ class ImuCalibration:
                 f"calibration format_version {version} is newer than this package "
                 f"supports ({FORMAT_VERSION}); upgrade the package"
             )
-        missing = [s for s in SENSORS if s not in d]
+        # a partial session's calibration names the sensors it could not calibrate, and why
+        stated = dict(d.get("missing") or {})
+        missing = [s for s in SENSORS if s not in d and s not in stated]
         if missing:
-            raise ValueError(f"calibration lacks the sensors {missing}")
+            raise ValueError(
+                f"calibration lacks the sensors {missing} (neither calibrated nor listed in "
+                "'missing')"
+            )
         terms = ModelTerms.from_dict(d["terms"]) if version >= 2 and "terms" in d else ModelTerms()
-        return cls(*(SensorCalibration.from_dict(s, d[s]) for s in SENSORS), terms)
+        return cls(
+            *(
+                SensorCalibration.from_dict(s, d[s]) if s in d else _not_calibrated(s, stated[s])
+                for s in SENSORS
+            ),
+            terms,
+        )

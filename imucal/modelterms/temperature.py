@@ -4,7 +4,9 @@
 ``dT = T - reference_c`` and the polynomials ``b(dT) = sum_k bias[k-1] dT^k``,
 ``s(dT) = sum_k scale[k-1] dT^k`` (k = 1 .. order; the constant term is the paper's bias and
 matrix, which hold at ``reference_c``). Per sensor (accelerometer, gyroscope) and axis; a
-sample farther outside the calibrated span than the margin is refused. The estimator is
+sample outside the calibrated span is warned, and one farther out than the margin is corrected
+at the temperature of the margin's edge (the polynomial is not extrapolated beyond it; PX4's
+thermal compensation clamps the same way). The estimator is
 :func:`imucal.gap.temperature.fit_temperature`.
 """
 
@@ -43,8 +45,8 @@ class TemperaturePolynomial:
     span_c : tuple of float
         Lowest and highest temperature (deg C) of the samples the polynomials were fitted on.
     margin_c : float
-        How far outside ``span_c`` (K) a sample may be and still be calibrated (flagged);
-        beyond it the calibration is refused.
+        How far outside ``span_c`` (K) the polynomial is extrapolated (flagged); beyond it the
+        drift is that at the margin's edge (flagged).
     bias : ndarray, shape (p, 3)
         Row ``k-1``: coefficient of ``dT^k`` of the bias drift of each axis, in the sensor's
         unit per K^k (m/s^2/K^k, rad/s/K^k). ``p`` is the bias order (0: none).
@@ -106,7 +108,7 @@ class TemperaturePolynomial:
         return SI_UNITS[self.sensor]
 
     def check_span(self, temp_c: np.ndarray, source: str) -> dict:
-        """Refuse temperatures beyond the span by more than the margin; say how many are outside.
+        """How many temperatures are outside the span, and how many beyond the margin.
 
         Parameters
         ----------
@@ -118,27 +120,17 @@ class TemperaturePolynomial:
         Returns
         -------
         dict
-            ``outside_fraction`` (samples outside ``span_c`` but within the margin) and
-            ``max_outside_k`` (how far the farthest one is, K).
-
-        Raises
-        ------
-        ValueError
-            If a sample is farther than ``margin_c`` outside ``span_c``.
+            ``outside_fraction`` (samples outside ``span_c``), ``max_outside_k`` (how far the
+            farthest one is, K) and ``clamped_fraction`` (samples farther out than
+            ``margin_c``, corrected at the margin's edge).
         """
         lo, hi = self.span_c
         beyond = np.maximum(lo - temp_c, temp_c - hi)
         worst = float(np.max(beyond)) if len(beyond) else 0.0
-        if worst > self.margin_c:
-            raise ValueError(
-                f"{source}: temperature {float(np.min(temp_c)):.2f}..{float(np.max(temp_c)):.2f} "
-                f"deg C is outside the {self.sensor} calibration's span {lo:.2f}..{hi:.2f} deg C "
-                f"by {worst:.2f} K, more than the margin {self.margin_c:g} K; the temperature "
-                "polynomial is not extrapolated that far"
-            )
         return {
             "outside_fraction": float(np.mean(beyond > 0)) if len(beyond) else 0.0,
             "max_outside_k": max(worst, 0.0),
+            "clamped_fraction": float(np.mean(beyond > self.margin_c)) if len(beyond) else 0.0,
         }
 
     def drift(self, temp_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -151,10 +143,15 @@ class TemperaturePolynomial:
         scale : ndarray, shape (n, 3)
             ``s(dT)``, dimensionless.
         """
-        d_t = np.asarray(temp_c, dtype=float)[:, None] - self.reference_c
+        d_t = self._clamped(temp_c)[:, None] - self.reference_c
         bias = sum((c * d_t**k for k, c in enumerate(self.bias, 1)), np.zeros((len(d_t), 3)))
         scale = sum((c * d_t**k for k, c in enumerate(self.scale, 1)), np.zeros((len(d_t), 3)))
         return bias, scale
+
+    def _clamped(self, temp_c: np.ndarray) -> np.ndarray:
+        """The temperatures, those beyond the margin moved to its edge (deg C)."""
+        lo, hi = self.span_c
+        return np.clip(np.asarray(temp_c, dtype=float), lo - self.margin_c, hi + self.margin_c)
 
     def correct(self, bracket: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
         """``(reading - bias - b(dT)) / (1 + s(dT))`` per axis (n, 3) from the bracket
@@ -178,7 +175,7 @@ class TemperaturePolynomial:
             :meth:`correct` of the readings.
         temp_c : ndarray, shape (n,)
         """
-        d_t = np.asarray(temp_c, dtype=float)[:, None] - self.reference_c
+        d_t = self._clamped(temp_c)[:, None] - self.reference_c
         _, scale = self.drift(temp_c)
         per_axis = np.zeros((len(d_t), 3))  # variance of the bracket's axis j
         if self.bias_covariance is not None and len(self.bias):
@@ -302,13 +299,12 @@ class TemperatureTerm(ModelTerm, Mapping):
         return rms[acc["without"]], rms[acc["with"]], int(acc["segments"])
 
     def check(self, samples: Samples) -> dict:
-        """Per sensor, the samples outside its calibrated span (within the margin).
+        """Per sensor, the samples outside its calibrated span and beyond its margin.
 
         Raises
         ------
         ValueError
-            Without a finite temperature per sample, or with a sample farther outside a
-            sensor's span than its margin.
+            Without a finite temperature per sample.
         """
         flags = {}
         for sensor, poly in self.polynomials.items():
@@ -333,8 +329,13 @@ class TemperatureTerm(ModelTerm, Mapping):
         with samples outside its span: extrapolation is never silent."""
         warnings = [
             f"{source}: {100 * f['outside_fraction']:.1f} % of the samples are outside the "
-            f"{sensor} calibration's temperature span (up to {f['max_outside_k']:.2f} K, within "
-            "the margin): extrapolated"
+            f"{sensor} calibration's temperature span (up to {f['max_outside_k']:.2f} K): "
+            "extrapolated within the margin"
+            + (
+                f", {100 * f['clamped_fraction']:.1f} % beyond it corrected at the margin's edge"
+                if f.get("clamped_fraction", 0) > 0
+                else ""
+            )
             for sensor, f in flags.items()
             if f["outside_fraction"] > 0
         ]

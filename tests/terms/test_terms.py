@@ -244,7 +244,7 @@ def test_file_round_trip_and_format_1_still_read(drift):
     assert ImuCalibration.from_dict(old).terms.empty
 
 
-def test_apply_uses_the_temperature_term_and_refuses_what_it_cannot(drift):
+def test_apply_uses_the_temperature_term_and_warns_outside_its_range(drift, caplog):
     cal = _with_temperature(drift[2].calibration)
     table, meta = _recording(temp=np.full(50, 27.0))
     out, m = apply_calibration(table, meta, cal, source="rec.parquet")
@@ -258,14 +258,22 @@ def test_apply_uses_the_temperature_term_and_refuses_what_it_cannot(drift):
     table, meta = _recording()
     with pytest.raises(ValueError, match=r"rec\.parquet: .*no temperature column"):
         apply_calibration(table, meta, cal, source="rec.parquet")
+    # beyond the margin (span up to 28 deg C, margin 1 K): corrected at 29 deg C, warned
     table, meta = _recording(temp=np.full(50, 30.5))
-    with pytest.raises(
-        ValueError, match=r"rec\.parquet: .*outside .* by 2\.50 K, more than the margin 1 K"
-    ):
-        apply_calibration(table, meta, cal, source="rec.parquet")
+    with caplog.at_level("WARNING"):
+        out, m = apply_calibration(table, meta, cal, source="rec.parquet")
+    edge, _ = apply_calibration(*_recording(temp=np.full(50, 29.0)), cal, source="rec.parquet")
+    np.testing.assert_allclose(out[list(GYR)].to_numpy(), edge[list(GYR)].to_numpy(), rtol=1e-12)
+    assert m["temperature_outside_span"]["gyr"] == {
+        "outside_fraction": 1.0, "max_outside_k": 2.5, "clamped_fraction": 1.0,
+    }  # fmt: skip
+    assert "rec.parquet: 100.0 % of the samples are outside the gyr calibration" in caplog.text
+    assert "100.0 % beyond it corrected at the margin's edge" in caplog.text
     table, meta = _recording(temp=np.full(50, 28.5))
     _, m = apply_calibration(table, meta, cal, source="rec.parquet")
-    assert m["temperature_outside_span"]["gyr"] == {"outside_fraction": 1.0, "max_outside_k": 0.5}
+    assert m["temperature_outside_span"]["gyr"] == {
+        "outside_fraction": 1.0, "max_outside_k": 0.5, "clamped_fraction": 0.0,
+    }  # fmt: skip
 
 
 def test_corrected_session_with_no_terms_is_the_session(twin, drift):

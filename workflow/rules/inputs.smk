@@ -140,6 +140,13 @@ def holdout_input(wildcards):
     return f"results/{wildcards.dataset}/ingest/{holdout_recording(wildcards.dataset)}.parquet"
 
 
+def partial_holdout(wildcards):
+    """The temperature hold-out whose terms a partial session's calibration carries, if any."""
+    if holdout_recording(wildcards.dataset) is None:
+        return {}
+    return {"temperature_holdout": f"results/{wildcards.dataset}/temperature_holdout.json"}
+
+
 def orientation_files(wildcards):
     """Every file the orientation reference of one recording reads (dataset.yaml)."""
     from imucal.io.readers import declared_files

@@ -6,6 +6,7 @@
 rule partial:
     input:
         unpack(ingested_imu_all),
+        unpack(partial_holdout),
         segments="results/{dataset}/segments.parquet",
         dataset_yaml=dataset_yaml,
         orientation=orientation_references,

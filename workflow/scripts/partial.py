@@ -6,10 +6,11 @@ from typing import TYPE_CHECKING
 
 from imucal.calibration import FORMAT_VERSION
 from imucal.ingest import sensor_limits
-from imucal.io import read_recording, read_segments, write_json
+from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial
 from imucal.pipeline.options import FitMethods
+from imucal.terms.thermalship import with_shipped_terms
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -54,6 +55,8 @@ calibration = {
     "missing": final["missing"],
     "frame": "B of the session's own protocol (see each sensor's method)",
 }
+if "temperature_holdout" in snakemake.input.keys():
+    calibration = with_shipped_terms(calibration, read_json(snakemake.input.temperature_holdout))
 write_json(calibration, snakemake.output.calibration)
 write_json(
     {"dataset": dataset.name, "stages": [o.summary() for o in outcomes]}, snakemake.output.stages

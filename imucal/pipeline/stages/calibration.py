@@ -276,19 +276,21 @@ def apply_calibration(
     table : DataFrame
         Same rows and columns, sensor values calibrated (NaN magnetometer rows stay NaN).
     metadata : dict
-        With ``calibrated`` = True, and ``model_terms`` (the terms used) and what each term
-        reports of its flags (:meth:`imucal.modelterms.contract.ModelTerm.flag_report`; a temperature
+        With ``calibrated`` = True, ``not_calibrated`` (sensor -> reason, for a partial
+        session's calibration: those readings pass through unchanged, with a warning), and
+        ``model_terms`` (the terms used) and what each term reports of its flags
+        (:meth:`imucal.modelterms.contract.ModelTerm.flag_report`; a temperature
         term: ``temperature_outside_span``, per sensor the fraction of samples outside the
-        calibrated span but within its margin, and the farthest distance in K) when the model
-        has terms.
+        calibrated span, the farthest distance in K and the fraction beyond its margin,
+        corrected at the margin's edge) when the model has terms.
 
     Raises
     ------
     ValueError
         If the recording is already calibrated, a sensor is in another unit than the
         calibration expects, the model has a temperature term and the recording has no
-        temperature column or is farther outside the calibrated span than its margin, or the
-        model has a lever arm and the recording has no gyroscope reading.
+        temperature column, or the model has a lever arm and the recording has no gyroscope
+        reading.
     """
     source = source or str(metadata.get("source", "?"))
     if metadata.get("calibrated"):
@@ -319,6 +321,13 @@ def apply_calibration(
             for k, column in enumerate(columns):
                 out[column + PARAMETER_STD_SUFFIX] = std[:, k]
     meta = {**metadata, "calibrated": True}
+    if calibration.not_calibrated:
+        meta["not_calibrated"] = calibration.not_calibrated
+        for sensor, reason in calibration.not_calibrated.items():
+            logger.warning(
+                "%s: the calibration does not calibrate %s (%s): its readings pass through",
+                source, sensor, reason,
+            )  # fmt: skip
     if not calibration.terms.empty:
         meta["model_terms"] = calibration.terms.names()
     for term in calibration.terms.values():
