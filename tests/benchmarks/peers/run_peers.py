@@ -1,45 +1,62 @@
-"""Peers benchmark: our partial-protocol methods vs the PyPI ``imucal`` (Ferraris) on real data.
+"""Peers benchmark: our methods beside the peers as they ship, on the public recordings.
 
 Run from the repository root::
 
     python tests/benchmarks/peers/run_peers.py
 
-It creates a virtual environment ``.cache/peers-venv`` with the PyPI ``imucal`` (mad-lab-fau; its
-import name clashes with ours, hence the separate environment), runs ``pypi_adapter.py`` there on
-the two Ferraris sessions of ``../shared/data/real/mad-lab-fau__imucal``, runs our methods on the
-same sections here, and scores both on data neither was fitted to. It also runs our cube fit and
-pose-to-pose gyroscope method on the imu_tk recording (Xsens MTi). Results go to
-``tests/benchmarks/peers/results.json``; the Markdown tables are printed (see docs/comparison.md).
+Each peer runs from PyPI in a venv of its own (:mod:`venvs`, under ``.cache/``):
+
+* mad-lab-fau's ``imucal`` (Ferraris; its import name clashes with ours): ``pypi_adapter.py``
+  on the two Ferraris sessions of ``../shared/data/real/mad-lab-fau__imucal``, our methods on
+  the same sections here, both scored on data neither was fitted to; our cube fit and
+  pose-to-pose gyroscope on the imu_tk recording (Xsens MTi);
+* ``magcal`` (magnetometer ellipsoid): ``magcal_adapter.py`` beside our ellipsoid fit on
+  every public recording with a magnetometer, held out (:mod:`mag_peers`);
+* scikit-diveMove's ``IMUcalibrate`` (its wheel without R): ``skdivemove_adapter.py`` on the
+  CATS recording, against the port of ``build_tmodels`` (:mod:`imucalibrate_check`); the
+  thermal comparison itself is the workflow's hold-out, whose tables ``thermal_tables.py``
+  writes.
+
+Results go to ``tests/benchmarks/peers/results.json``; the Markdown tables are printed and
+written into the generated blocks of docs/comparison.md (and the CATS blocks of
+docs/real-recordings.md and README.md when the hold-out's JSON is there).
 
 It exits with status 0 and a "SKIPPED" message when ``../shared`` is absent or pip cannot
-install the peer (no network).
+install a peer (no network).
 """
 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import time
-import venv
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from imucal.accelerometer import fit_cube
-from imucal.ferraris import FACE_DIRECTIONS, fit_known_orientations, fit_known_rotations
-from imucal.posetopose import fit_pose_to_pose, gravity_direction_errors
 
 from imucal import errormodel
+from imucal.fits.accelerometer import fit_cube
+from imucal.fits.ferraris import FACE_DIRECTIONS, fit_known_orientations, fit_known_rotations
+from imucal.fits.posetopose import fit_pose_to_pose, gravity_direction_errors
+from imucal.ingest import ingest_recording
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmark's own modules
+import imucalibrate_check  # noqa: E402
+import mag_peers  # noqa: E402
+import thermal_tables  # noqa: E402
+import venvs  # noqa: E402
+from venvs import peer_env  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[3]
 HERE = Path(__file__).resolve().parent
 SHARED = REPO.parent / "shared" / "data" / "real"
 FERRARIS_DIR = SHARED / "mad-lab-fau__imucal"
 IMUTK_DIR = SHARED / "Kyle-ak__imu_tk"
-VENV = REPO / ".cache" / "peers-venv"
+CATS_FILE = SHARED / "spluque__scikit-diveMove" / "cats_temperature_calib.nc"
+COMPARISON = REPO / "docs" / "comparison.md"
 WORK = REPO / ".cache" / "peers"
 RESULTS = HERE / "results.json"
 
@@ -235,34 +252,6 @@ def timed(func: Callable[[], object], repeats: int = REPEATS) -> tuple[object, f
 # ------------------------------------------------------------------------------------------------
 
 
-def _peer_env() -> dict:
-    """Environment for the venv's python: without PYTHONPATH, which would put our ``imucal``
-    (same import name) ahead of the peer."""
-    return {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-
-
-def ensure_venv() -> Path:
-    python = VENV / "bin" / "python"
-    check = [str(python), "-c", "import imucal.ferraris_calibration"]
-    if (
-        python.exists()
-        and subprocess.run(check, capture_output=True, env=_peer_env()).returncode == 0
-    ):
-        return python
-    venv.create(VENV, with_pip=True, clear=True)
-    pip = subprocess.run(
-        [str(python), "-m", "pip", "install", "--quiet", "imucal"],
-        capture_output=True,
-        text=True,
-        env=_peer_env(),
-    )
-    if pip.returncode != 0:
-        skip(
-            f"pip could not install the PyPI imucal into {VENV} (no network?):\n{pip.stderr[-800:]}"
-        )
-    return python
-
-
 def run_peer(python: Path, session: str, expected_angle_deg: float) -> tuple[dict, dict]:
     WORK.mkdir(parents=True, exist_ok=True)
     prefix = WORK / f"{session}_{expected_angle_deg:+.0f}"
@@ -276,7 +265,7 @@ def run_peer(python: Path, session: str, expected_angle_deg: float) -> tuple[dic
             str(prefix),
         ],
         check=True,
-        env=_peer_env(),
+        env=peer_env(),
         cwd=WORK,
     )
     info = json.loads(prefix.with_suffix(".json").read_text())
@@ -587,10 +576,47 @@ def tables(results: dict) -> str:
     return "\n".join(lines)
 
 
+def magnetometer_peers() -> list[dict]:
+    """magcal and our ellipsoid fit, held out, on every public magnetometer recording."""
+    python = venvs.ensure("magcal", REPO)
+    out = []
+    for name in mag_peers.DATASETS:
+        work = WORK / "magcal" / name
+
+        def peer(samples, fold, work=work):
+            return mag_peers.run_magcal(python, samples, work / f"fold{fold}",
+                                        HERE / "magcal_adapter.py", peer_env())  # fmt: skip
+
+        out.append(mag_peers.mag_benchmark(name, REPO, ingest_recording, peer))
+    return out
+
+
+def imucalibrate_reproduction() -> dict:
+    """scikit-diveMove's own build_tmodels (its wheel) against the port, on its CATS file."""
+    python = venvs.ensure("skdivemove", REPO)
+    WORK.mkdir(parents=True, exist_ok=True)
+    target = WORK / "skdivemove_models.json"
+    subprocess.run([str(python), str(HERE / "skdivemove_adapter.py"), str(CATS_FILE),
+                    str(target)], check=True, env=peer_env(), cwd=WORK)  # fmt: skip
+    peer = json.loads(target.read_text())
+    periods = imucalibrate_check.load_cats(CATS_FILE)
+    port = imucalibrate_check.port_models(periods, None) + imucalibrate_check.port_models(
+        periods, 10.0
+    )
+    return {
+        "peer_versions": venvs.versions(
+            python, ["scikit-diveMove", "statsmodels", "pandas", "xarray", "numpy", "scipy"]
+        ),  # fmt: skip
+        "peer": peer,
+        "port_vs_peer": imucalibrate_check.compare(peer["models"], port),
+    }
+
+
 def main() -> None:
-    if not FERRARIS_DIR.is_dir() or not IMUTK_DIR.is_dir():
-        skip(f"shared data absent: expected {FERRARIS_DIR} and {IMUTK_DIR}")
-    python = ensure_venv()
+    for folder in (FERRARIS_DIR, IMUTK_DIR, CATS_FILE.parent):
+        if not folder.exists():
+            skip(f"shared data absent: expected {folder}")
+    python = venvs.ensure("imucal", REPO)
     results: dict = {"ferraris": [], "peer_variants": {}}
     for loader, session in ((load_example, "example"), (load_annotated, "annotated")):
         s = loader()
@@ -606,9 +632,21 @@ def main() -> None:
                 "R_g_diagonal": np.diag(rg).tolist(),
             }
     results["imu_tk"] = imutk_benchmark()
+    results["magnetometer"] = magnetometer_peers()
+    results["magcal_version"] = venvs.versions(venvs.ensure("magcal", REPO), ["magcal"])
+    results["imucalibrate"] = imucalibrate_reproduction()
     RESULTS.write_text(json.dumps(results, indent=1))
-    print(tables(results))
-    print(f"\nwrote {RESULTS.relative_to(REPO)}")
+    text = tables(results)
+    ferraris, imutk = text.split("\n\n", 1)
+    mag = mag_peers.table(results["magnetometer"])
+    reproduction = imucalibrate_check.table(results["imucalibrate"])
+    print(text, mag, reproduction, sep="\n\n")
+    thermal_tables.replace_block(COMPARISON, "peers-ferraris", ferraris)
+    thermal_tables.replace_block(COMPARISON, "peers-imutk", imutk)
+    thermal_tables.replace_block(COMPARISON, "peers-magnetometer", mag)
+    thermal_tables.replace_block(COMPARISON, "peers-imucalibrate", reproduction)
+    print(f"\nwrote {RESULTS.relative_to(REPO)} and the tables of {COMPARISON.relative_to(REPO)}")
+    thermal_tables.main()
 
 
 if __name__ == "__main__":
