@@ -69,8 +69,8 @@ def holdout_section(path: str | Path | None) -> dict | None:
             "rms": [rms(m) for m in ("none", "term", *peers)],
             "ratios": [ratio(f"{m}_ratio") for m in ("term", *peers)],
             "versus": [
-                f"{ratio(f'term_vs_{p}', 4)}; given the fits "
-                f"{ratio(f'term_vs_{p}', 4, 'ci95_given_fits')}: {c['verdicts'][p]}"
+                f"{ratio(f'term_vs_{p}', 4)} {c['verdicts'][p]}; given the fits "
+                + "-".join(_number(v, 4) for v in c[f"term_vs_{p}_ci95_given_fits"])
                 for p in peers
             ],
             "taken": "yes" if c["taken"] else "no",

@@ -157,7 +157,11 @@ def with_shipped_terms(calibration: Mapping, holdout: Mapping) -> dict:
         for e in holdout["shipped"]:
             if e["sensor"] == sensor and e["taken"]:
                 shift["xyz".index(e["axis"])] = e["mean_drift"]
-        out[sensor] = {**calibration[sensor],
+        axes = ", ".join(a for a, v in zip("xyz", poly.bias.any(axis=0)) if v)
+        method = (
+            f"{calibration[sensor].get('method', '')}; temperature term of {axes} (pose hold-out)"
+        )
+        out[sensor] = {**calibration[sensor], "method": method.lstrip("; "),
                        "bias": (np.asarray(calibration[sensor]["bias"]) - shift).tolist()}  # fmt: skip
     if polynomials:
         terms = ModelTerms(temperature=TemperatureTerm(polynomials))

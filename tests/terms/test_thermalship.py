@@ -94,6 +94,7 @@ def test_the_partial_calibration_carries_the_term_and_apply_uses_it(clean, caplo
     assert poly["span_c"] == [min(lo for lo, _ in spans), max(hi for _, hi in spans)]
     assert cal["temperature_terms"]["gyr x"].startswith("pose_")
     assert cal["temperature_terms"]["gyr y"] == "shipped"
+    assert cal["gyr"]["method"] == "bias only; temperature term of y, z (pose hold-out)"
     # the bias moves to the reference temperature by the drift's mean over the poses
     moved = bias - np.array([0.0, shipped["y"]["mean_drift"], shipped["z"]["mean_drift"]])
     np.testing.assert_allclose(cal["gyr"]["bias"], moved, rtol=1e-12)
@@ -120,3 +121,21 @@ def test_the_partial_calibration_carries_the_term_and_apply_uses_it(clean, caplo
     # and it writes back as it was read: the sensors it does not calibrate stay 'missing'
     back = calibration.to_dict()
     assert "acc" not in back and set(back["missing"]) == {"acc", "mag"}
+
+
+def test_the_report_section_lists_every_cell_and_the_flags(tmp_path):
+    from imucal.report.holdout import holdout_section
+
+    flipped = _hold_out(_poses(np.random.default_rng(5), flip_pose_2=True))
+    path = tmp_path / "temperature_holdout.json"
+    path.write_text(json.dumps({"recording": "poses", "sensors": ["gyr"], "settings": {},
+                                **flipped}))  # fmt: skip
+    section = holdout_section(path)
+    assert section["peers"] == ["imucal_1", "imucal_2", "cubic"]
+    assert len(section["rows"]) == 9 and len(section["summary"]) == 3
+    assert all(len(r["rms"]) == 5 and len(r["versus"]) == 3 for r in section["rows"])
+    flagged = {(r["pose"], r["axis"]) for r in section["flagged"]}
+    assert ("pose_2", "y") in flagged
+    row = next(r for r in section["rows"] if (r["pose"], r["axis"]) == ("pose_2", "y"))
+    assert row["taken"] == "no"
+    assert {e["axis"]: e["taken"] for e in section["shipped"]}["y"] is False
