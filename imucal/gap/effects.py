@@ -96,7 +96,7 @@ class EffectModel:
 
 
 def _halves(fit: SessionFit, half):
-    return {name: t.iloc[ses._time_half(len(t), half)] for name, t in fit.imu.items()}
+    return {name: t.iloc[ses.time_half(len(t), half)] for name, t in fit.imu.items()}
 
 
 def estimate_packet_loss(fit: SessionFit, half) -> Estimate:
@@ -129,7 +129,7 @@ def estimate_timing_jitter(fit: SessionFit, half) -> Estimate:
 def estimate_time_offset(fit: SessionFit, half) -> Estimate | None:
     if fit.time_alignment is None:
         return None
-    stats = loc._reference(fit, half)
+    stats = loc.reference_clock_locations(fit, half)
     offset = stats[("validate", "clock", "-", "rotation3d", "ref_offset_s")]
     drift = float(fit.time_alignment.drift_ppm)
     return Estimate({"offset_s": float(offset), "drift_ppm": drift}, abs(float(offset)))
@@ -233,7 +233,7 @@ def latency_gate(est: Estimate, null: list, z: float) -> str:
 def estimate_saturation(fit: SessionFit, half) -> Estimate:
     opt = fit.extra["options"]
     params, detect = {}, 0.0
-    stats = loc._clipping(fit, half)
+    stats = loc.clipping_locations(fit, half)
     for s in SENSORS:
         frac = stats[("ingest", s, "-", "all", "clip_fraction")]
         top = 32767
@@ -414,7 +414,7 @@ def _table_runs(fit: SessionFit, half) -> dict | None:
     for start, end in ses.row_bounds(rows):
         w = gyr[start:end][np.all(np.isfinite(gyr[start:end]), axis=1)]
         a = acc[start:end][np.all(np.isfinite(acc[start:end]), axis=1)]
-        var.append(ses._white_variance(w, q) if len(w) > 2 else np.full(3, np.nan))
+        var.append(ses.white_variance(w, q) if len(w) > 2 else np.full(3, np.nan))
         acc_mean.append(a.mean(axis=0) if len(a) else np.full(3, np.nan))
         seg = temp[start:end] if temp is not None else np.array([np.nan])
         temps.append(float(np.nanmean(seg)) if np.any(np.isfinite(seg)) else np.nan)
@@ -541,7 +541,7 @@ def estimate_scale_nonlinearity(fit: SessionFit, half) -> Estimate | None:
 def estimate_mag_latency(fit: SessionFit, half) -> Estimate:
     """Delay of the magnetometer from the mean of the phases' lags, less the sample-and-hold's
     half period; the phases' lags are the evidence of :func:`latency_gate`."""
-    lags = [loc.magnetometer_lag(fit, p) for p in ses._phase_half(AXES, half)]
+    lags = [loc.magnetometer_lag(fit, p) for p in ses.phase_half(AXES, half)]
     lag = float(np.nanmean(lags))
     mag = column_values(fit.imu["rotation3d"], MAG)
     fresh = mag[np.all(np.isfinite(mag), axis=1)]

@@ -47,12 +47,12 @@ from imucal.gap.locations import (
     _gyr_rest,
     _mag,
     _noise,
-    _reference,
     _scale,
     _table,
     _temperature,
     _timing,
     _world_rate,
+    reference_clock_locations,
 )
 from imucal.pipeline.full import SessionFit
 
@@ -199,6 +199,6 @@ def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, fl
     out.update(_scale(fit, half))
     out.update(_mag(fit, half))
     if fit.time_alignment is not None:
-        out.update(_reference(fit, half))
+        out.update(reference_clock_locations(fit, half))
     out.update(_temperature(fit, half))
     return out
