@@ -308,7 +308,7 @@ def diagnose_partial_session(
         libraries["static"] = STATIC_LIBRARY
     parts["motion"] = motion_twin
     sessions["motion"] = recordings
-    libraries["motion"] = motion_library(motion_twin)
+    libraries["motion"] = motion_library()
     libraries = {
         part: {k: m for k, m in lib.items() if k not in settings.exclude}
         for part, lib in libraries.items()

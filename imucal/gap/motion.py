@@ -36,7 +36,6 @@ from imucal.gap.motionstats import (
 from imucal.gap.motiontwin import MotionTwin, build_motion_twin, recorded_motion
 from imucal.gap.worldfield import estimate_world_magnetic
 from imucal.segments.table import rows_of
-from imucal.sim.sensors import INT16_MAX
 
 #: Effects of the simulator that recordings with an orientation reference do not show, and why.
 MOTION_NOT_OBSERVABLE = {
@@ -57,13 +56,8 @@ MOTION_NOT_OBSERVABLE = {
 }
 
 
-def motion_library(twin: MotionTwin | None = None) -> dict[str, EffectModel]:
-    """The effects recordings with an orientation reference can show (module docstring).
-
-    Without a twin the models hold no session's full scale: the catalogue of effects
-    (:mod:`imucal.gap.catalogue`) reads their names and signatures only.
-    """
-    full_scale = INT16_MAX * twin.sensitivity["gyr"] if twin is not None else float("nan")
+def motion_library() -> dict[str, EffectModel]:
+    """The effects recordings with an orientation reference can show (module docstring)."""
     return {
         "g_sensitivity": EffectModel(
             "g_sensitivity",
@@ -73,7 +67,7 @@ def motion_library(twin: MotionTwin | None = None) -> dict[str, EffectModel]:
         ),
         "scale_nonlinearity": EffectModel(
             "scale_nonlinearity",
-            lambda session, half: estimate_scale_nonlinearity(session, half, full_scale),
+            estimate_scale_nonlinearity,
             (
                 ("reference", "gyr", "rate2"),
                 ("reference", "gyr", "rate3"),
@@ -142,7 +136,7 @@ def motion_part(
     -------
     recordings : dict of str to MotionRecording
         The recordings whose reference could be aligned (the others are named in the twin's
-        notes with the reason).
+        notes with the reason), with the twin's gyroscope full scale.
     twin : MotionTwin
 
     Raises
@@ -171,6 +165,10 @@ def motion_part(
         recordings, tables, calibration, rests, sensitivity, gravity_m_s2, windows_s
     )
     notes = [f"not scored, the reference could not be aligned: {why}" for why in skipped]
+    recordings = {
+        name: dataclasses.replace(rec, gyr_full_scale_rad_s=twin.gyr_full_scale_rad_s)
+        for name, rec in recordings.items()
+    }
     return recordings, dataclasses.replace(twin, notes=[*twin.notes, *notes])
 
 

@@ -30,8 +30,7 @@ from imucal.sim.effects.disturbance import gradient_matrix
 
 
 def test_every_disturbance_has_a_motion_estimator_and_a_static_reason():
-    _, _, (_, twin) = case_inputs("robot", None, 0, duration_s=30.0)
-    library = motion_library(twin)
+    library = motion_library()
     for name in MOTION_EFFECTS:
         assert library[name].signature and name in NOT_OBSERVABLE, name
 
