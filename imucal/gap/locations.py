@@ -5,7 +5,7 @@ gyroscope at rest, rate table, gyroscope scale, magnetometer, reference, tempera
 ingested tables, the segments and the session's own fit, for the whole session or one half
 (:mod:`imucal.gap.session`); :func:`imucal.gap.statistics.compute_statistics` gathers them and
 :data:`imucal.gap.statistics.CATALOGUE` says how each is scored. The effect estimators
-(:mod:`imucal.gap.effects`) read the same quantities through the public functions here.
+(:mod:`imucal.gap.library`) read the same quantities through the public functions here.
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ Its locations are stage ``reference`` x sensor x axis x segment (the recording) 
 * the magnetometer's field direction carried into the reference's world, ``dir_resid_rad``
   (median angle about its mean direction), when the session calibrates the magnetometer.
 
-The estimators (``estimate_*``) of the effects listed by :func:`imucal.gap.motion.motion_library`
-are here too, next to the statistics they read.
+The estimators (``estimate_*``) of the effects the reference scope estimates (scope ``motion``
+of their specs, :mod:`imucal.gap.library`) are here too, next to the statistics they read.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The rows, halves, resting means and clock of a calibrated session, shared by the gap map's
-statistics (:mod:`imucal.gap.locations`), the effect estimators (:mod:`imucal.gap.effects`)
+statistics (:mod:`imucal.gap.locations`), the effect estimators (:mod:`imucal.gap.library`)
 and the model terms (:mod:`imucal.terms`).
 
 A half (``'A'`` or ``'B'``, :data:`imucal.gap.statistics.HALVES`) is one of the two sets of segments of the

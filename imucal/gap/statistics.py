@@ -33,7 +33,7 @@ Statistics (units in :data:`CATALOGUE`; a static recording's own in :mod:`imucal
 This module holds the catalogue and :func:`compute_statistics`, which gathers the locations of
 one session; the per-stage statistic functions are in :mod:`imucal.gap.locations`, the
 session's rows, halves, resting means and clock that they share with the effect estimators
-(:mod:`imucal.gap.effects`) and the model terms (:mod:`imucal.terms`) in
+(:mod:`imucal.gap.library`) and the model terms (:mod:`imucal.terms`) in
 :mod:`imucal.gap.session`, so that a statistic and the estimator that reads the same quantity
 cannot drift apart.
 """
