@@ -249,7 +249,7 @@ def estimate_static_bias_instability(streams: Mapping[str, Stream], half: str | 
         if st is not None:
             gm, lr = _gm_from_allan(st.values[s], st.rate_hz)
             detect.append(lr)
-        params.update({f"{s}_rw": 0.0, f"{s}_gm": gm, f"{s}_tau_s": 100.0})
+        params.update({f"{s}_rw": 0.0, f"{s}_gm": gm, f"{s}_tau_s": BIAS_TAU_S})
     return Estimate(params, float(np.mean(detect)))
 
 
