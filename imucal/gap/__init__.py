@@ -7,7 +7,8 @@ a full session's gap map; the per-stage statistics in :mod:`.locations`, the ses
 halves and resting means in :mod:`.session`), :mod:`.streams` (a static recording's streams and
 locations), :mod:`.motion` (recordings with an orientation reference; their locations and
 estimators in :mod:`.motionstats`, their twin in :mod:`.motiontwin`), :mod:`.null` (scores, Holm, total gap),
-:mod:`.effects` (the effect model, estimators and signatures), :mod:`.attribution` (held-out
+:mod:`.effects` (the effect model), :mod:`.library` (one spec per effect: every scope's
+estimator and signature or the reason it cannot be observed), :mod:`.attribution` (held-out
 forward selection), :mod:`.diagnosis` (diagnosis.json: one assembly for both twins),
 :mod:`.static` (what a static recording can show: the partial session's diagnosis),
 :mod:`.figures` (report section), :mod:`.blind` (the blind check), :mod:`.stress` (the stress

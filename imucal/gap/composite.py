@@ -28,17 +28,12 @@ import pandas as pd
 
 from imucal.gap.effects import EffectModel
 from imucal.gap.fieldfit import diagnose_field_fit, field_fit_part
-from imucal.gap.motion import MOTION_NOT_OBSERVABLE, motion_library
+from imucal.gap.library import not_observable, scope_library
 from imucal.gap.motionstats import MotionRecording, motion_statistics
 from imucal.gap.motiontwin import MotionTwin
 from imucal.gap.rests import diagnose_rests, session_rests
 from imucal.gap.scoring import DiagnosisSettings, scope_diagnosis
-from imucal.gap.static import (
-    NOT_OBSERVABLE,
-    STATIC_LIBRARY,
-    diagnose_static,
-    unscored_diagnosis,
-)
+from imucal.gap.static import diagnose_static, unscored_diagnosis
 from imucal.gap.statictwin import build_static_twin
 from imucal.gap.statistics import HALVES
 from imucal.gap.streams import split_streams, static_statistics
@@ -305,10 +300,10 @@ def diagnose_partial_session(
             streams, calibration, dict(sensitivity or {}), gravity_m_s2, wander
         )
         sessions["static"] = streams
-        libraries["static"] = STATIC_LIBRARY
+        libraries["static"] = scope_library("static")
     parts["motion"] = motion_twin
     sessions["motion"] = recordings
-    libraries["motion"] = motion_library(motion_twin)
+    libraries["motion"] = scope_library("motion")
     libraries = {
         part: {k: m for k, m in lib.items() if k not in settings.exclude}
         for part, lib in libraries.items()
@@ -322,7 +317,10 @@ def diagnose_partial_session(
         if streams:
             stats[h].update(static_statistics(streams, h))
     shown = set().union(*(set(lib) for lib in libraries.values()))
-    reasons = {**MOTION_NOT_OBSERVABLE, **NOT_OBSERVABLE} if streams else MOTION_NOT_OBSERVABLE
+    # an effect neither part shows: the static recording's reason where there is one
+    reasons = not_observable("motion")
+    if streams:
+        reasons = {**reasons, **not_observable("static")}
     return scope_diagnosis(
         twin, sessions, stats, composite_library(libraries),
         scope="static+reference" if streams else "reference",

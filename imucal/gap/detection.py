@@ -20,7 +20,7 @@ import numpy as np
 from scipy import stats
 
 from imucal.gap.blind import effect_estimate
-from imucal.gap.effects import LIBRARY
+from imucal.gap.library import scope_library
 from imucal.gap.stress import is_named
 from imucal.sim import SENSITIVITY
 from imucal.sim.effects import CANONICAL, Effect, make_effect, stream_rng
@@ -31,18 +31,22 @@ HARSHER_WHEN_SMALLER = ("saturation",)
 
 
 def library_effects(effects: Sequence[str] | None = None) -> list[str]:
-    """The effects to sweep: ``effects``, or every library effect in the simulator's order.
+    """The effects to sweep: ``effects``, or every effect the full protocol's diagnosis
+    estimates (:func:`imucal.gap.library.scope_library`), in the simulator's order
+    (:data:`imucal.sim.effects.CANONICAL`, then the others in the specs' order).
 
     Raises
     ------
     ValueError
         If an effect is not in the diagnosis's library.
     """
+    protocol = scope_library("protocol")
     if effects is None:
-        return [e for e in CANONICAL if e in LIBRARY]
-    unknown = sorted(set(effects) - set(LIBRARY))
+        first = [e for e in CANONICAL if e in protocol]
+        return first + [e for e in protocol if e not in first]
+    unknown = sorted(set(effects) - set(protocol))
     if unknown:
-        raise ValueError(f"effects {unknown} are not in the diagnosis's library {sorted(LIBRARY)}")
+        raise ValueError(f"effects {unknown} are not in the diagnosis's library {sorted(protocol)}")
     return list(effects)
 
 

@@ -23,7 +23,7 @@ import pandas as pd
 
 from imucal.gap.blocks import StaticBlocks, decimate_static_table, window_segments
 from imucal.gap.clipping import note_saturation
-from imucal.gap.effects import library
+from imucal.gap.library import library
 from imucal.gap.locations import clip_fractions
 from imucal.gap.misalignment import misalignment_report
 from imucal.gap.null import run_replicas

@@ -33,8 +33,8 @@ import pandas as pd
 
 from imucal import errormodel
 from imucal.columns import SENSOR_COLUMNS, TIME
+from imucal.gap.library import not_observable, scope_library
 from imucal.gap.scoring import DiagnosisSettings, scope_diagnosis
-from imucal.gap.static import NOT_OBSERVABLE
 from imucal.gap.statictwin import quantum
 from imucal.gap.statistics import HALVES
 from imucal.gap.twin import Replica
@@ -46,20 +46,6 @@ MIN_SAMPLES = 1000
 SLOW_S = 1.0
 #: Degree of the direction polynomial of the residual.
 DEGREE = 3
-
-#: Why the field fit's null renders no effect.
-FIELD_FIT_NOT_OBSERVABLE = {
-    **{k: v for k, v in NOT_OBSERVABLE.items() if k not in ("world_magnetic", "mag_latency")},
-    "world_magnetic": "no position or attitude is measured independently: a field that moves "
-    "with the module's position is in the residual's slow part, which a varying ambient field "
-    "fills as well",
-    "mag_latency": "no gyroscope or reference: a magnetometer late against nothing is not late",
-    "timing_jitter": "the fit residual does not read the receive times",
-    "bias_instability": "a bias wander is in the residual's slow part, with the field's changes",
-    "temperature_drift": "no temperature channel in a magnetometer's tumble",
-    "scale_nonlinearity": "a nonlinear response is in the residual's direction dependence; no "
-    "estimator reads it there",
-}
 
 
 def moving_white(x: np.ndarray) -> np.ndarray:
@@ -309,8 +295,9 @@ def diagnose_field_fit(
     t0 = time.perf_counter()
     stats = {h: field_fit_statistics(fit, h, twin.name) for h in HALVES}
     return scope_diagnosis(
-        twin, {twin.name: fit}, stats, {}, scope="field_fit", static_source=source,
-        not_observable=FIELD_FIT_NOT_OBSERVABLE,
+        twin, {twin.name: fit}, stats, scope_library("field_fit"), scope="field_fit",
+        static_source=source,
+        not_observable=not_observable("field_fit"),
         cannot_show="the fit residual cannot show this effect",
         dataset=dataset, settings=settings, started=t0,
     )  # fmt: skip

@@ -5,7 +5,7 @@ gyroscope at rest, rate table, gyroscope scale, magnetometer, reference, tempera
 ingested tables, the segments and the session's own fit, for the whole session or one half
 (:mod:`imucal.gap.session`); :func:`imucal.gap.statistics.compute_statistics` gathers them and
 :data:`imucal.gap.statistics.CATALOGUE` says how each is scored. The effect estimators
-(:mod:`imucal.gap.effects`) read the same quantities through the public functions here.
+(:mod:`imucal.gap.library`) read the same quantities through the public functions here.
 """
 
 from __future__ import annotations
@@ -32,14 +32,14 @@ from imucal.gap.session import (
     _alternate,
     _means,
     _mid_times,
-    _phase_half,
     _rows,
     _run_half,
-    _time_half,
     integrate_orientation,
     magnetometer_lag_fit,
+    phase_half,
     resting_means,
     table_residuals,
+    time_half,
 )
 from imucal.ingest.timebase import unwrap_seq
 from imucal.pipeline.full import SessionFit, calibrated
@@ -105,7 +105,7 @@ def _timing(fit: SessionFit, half) -> dict:
     lost = expected = 0
     scatter = []
     for table in fit.imu.values():
-        sl = _time_half(len(table), half)
+        sl = time_half(len(table), half)
         seq = table[SEQ].to_numpy()[sl]
         t = table[TIME].to_numpy(dtype=float)[sl]
         n_lost, n_exp, _ = lost_packets(seq)
@@ -117,7 +117,7 @@ def _timing(fit: SessionFit, half) -> dict:
     out[("ingest", "clock", "-", "all", "stamp_scatter_s")] = float(
         max(np.sqrt(np.mean(r**2)), 1e-7)
     )
-    return out | _clipping(fit, half)
+    return out | clipping_locations(fit, half)
 
 
 def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> dict[str, float]:
@@ -130,7 +130,7 @@ def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> di
             continue
         n = hit = 0
         for table in tables.values():
-            x = column_values(table, SENSOR_COLUMNS[s])[_time_half(len(table), half)]
+            x = column_values(table, SENSOR_COLUMNS[s])[time_half(len(table), half)]
             x = x[np.all(np.isfinite(x), axis=1)]
             limit = options.limit(s) - 1.5 * float(options.sensitivity[s])
             hit += int(np.any(np.abs(x) >= limit, axis=1).sum())
@@ -139,7 +139,7 @@ def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> di
     return out
 
 
-def _clipping(fit: SessionFit, half) -> dict:
+def clipping_locations(fit: SessionFit, half) -> dict:
     """Fraction of samples within one LSB of a sensor's range (range from dataset.yaml)."""
     fractions = clip_fractions(fit.imu, fit.extra["options"], half)
     return {("ingest", s, "-", "all", "clip_fraction"): f for s, f in fractions.items()}
@@ -151,11 +151,11 @@ def _noise(fit: SessionFit, half) -> dict:
     its block means (:func:`imucal.gap.blocks.long_series`: the rows themselves when short)."""
     table = fit.imu["static"]
     t = table[TIME].to_numpy(dtype=float)
-    sl = _time_half(len(t), half)
+    sl = time_half(len(t), half)
     fs = 1 / np.median(np.diff(t))
     series, samples, _ = long_series(fit.imu, fit.extra.get("static_blocks"))
     t_long = series[TIME].to_numpy(dtype=float)
-    sl_long = _time_half(len(t_long), half)
+    sl_long = time_half(len(t_long), half)
     out = {}
     for s in SENSORS:
         x = column_values(table, SENSOR_COLUMNS[s])[sl]
@@ -476,7 +476,7 @@ def _scale(fit: SessionFit, half) -> dict:
     per_phase = fit.artifacts["gyr_scale"]["per_phase"]
     final = errormodel.decompose(fit.calibration.sensor("gyr").matrix).scale
     out = {}
-    for p in _phase_half(per_phase, half):
+    for p in phase_half(per_phase, half):
         j = AXES.index(p)
         out[("gyr_scale", "gyr", p, "phase", "scale_ratio")] = float(
             per_phase[p]["scale"] / final[j] - 1
@@ -585,7 +585,7 @@ def platform_field(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray] | Non
 def _mag(fit: SessionFit, half) -> dict:
     m = calibrated(fit, "rotation3d", "mag")
     m = m[np.all(np.isfinite(m), axis=1)]
-    m = m[_time_half(len(m), half)]
+    m = m[time_half(len(m), half)]
     norm = fit.extra["options"].field_norm
     out = {
         ("mag", "mag", "norm", "rotation3d", "resid_rms"): float(
@@ -593,7 +593,7 @@ def _mag(fit: SessionFit, half) -> dict:
         ),
         ("mag", "mag", "dip", "static", "dip_spread_rad"): float(np.std(dip_angles(fit, half))),
     }
-    for p in _phase_half(AXES, half):
+    for p in phase_half(AXES, half):
         out[("mag", "mag", p, "phase", "lag_s")] = magnetometer_lag(fit, p)
     m_b, _, _ = resting_field(fit, half)
     if len(m_b) >= 2:
@@ -608,7 +608,9 @@ def _mag(fit: SessionFit, half) -> dict:
     return out
 
 
-def _reference(fit: SessionFit, half) -> dict:
+def reference_clock_locations(fit: SessionFit, half) -> dict:
+    """The reference clock against the module's: its offset at the start (s, relative to the
+    reference's first sample) and, on the whole session, its drift (ppm)."""
     ta = fit.time_alignment
     if half is None:
         offset = ta.offset_s - fit.reference_start_s

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from imucal.columns import SENSORS
-from imucal.gap.effects import estimate_large_misalignment
+from imucal.gap.library.mounting import estimate_large_misalignment
 from imucal.pipeline.full import SessionFit
 
 

@@ -5,15 +5,16 @@ gyroscope over the rates and orientations the hand or the robot gave it, against
 measure of the same rotation.
 
 The locations and the estimators of the effects are in :mod:`imucal.gap.motionstats`, the twin
-that replays the recording's motion in :mod:`imucal.gap.motiontwin`; this module lists the
-effects and runs the diagnosis of such recordings (:func:`motion_part`, :func:`reference_part`).
+that replays the recording's motion in :mod:`imucal.gap.motiontwin`; this module prepares such
+recordings and their twin for the diagnosis (:func:`motion_part`, :func:`reference_part`).
 
-The effects such a recording can show (:func:`motion_library`): ``g_sensitivity`` (a gyroscope
-output following the specific force), ``scale_nonlinearity`` (a response curved in the rate,
-which makes a scale fitted on fast motion wrong on slow motion) and ``reference_jitter`` (the
-reference's samples taken off their time stamps: an error growing with the rate), and the
-disturbances of hand-held and robot use with their own locations (``world_magnetic`` in
-:mod:`imucal.gap.worldfield`, ``shock`` and ``vibration`` in :mod:`imucal.gap.disturbance`).
+The effects such a recording can show are the specs' models of scope ``motion``
+(:func:`imucal.gap.library.scope_library`): ``g_sensitivity`` (a gyroscope output following the
+specific force), ``scale_nonlinearity`` (a response curved in the rate, which makes a scale
+fitted on fast motion wrong on slow motion) and ``reference_jitter`` (the reference's samples
+taken off their time stamps: an error growing with the rate), and the disturbances of hand-held
+and robot use with their own locations (``world_magnetic`` in :mod:`imucal.gap.worldfield`,
+``shock`` and ``vibration`` in :mod:`imucal.gap.disturbance`).
 """
 
 from __future__ import annotations
@@ -24,97 +25,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from imucal.gap.disturbance import estimate_shock, estimate_vibration
-from imucal.gap.effects import EffectModel
-from imucal.gap.motionstats import (
-    WINDOWS_S,
-    MotionRecording,
-    estimate_g_sensitivity,
-    estimate_reference_jitter,
-    estimate_scale_nonlinearity,
-)
+from imucal.gap.motionstats import WINDOWS_S, MotionRecording
 from imucal.gap.motiontwin import MotionTwin, build_motion_twin, recorded_motion
-from imucal.gap.worldfield import estimate_world_magnetic
 from imucal.segments.table import rows_of
-from imucal.sim.sensors import INT16_MAX
-
-#: Effects of the simulator that recordings with an orientation reference do not show, and why.
-MOTION_NOT_OBSERVABLE = {
-    "timing_jitter": "no static recording: receive-time statistics need a long regular stream",
-    "packet_loss": "no packet counter is compared: a lost sample and a late one look the same",
-    "bias_instability": "no static recording: the Allan deviation needs a long rest",
-    "temperature_drift": "no static recording with a temperature channel",
-    "time_offset": "the clock against the reference is measured and removed (validation.json)",
-    "mag_latency": "the twin renders the recorded motion, not a plan it could delay",
-    "lever_arm": "the gyroscope, not the accelerometer, is compared with the reference",
-    "earth_rotation": "below the resolution of an optical reference's rates",
-    "saturation": "clipping shows in the readings themselves (ingest summary), not against a "
-    "reference",
-    "hand_tremor": "the twin replays the recorded motion, tremor included",
-    "placement_error": "the mounting against the reference is measured per recording",
-    "large_misalignment": "the mounting against the reference is measured per recording",
-    "platform_magnetic": "no turntable in the recordings",
-}
-
-
-def motion_library(twin: MotionTwin | None = None) -> dict[str, EffectModel]:
-    """The effects recordings with an orientation reference can show (module docstring).
-
-    Without a twin the models hold no session's full scale: the catalogue of effects
-    (:mod:`imucal.gap.catalogue`) reads their names and signatures only.
-    """
-    full_scale = INT16_MAX * twin.sensitivity["gyr"] if twin is not None else float("nan")
-    return {
-        "g_sensitivity": EffectModel(
-            "g_sensitivity",
-            estimate_g_sensitivity,
-            (("reference", "gyr", "ref_g_slope"), ("reference", "gyr", "resid_rms")),
-            "gyroscope output following the specific force (gravity along each axis)",
-        ),
-        "scale_nonlinearity": EffectModel(
-            "scale_nonlinearity",
-            lambda session, half: estimate_scale_nonlinearity(session, half, full_scale),
-            (
-                ("reference", "gyr", "rate2"),
-                ("reference", "gyr", "rate3"),
-                ("reference", "gyr", "ref_scale"),
-                ("reference", "gyr", "resid_rms"),
-                ("reference", "gyr", "ori_median_rad"),
-            ),
-            "gyroscope response curved in the rate (a scale that depends on the rate)",
-        ),
-        "reference_jitter": EffectModel(
-            "reference_jitter",
-            estimate_reference_jitter,
-            (("reference", "gyr", "resid_rms"), ("reference", "gyr", "ori_median_rad")),
-            "the reference's samples taken off their time stamps (an error growing with rate)",
-        ),
-        "world_magnetic": EffectModel(
-            "world_magnetic",
-            estimate_world_magnetic,
-            (
-                ("reference", "mag", "field_position_rms"),
-                ("reference", "mag", "field_dipole_peak"),
-                ("reference", "mag", "dir_resid_rad"),
-            ),
-            "a field fixed in the world near the path: the world field follows the sensor's "
-            "position (the reference's where it reports one, else linear in its attitude "
-            "about a pivot), not its rate",
-        ),
-        "shock": EffectModel(
-            "shock",
-            estimate_shock,
-            (("reference", "gyr", "shock_rate"), ("reference", "gyr", "resid_rms")),
-            "knocks: accelerometer spikes of a few ms where the gyroscope departs from the "
-            "reference",
-        ),
-        "vibration": EffectModel(
-            "vibration",
-            estimate_vibration,
-            (("reference", "gyr", "line_power"), ("reference", "gyr", "resid_rms")),
-            "a line in the gyroscope the reference does not follow (a machine, a robot's drives)",
-        ),
-    }
 
 
 def motion_part(
@@ -142,7 +55,7 @@ def motion_part(
     -------
     recordings : dict of str to MotionRecording
         The recordings whose reference could be aligned (the others are named in the twin's
-        notes with the reason).
+        notes with the reason), with the twin's gyroscope full scale.
     twin : MotionTwin
 
     Raises
@@ -171,6 +84,10 @@ def motion_part(
         recordings, tables, calibration, rests, sensitivity, gravity_m_s2, windows_s
     )
     notes = [f"not scored, the reference could not be aligned: {why}" for why in skipped]
+    recordings = {
+        name: dataclasses.replace(rec, gyr_full_scale_rad_s=twin.gyr_full_scale_rad_s)
+        for name, rec in recordings.items()
+    }
     return recordings, dataclasses.replace(twin, notes=[*twin.notes, *notes])
 
 

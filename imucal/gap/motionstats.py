@@ -13,8 +13,8 @@ Its locations are stage ``reference`` x sensor x axis x segment (the recording) 
 * the magnetometer's field direction carried into the reference's world, ``dir_resid_rad``
   (median angle about its mean direction), when the session calibrates the magnetometer.
 
-The estimators (``estimate_*``) of the effects listed by :func:`imucal.gap.motion.motion_library`
-are here too, next to the statistics they read.
+The estimators (``estimate_*``) of the effects the reference scope estimates (scope ``motion``
+of their specs, :mod:`imucal.gap.library`) are here too, next to the statistics they read.
 """
 
 from __future__ import annotations
@@ -77,6 +77,10 @@ class MotionRecording:
     pos : ndarray, shape (m, 3), or None
         The reference body's position in the reference's world at its samples, m (NaN rows in
         its gaps); None when the reference declares none.
+    gyr_full_scale_rad_s : float or None
+        The gyroscope's full scale, rad/s (its int16 counts of the twin's quantisation step,
+        :attr:`imucal.gap.motiontwin.MotionTwin.gyr_full_scale_rad_s`), which the estimator of
+        ``scale_nonlinearity`` reads; None until the twin is built.
     """
 
     t_s: np.ndarray
@@ -88,6 +92,7 @@ class MotionRecording:
     up: str
     acc: np.ndarray | None = None
     pos: np.ndarray | None = None
+    gyr_full_scale_rad_s: float | None = None
 
     def half(self, half: str | None) -> MotionRecording:
         """The first (A) or second (B) half in module time, or the whole (None)."""
@@ -228,12 +233,21 @@ def estimate_g_sensitivity(session: Mapping[str, MotionRecording], half) -> Esti
     return Estimate({"matrix": g.tolist()}, float(np.linalg.norm(g)))
 
 
-def estimate_scale_nonlinearity(
-    session: Mapping[str, MotionRecording], half, full_scale_rad_s: float
-) -> Estimate | None:
+def estimate_scale_nonlinearity(session: Mapping[str, MotionRecording], half) -> Estimate | None:
     """A gyroscope response curved in the rate, common to the axes: the residual against the
     reference regressed on ``FS (k2 x^2 + k3 x^3)`` with ``x = rate / FS`` (an offset and a
-    slope per axis: the calibration takes the linear part)."""
+    slope per axis: the calibration takes the linear part), ``FS`` the recordings' gyroscope
+    full scale (:attr:`MotionRecording.gyr_full_scale_rad_s`).
+
+    Raises
+    ------
+    ValueError
+        If a recording states no full scale.
+    """
+    scales = {rec.gyr_full_scale_rad_s for rec in session.values()}
+    if None in scales or len(scales) != 1:
+        raise ValueError(f"the recordings state no single gyroscope full scale: {scales}")
+    (full_scale_rad_s,) = scales
     found = _pooled(session, half)
     if found is None:
         return None

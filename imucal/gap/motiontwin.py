@@ -51,7 +51,7 @@ from imucal.orientation import (
 from imucal.sim import World
 from imucal.sim.effects import RecordingContext, stream_rng
 from imucal.sim.motion import KinematicState
-from imucal.sim.sensors import quantise, sensor_readings, true_signals
+from imucal.sim.sensors import INT16_MAX, quantise, sensor_readings, true_signals
 from imucal.sim.truth import REFERENCE_NOISE, Truth
 from imucal.validation.orientation import (
     OrientationAlignment,
@@ -187,6 +187,11 @@ class MotionTwin:
     windows_s: tuple = WINDOWS_S
     notes: list = field(default_factory=list)
     noise: dict = field(default_factory=dict)
+
+    @property
+    def gyr_full_scale_rad_s(self) -> float:
+        """The gyroscope's full scale (rad/s): int16 counts of its quantisation step."""
+        return INT16_MAX * self.sensitivity["gyr"]
 
     def describe(self) -> dict:
         """JSON-ready summary."""
@@ -481,6 +486,7 @@ def render_motion(twin: MotionTwin, seed: int, effects: tuple = ()) -> dict[str,
         q_ref = quat_multiply(q_ref, jitter.as_quat()[:, [3, 0, 1, 2]])
         q_ref[r.gaps] = np.nan
         out[name] = MotionRecording(
-            r.t_s, gyr, mag, r.t_reference, q_ref, r.alignment, "+z", acc, r.pos_reference
-        )
+            r.t_s, gyr, mag, r.t_reference, q_ref, r.alignment, "+z", acc, r.pos_reference,
+            twin.gyr_full_scale_rad_s,
+        )  # fmt: skip
     return out

@@ -24,8 +24,10 @@ statistics a few seconds support. This module scores them as one part, ``rests``
   trend within the rests; per stream the receive latency above each rest's lower envelope and
   the fractions of bursts and long gaps;
 * **halves**: A is the first half of every rest in time, B the second;
-* **library**: ``timing_jitter`` (:data:`REST_LIBRARY`); the others are listed with the reason
-  in :data:`REST_NOT_OBSERVABLE`.
+* **library**: ``timing_jitter``, the static recording's signature with its estimator on the
+  rests' own lengths (the specs' models of scope ``rests``,
+  :func:`imucal.gap.library.scope_library`); the others are listed with the reason
+  (:func:`imucal.gap.library.not_observable`).
 
 Scoring is the null of every scope (:func:`imucal.gap.scoring.scored_diagnosis`).
 """
@@ -39,93 +41,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import brentq
 
 from imucal.columns import AXES, SENSOR_COLUMNS
 from imucal.constants import STANDARD_GRAVITY_M_S2
-from imucal.gap.effects import Estimate
+from imucal.gap.library import not_observable, scope_library
 from imucal.gap.locations import allan_deviation
 from imucal.gap.scoring import DiagnosisSettings, scope_diagnosis
-from imucal.gap.static import NOT_OBSERVABLE, STATIC_LIBRARY
 from imucal.gap.statictwin import build_static_twin, quantum, render_static
 from imucal.gap.statistics import HALVES
 from imucal.gap.streams import Stream, receive_latency, split_streams
 from imucal.gap.twin import Replica
 from imucal.noise.process import NoiseProcess, quantised_variance
 from imucal.segments.table import rows_of
-from imucal.sim.effects import stream_rng
 
 #: Shortest rest pooled (s): each half holds three averaging times of :data:`ALLAN_TAU_S`.
 MIN_SHORT_REST_S = 3.0
 #: Averaging time of the rests' Allan statistic (s).
 ALLAN_TAU_S = 0.5
-
-
-def _rests_latency(std_s: float, shape: list[tuple[int, float]]) -> float:
-    """Mean latency above each rest's lower envelope of the simulator's jitter model on
-    noise-free grids of the rests' sample counts and rates, pooled over the samples (s)."""
-    rng = stream_rng(0, "calibration/timing_jitter")
-    total, count = 0.0, 0
-    for n, rate in shape:
-        t = np.arange(n) / rate
-        r = np.maximum.accumulate(t + rng.exponential(std_s, n)) if std_s > 0 else t
-        lat, _ = receive_latency(r, (n - 1) / (r[-1] - r[0]))
-        total += float(np.sum(lat))
-        count += n
-    return total / count
-
-
-def estimate_rest_timing_jitter(session: Mapping[str, Stream], half: str | None) -> Estimate:
-    """Mean receive latency of the simulator's model that gives the rests' mean latency.
-
-    The latency above each rest's lower envelope (:func:`~imucal.gap.streams.receive_latency`,
-    at the rest's effective rate) pooled over the rests, and the model's (exponential, held
-    back by queueing) measured the same way on rests of the same sample counts and rates:
-    short rests bias the envelope and the rate, so the model is solved on their own lengths
-    (bisection). Detect: the measured mean latency (s; 0 below a nanosecond).
-    """
-    lat, shape = [], []
-    for st in session.values():
-        st = st.half(half)
-        lat.append(receive_latency(st.t_s, st.rate_hz)[0])
-        shape.append((len(st.t_s), st.rate_hz))
-    target = float(np.mean(np.concatenate(lat)))
-    if target <= 1e-9:  # below a nanosecond: the rounding of regular stamps, not a latency
-        return Estimate({"std_s": 0.0}, 0.0)
-    hi = 10 * target
-    while _rests_latency(hi, shape) < target:
-        hi *= 2
-    std = brentq(lambda s: _rests_latency(s, shape) - target, 0.0, hi, xtol=1e-6)
-    return Estimate({"std_s": float(std)}, target)
-
-
-#: Effects short rests can show: the receive timing of their samples (the static recording's
-#: signature, its estimator on the rests' lengths).
-REST_LIBRARY = {
-    "timing_jitter": dataclasses.replace(
-        STATIC_LIBRARY["timing_jitter"], estimate=estimate_rest_timing_jitter
-    )
-}
-
-#: Effects pooled short rests cannot show, and why (the static recording's reasons where they
-#: hold for rests as well).
-REST_NOT_OBSERVABLE = {
-    **{k: v for k, v in NOT_OBSERVABLE.items() if k != "timing_jitter"},
-    "bias_instability": "rests of a few seconds do not resolve a bias wander (correlation "
-    "times of 100 s): the twin draws white noise, and a wander the rests do show is in their "
-    "Allan excess and trend, read as the twin's shortfall",
-    "temperature_drift": "the temperature hardly changes within a rest of a few seconds, and "
-    "the levels of different rests differ by their orientation",
-    "g_sensitivity": "each rest is replayed at its own level: the rests' means are not "
-    "compared with each other (nothing gives the true rate or force of a hand-placed pose)",
-    "earth_rotation": "each rest is replayed at its own level: the rests' means are not "
-    "compared with each other",
-    "placement_error": "each rest is replayed at its own level: the rests' means are not "
-    "compared with each other",
-    "shock": "no estimator on the rests' statistics (noise level, short Allan deviation, "
-    "trend, quantisation, timing do not isolate a few spikes)",
-    "vibration": "no estimator on the rests' statistics (no spectral line statistic)",
-}
 
 
 def session_rests(
@@ -495,7 +427,7 @@ def diagnose_rests(
     dataset : str
     calibration, sensitivity, gravity_m_s2, settings
         As in :func:`imucal.gap.static.diagnose_static`; ``exclude`` leaves effects out of
-        :data:`REST_LIBRARY`.
+        the rests' library.
 
     Returns
     -------
@@ -514,8 +446,8 @@ def diagnose_rests(
     session = flat_streams(rests)
     stats = {h: rests_statistics(session, h) for h in HALVES}
     return scope_diagnosis(
-        twin, session, stats, REST_LIBRARY, scope="rests", static_source=rests_source,
-        not_observable=REST_NOT_OBSERVABLE,
+        twin, session, stats, scope_library("rests"), scope="rests",
+        static_source=rests_source, not_observable=not_observable("rests"),
         cannot_show="the rests cannot show this effect (no such stream)",
         dataset=dataset, settings=settings, started=t0,
     )  # fmt: skip

@@ -1,5 +1,5 @@
 """The rows, halves, resting means and clock of a calibrated session, shared by the gap map's
-statistics (:mod:`imucal.gap.locations`), the effect estimators (:mod:`imucal.gap.effects`)
+statistics (:mod:`imucal.gap.locations`), the effect estimators (:mod:`imucal.gap.library`)
 and the model terms (:mod:`imucal.terms`).
 
 A half (``'A'`` or ``'B'``, :data:`imucal.gap.statistics.HALVES`) is one of the two sets of segments of the
@@ -51,7 +51,8 @@ def _alternate(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
     return rows.iloc[0 if half == "A" else 1 :: 2]
 
 
-def _time_half(n: int, half: str | None) -> slice:
+def time_half(n: int, half: str | None) -> slice:
+    """The rows of ``n`` of a time half: the first (A), the second (B) or all (None)."""
     if half is None:
         return slice(0, n)
     return slice(0, n // 2) if half == "A" else slice(n // 2, n)
@@ -67,7 +68,8 @@ def _run_half(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
     return rows[keep]
 
 
-def _phase_half(labels, half: str | None) -> list:
+def phase_half(labels, half: str | None) -> list:
+    """The rotation phases of a half: x and z (A), y (B) or all (None)."""
     if half is None:
         return list(labels)
     return [p for p in labels if (p in ("x", "z")) == (half == "A")]
@@ -246,7 +248,7 @@ class RestingMeans:
         return len(self.recording)
 
 
-def _white_variance(x: np.ndarray, floor: float) -> np.ndarray:
+def white_variance(x: np.ndarray, floor: float) -> np.ndarray:
     """White-noise variance of the mean of ``x`` (n, k) per column, at least ``floor / n``."""
     return np.maximum(np.var(np.diff(x, axis=0), axis=0) / 2, floor) / len(x)
 
@@ -312,9 +314,9 @@ def _resting_means(fit: SessionFit, half) -> RestingMeans:
             rows_out["mid_s"].append(mid)
             rows_out["gyr"].append(ws.mean(axis=0))
             q_gyr, q_acc = (float(sens[s]) ** 2 / 12 / samples[s] for s in ("gyr", "acc"))
-            rows_out["gyr_var"].append(_white_variance(ws, q_gyr))
+            rows_out["gyr_var"].append(white_variance(ws, q_gyr))
             rows_out["acc"].append(as_.mean(axis=0))
-            rows_out["acc_var"].append(float(np.mean(_white_variance(as_, q_acc))))
+            rows_out["acc_var"].append(float(np.mean(white_variance(as_, q_acc))))
             rows_out["north"].append(north)
             rows_out["east"].append(east)
             rows_out["up"].append(up)

@@ -33,7 +33,7 @@ Statistics (units in :data:`CATALOGUE`; a static recording's own in :mod:`imucal
 This module holds the catalogue and :func:`compute_statistics`, which gathers the locations of
 one session; the per-stage statistic functions are in :mod:`imucal.gap.locations`, the
 session's rows, halves, resting means and clock that they share with the effect estimators
-(:mod:`imucal.gap.effects`) and the model terms (:mod:`imucal.terms`) in
+(:mod:`imucal.gap.library`) and the model terms (:mod:`imucal.terms`) in
 :mod:`imucal.gap.session`, so that a statistic and the estimator that reads the same quantity
 cannot drift apart.
 """
@@ -47,12 +47,12 @@ from imucal.gap.locations import (
     _gyr_rest,
     _mag,
     _noise,
-    _reference,
     _scale,
     _table,
     _temperature,
     _timing,
     _world_rate,
+    reference_clock_locations,
 )
 from imucal.pipeline.full import SessionFit
 
@@ -199,6 +199,6 @@ def compute_statistics(fit: SessionFit, half: str | None = None) -> dict[Key, fl
     out.update(_scale(fit, half))
     out.update(_mag(fit, half))
     if fit.time_alignment is not None:
-        out.update(_reference(fit, half))
+        out.update(reference_clock_locations(fit, half))
     out.update(_temperature(fit, half))
     return out

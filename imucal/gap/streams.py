@@ -71,6 +71,11 @@ class Stream:
         return Stream(self.t_s[sl], {s: v[sl] for s, v in self.values.items()}, temp)
 
 
+def streams_half(streams: Mapping[str, Stream], half: str | None) -> dict[str, Stream]:
+    """Every stream's first (A) or second (B) half in time, or the whole (None)."""
+    return {k: s.half(half) for k, s in streams.items()}
+
+
 def split_streams(table: pd.DataFrame) -> dict[str, Stream]:
     """The acc/gyro and magnetometer streams of an ingested static recording.
 

@@ -122,7 +122,7 @@ def _white_variance(x: np.ndarray, quantum: float) -> np.ndarray:
     least the quantisation's (``quantum^2 / 12`` per sample: a resting quantised reading may
     not change at all); NaN with fewer than 3 rows."""
     x = x[np.all(np.isfinite(x), axis=1)]
-    return st._white_variance(x, quantum**2 / 12) if len(x) >= 3 else np.full(3, np.nan)
+    return st.white_variance(x, quantum**2 / 12) if len(x) >= 3 else np.full(3, np.nan)
 
 
 def resting_means(fit: SessionFit, *, table: bool = True, half: str | None = None) -> Means:

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from imucal.gap import effects as gap_effects
+from imucal.gap.effects import Estimate
+from imucal.gap.library import scope_library
 from imucal.gap.null import NullModel, build_null, holm, run_replicas, total_gap
 from imucal.gap.scoring import verdict_of
 from imucal.gap.statistics import compute_statistics
@@ -60,7 +61,7 @@ def test_null_false_alarm_rate_is_nominal(twin):
 def _estimate(tw, name, effect, seed=11, half=None):
     imu, ref = render_replica(tw, seed, (effect,) if effect else ())
     fit = calibrate_session(imu, ref, tw.options)
-    return gap_effects.LIBRARY[name].estimate(fit, half), fit
+    return scope_library("protocol")[name].estimate(fit, half), fit
 
 
 @pytest.mark.parametrize(
@@ -266,20 +267,20 @@ def test_a_latency_is_one_delay_in_every_phase():
     heavy-tailed: 10 spreads, p = 4e-4, still pass)."""
     rng = np.random.default_rng(7)
     s = 0.0015
-    null = [gap_effects.Estimate({}, 0.0, {"lag_s": list(rng.normal(0, s, 3))}) for _ in range(8)]
-    gate = gap_effects.LIBRARY["mag_latency"].gate
+    null = [Estimate({}, 0.0, {"lag_s": list(rng.normal(0, s, 3))}) for _ in range(8)]
+    gate = scope_library("protocol")["mag_latency"].gate
     refused = sum(
-        bool(gate(gap_effects.Estimate({}, 0.02, {"lag_s": list(0.02 + rng.normal(0, s, 3))}),
+        bool(gate(Estimate({}, 0.02, {"lag_s": list(0.02 + rng.normal(0, s, 3))}),
                   null, 4.0))
         for _ in range(200)
     )  # fmt: skip
     assert refused == 0
-    platform = gap_effects.Estimate({}, 0.033, {"lag_s": [-0.037, 0.060, 0.075]})
+    platform = Estimate({}, 0.033, {"lag_s": [-0.037, 0.060, 0.075]})
     assert "disagree with one delay" in gate(platform, null, 4.0)
-    one_off = gap_effects.Estimate({}, 0.025, {"lag_s": [0.02, 0.02, 0.02 + 25 * s]})
+    one_off = Estimate({}, 0.025, {"lag_s": [0.02, 0.02, 0.02 + 25 * s]})
     assert gate(one_off, null, 4.0)
     # without the phases' lags (or without a null) there is nothing to refuse on
-    assert gate(gap_effects.Estimate({}, 0.02), null, 4.0) == ""
+    assert gate(Estimate({}, 0.02), null, 4.0) == ""
     assert gate(platform, null[:2], 4.0) == ""
 
 

@@ -93,7 +93,7 @@ def test_long_statistics_of_one_row_blocks_equal_the_full_rate_ones(monkeypatch)
             white = {}
             for name, x in (("whole", table), ("window", window)):
                 v = x[SENSOR_COLUMNS[k[1]][AXES.index(k[2])]].to_numpy()
-                v = v[np.isfinite(v)][session._time_half(int(np.isfinite(v).sum()), half)]
+                v = v[np.isfinite(v)][session.time_half(int(np.isfinite(v).sum()), half)]
                 white[name] = np.std(np.diff(v))
             expected = a[k] + np.log(white["whole"] / white["window"])
             assert b[k] == pytest.approx(expected, abs=1e-9), k

@@ -16,11 +16,13 @@ from imucal.gap.detection import (
     named_needed,
     score_detection,
 )
-from imucal.gap.effects import LIBRARY
+from imucal.gap.library import scope_library
 from imucal.sim import SENSITIVITY
 from imucal.sim.effects import make_effect
 
 FACTORS = [0.125, 0.25, 0.5, 1, 2, 4]
+#: The effects the full protocol's diagnosis estimates.
+LIBRARY = scope_library("protocol")
 
 
 @pytest.fixture(scope="module")

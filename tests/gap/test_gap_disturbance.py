@@ -17,8 +17,7 @@ from imucal.gap.disturbance import (
     reference_intervals,
     shock_rate,
 )
-from imucal.gap.motion import motion_library
-from imucal.gap.static import NOT_OBSERVABLE
+from imucal.gap.library import not_observable, scope_library
 from imucal.gap.worldfield import (
     estimate_world_magnetic,
     field_position_rms,
@@ -30,10 +29,9 @@ from imucal.sim.effects.disturbance import gradient_matrix
 
 
 def test_every_disturbance_has_a_motion_estimator_and_a_static_reason():
-    _, _, (_, twin) = case_inputs("robot", None, 0, duration_s=30.0)
-    library = motion_library(twin)
+    library, static = scope_library("motion"), not_observable("static")
     for name in MOTION_EFFECTS:
-        assert library[name].signature and name in NOT_OBSERVABLE, name
+        assert library[name].signature and name in static, name
 
 
 def test_a_world_fixed_field_is_recovered_as_the_field_along_the_path():

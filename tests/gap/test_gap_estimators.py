@@ -7,15 +7,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imucal.gap import effects as gap_effects
+from imucal.constants import EARTH_RATE_RAD_S
 from imucal.gap import locations as loc
-from imucal.gap.effects import EARTH_RATE_RAD_S, Estimate, earth_gate
+from imucal.gap.effects import Estimate
+from imucal.gap.library import scope_library
+from imucal.gap.library.inertial import earth_gate
+from imucal.gap.library.noise import BIAS_TAU_S, shows_g_sensitivity, wander_variance
 from imucal.gap.misalignment import misalignment_report
 from imucal.gap.twin import TWIN_RECORDINGS, Twin, render_replica
 from imucal.pipeline.full import PipelineOptions, calibrate_session
 from imucal.sim import ProtocolConfig, make_effect, make_truth
 from imucal.sim.effects import stream_rng
 from imucal.sim.session import SENSITIVITY
+
+#: The full protocol's estimators, by effect.
+PROTOCOL = scope_library("protocol")
 
 SHORT = ProtocolConfig(static_s=120.0, run_plateau_s=3.0, run_pause_s=1.5)
 RANGE = {"acc": 32767, "gyr": 32767, "mag": 32767}
@@ -50,7 +56,7 @@ def clean_fit(base):
 
 
 def _null_z(name, value, null_fits):
-    vals = np.array([gap_effects.LIBRARY[name].estimate(f, None).detect for f in null_fits])
+    vals = np.array([PROTOCOL[name].estimate(f, None).detect for f in null_fits])
     return (value - vals.mean()) / vals.std(ddof=1)
 
 
@@ -77,13 +83,13 @@ def test_estimator_recovers_and_null_stays_quiet(
 ):
     # seed 11 splits a 3 s plateau of the earth_rotation session's rate table (segmentation)
     fit = _fit(base, 18 if name == "earth_rotation" else 11, (make_effect(name, **params),))
-    est = gap_effects.LIBRARY[name].estimate(fit, None)
+    est = PROTOCOL[name].estimate(fit, None)
     got, true = check(est.params), check(params)
     # platform_magnetic: the ellipsoid fit absorbs part of the field, so the estimate is low
     # but of the right size; the twin reproduces the absorption when it adds the effect
     assert got == pytest.approx(true, rel=rtol), (got, true)
     assert abs(_null_z(name, est.detect, null_fits)) > NULL_Z
-    clean = gap_effects.LIBRARY[name].estimate(clean_fit, None)
+    clean = PROTOCOL[name].estimate(clean_fit, None)
     assert abs(_null_z(name, clean.detect, null_fits)) < NULL_Z
 
 
@@ -99,7 +105,7 @@ def test_temperature_drift_follows_the_channel(base, null_fits):
         acc_scale_per_k=2.6e-4, tau_s=300.0,
     )  # fmt: skip
     fit = _fit(base, 13, (eff,))
-    est = gap_effects.LIBRARY["temperature_drift"].estimate(fit, None)
+    est = PROTOCOL["temperature_drift"].estimate(fit, None)
     p = est.params
     k_gyr, _ = eff.coefficients("gyr")
     np.testing.assert_allclose(p["gyr_per_k"], k_gyr, atol=0.1 * np.abs(k_gyr).max())
@@ -107,7 +113,7 @@ def test_temperature_drift_follows_the_channel(base, null_fits):
     along_plus = np.add(p["acc_per_k"], g * np.asarray(p["acc_scale_per_k"]))
     k_acc, s_acc = eff.coefficients("acc")
     assert along_plus[2] == pytest.approx(k_acc[2] + g * s_acc[2], rel=0.1)
-    bi = gap_effects.LIBRARY["bias_instability"].estimate(fit, None)
+    bi = PROTOCOL["bias_instability"].estimate(fit, None)
     assert abs(_null_z("bias_instability", bi.detect, null_fits)) < NULL_Z
 
 
@@ -122,10 +128,10 @@ def test_saturation_counts_the_clip_level(base, clean_fit):
     options = PipelineOptions(9.81, SENSITIVITY, {**RANGE, "mag": top}, RATETABLE)
     twin = Twin(base.truth, base.config, options, ("rotation3d", "cube", "static"), True)
     fit = _fit(twin, 14, (make_effect("saturation", mag=top, acc=32767, gyr=32767),))
-    est = gap_effects.LIBRARY["saturation"].estimate(fit, None)
+    est = PROTOCOL["saturation"].estimate(fit, None)
     assert est.params["mag"] == pytest.approx(top, abs=2)
     assert est.detect > 1e-3
-    assert gap_effects.LIBRARY["saturation"].estimate(clean_fit, None).detect == 0.0
+    assert PROTOCOL["saturation"].estimate(clean_fit, None).detect == 0.0
     key = ("ingest", "mag", "-", "all", "clip_fraction")
     assert twin.replica(15).stats[None][key] == 0.0
     with_effect = twin.replica(15, (make_effect("saturation", **est.params),))
@@ -133,7 +139,7 @@ def test_saturation_counts_the_clip_level(base, clean_fit):
 
 
 def test_earth_gate_accepts_the_earth_and_refuses_more(null_fits):
-    null = [gap_effects.LIBRARY["earth_rotation"].estimate(f, None) for f in null_fits]
+    null = [PROTOCOL["earth_rotation"].estimate(f, None) for f in null_fits]
     earth = Estimate({"rate_rad_s": EARTH_RATE_RAD_S, "latitude_deg": 48.0},
                      EARTH_RATE_RAD_S * np.sin(np.radians(48.0)))  # fmt: skip
     assert earth_gate(earth, null, 4.0) == ""
@@ -152,10 +158,10 @@ def test_large_misalignment_reported_not_a_gap(base, null_fits):
     the gyro (1.6 deg, rate-table precision 1.4e-4) sits at the threshold and is not tested."""
     eff = make_effect("large_misalignment", acc_deg=8.0, gyr_deg=8.0, mag_deg=8.0)
     fit = _fit(base, 16, (eff,))
-    est = gap_effects.LIBRARY["large_misalignment"].estimate(fit, None)
+    est = PROTOCOL["large_misalignment"].estimate(fit, None)
     for s in ("acc", "gyr", "mag"):
         assert est.params[f"{s}_deg"] == pytest.approx(8.0, abs=0.3)
-    assert not gap_effects.LIBRARY["large_misalignment"].opens_gap
+    assert not PROTOCOL["large_misalignment"].opens_gap
     rep = misalignment_report(fit, null_fits, 4.0)
     assert rep["present"] and set(rep["sensors"]) == {"acc", "gyr", "mag"}
     clean = misalignment_report(null_fits[0], null_fits[1:], 4.0)
@@ -197,14 +203,12 @@ def test_wander_statistic_is_standard_under_white_noise_and_sees_a_wander():
     t = np.sort(rng.uniform(0.0, 800.0, n))
     var = rng.uniform(2e-9, 6e-9, n)
     design = np.column_stack([np.ones(n), rng.normal(0.0, 5.0, (n, 3))])
-    c = np.exp(-np.abs(t[:, None] - t[None, :]) / gap_effects.BIAS_TAU_S)
+    c = np.exp(-np.abs(t[:, None] - t[None, :]) / BIAS_TAU_S)
     chol = np.linalg.cholesky(c + 1e-12 * np.eye(n))
 
     def z(gm):
         y = rng.normal(0.0, np.sqrt(var)) + gm * chol @ rng.normal(size=n) + design @ [1, 2, 3, 4]
-        gm2, excess, excess_var = gap_effects._wander_variance(
-            t, y, var, design, gap_effects.BIAS_TAU_S
-        )
+        gm2, excess, excess_var = wander_variance(t, y, var, design, BIAS_TAU_S)
         return excess / np.sqrt(excess_var), gm2
 
     white = np.array([z(0.0)[0] for _ in range(400)])
@@ -237,8 +241,8 @@ def test_g_sensitivity_test_of_the_resting_means():
 
     white = rng.normal(0.0, np.sqrt(var))
     base = np.ones((n, 1))
-    assert not gap_effects._shows_g_sensitivity(rest(white), base)
-    assert gap_effects._shows_g_sensitivity(rest(white + acc @ (2e-4 * np.eye(3)).T), base)
+    assert not shows_g_sensitivity(rest(white), base)
+    assert shows_g_sensitivity(rest(white + acc @ (2e-4 * np.eye(3)).T), base)
 
 
 def test_placement_error_needs_the_field_to_turn_with_gravity(base, null_fits):
@@ -255,10 +259,10 @@ def test_placement_error_needs_the_field_to_turn_with_gravity(base, null_fits):
     rms = [np.sqrt(np.mean(np.sum(loc.cube_direction_residuals(f, None)[0] ** 2, axis=1)))
            for f in (fit, *null_fits)]  # fmt: skip
     assert (rms[0] - np.mean(rms[1:])) / np.std(rms[1:], ddof=1) > NULL_Z
-    est = gap_effects.LIBRARY["placement_error"].estimate(fit, None)
+    est = PROTOCOL["placement_error"].estimate(fit, None)
     assert abs(_null_z("placement_error", est.detect, null_fits)) < NULL_Z
     both = _fit(base, 21, (drift, make_effect("placement_error", cube_sigma_deg=0.5)))
-    est = gap_effects.LIBRARY["placement_error"].estimate(both, None)
+    est = PROTOCOL["placement_error"].estimate(both, None)
     assert est.params["cube_sigma_deg"] == pytest.approx(0.5, rel=0.6)
     assert _null_z("placement_error", est.detect, null_fits) > NULL_Z
 
@@ -270,11 +274,11 @@ def test_placement_error_is_not_estimated_on_a_cube_held_by_hand(base):
     import dataclasses
 
     fit = _fit(base, 12, (make_effect("placement_error", cube_sigma_deg=0.5),))
-    assert gap_effects.LIBRARY["placement_error"].estimate(fit, None) is not None
+    assert PROTOCOL["placement_error"].estimate(fit, None) is not None
     extra = {**fit.extra, "options": dataclasses.replace(
         fit.extra["options"], held_by_hand=("cube",))}  # fmt: skip
     held = dataclasses.replace(fit, extra=extra)
-    assert gap_effects.LIBRARY["placement_error"].estimate(held, None) is None
+    assert PROTOCOL["placement_error"].estimate(held, None) is None
 
 
 def test_the_twin_turns_a_clipped_phase_as_fast_as_the_session():

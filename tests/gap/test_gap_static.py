@@ -17,7 +17,8 @@ import pytest
 from imucal.columns import SEGMENT_COLUMNS, SENSOR_COLUMNS, SENSORS, TIME
 from imucal.gap import DiagnosisSettings
 from imucal.gap.composite import diagnose_partial_session, rest_as_static
-from imucal.gap.static import STATIC_LIBRARY, diagnose_static
+from imucal.gap.library import scope_library
+from imucal.gap.static import diagnose_static
 from imucal.gap.statictwin import StaticTwin, build_static_twin, render_static
 from imucal.gap.streams import split_streams, temperature_slopes
 from imucal.sim import make_effect, make_truth
@@ -155,7 +156,7 @@ def test_a_drift_is_rendered_about_the_recordings_level():
     )  # fmt: skip
     streams = split_streams(_session(6, (effect,)))
     twin = build_static_twin(streams, None, {}, 9.81)  # the step estimated from the readings
-    model = STATIC_LIBRARY["temperature_drift"]
+    model = scope_library("static")["temperature_drift"]
     drift = model.simulator_effect(model.estimate(streams, None).params)
     step = twin.sensitivity["gyr"]
     for seed in (0, 1):
