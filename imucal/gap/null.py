@@ -28,6 +28,10 @@ from imucal.gap.statictwin import StaticTwin
 from imucal.gap.statistics import CATALOGUE, Key
 from imucal.gap.twin import Replica, Twin
 
+#: Relative size of the round-off of a statistic: replicas that differ by less than this share
+#: of their size do not vary (:meth:`NullModel.from_values`).
+ROUND_OFF = 1e-9
+
 
 def transform(key: Key, value: float) -> float:
     """The scored form of a statistic (log for scale statistics)."""
@@ -74,15 +78,19 @@ class NullModel:
     def from_values(cls, keys: Sequence[Key], values: np.ndarray) -> NullModel:
         """The null of replica values, shape (R, L) (transformed units).
 
-        A location whose replicas are all equal and whose statistic has no resolution floor
-        (:data:`~imucal.gap.statistics.CATALOGUE`) gives no spread to score against: its scale
-        is NaN, so it has no score (rather than an infinite one for any departure, which would
-        put every session in the gap there and leave the null's own leave-one-out gaps at 0).
-        :attr:`constant` names those locations.
+        A location whose replicas do not vary (all equal, or differing by round-off only:
+        a spread below :data:`ROUND_OFF` of the values' size) and whose statistic has no
+        resolution floor (:data:`~imucal.gap.statistics.CATALOGUE`) gives no spread to score
+        against: its scale is NaN, so it has no score (rather than one of 1e15 for any
+        departure, which would put every session in the gap there and leave the null's own
+        leave-one-out gaps at 0). :attr:`constant` names those locations; a session is
+        compared with them by exact match (:meth:`constant_departures`).
         """
         r = values.shape[0]
         mean = np.nanmean(values, axis=0)
         std = np.nanstd(values, axis=0, ddof=1)
+        size = np.nanmax(np.abs(values), axis=0, initial=0.0)
+        std = np.where(std > ROUND_OFF * size, std, 0.0)
         floor = np.array([CATALOGUE[k[4]].floor for k in keys])
         scale = np.sqrt(std**2 + floor**2) * np.sqrt(1 + 1 / r)
         ok = scale > 0
@@ -114,20 +122,53 @@ class NullModel:
 
     @property
     def constant(self) -> list:
-        """Locations the null cannot score: replicas all equal, no resolution floor."""
+        """Locations the null cannot score: replicas that do not vary, no resolution floor."""
         return [k for k, s in zip(self.keys, self.scale, strict=True) if not np.isfinite(s)]
 
+    def _values(self, stats: Mapping[Key, float]) -> np.ndarray:
+        """A session's statistics in this null's order, transformed (NaN where it lacks one)."""
+        return np.array([transform(k, stats[k]) if k in stats else np.nan for k in self.keys])
+
+    def _without_spread(self, x: np.ndarray) -> np.ndarray:
+        """Per location, whether the null has no spread to score ``x`` against: no scale, or
+        one below :data:`ROUND_OFF` of the size of ``x`` and the mean (round-off of a value
+        the replicas share)."""
+        size = np.maximum(np.abs(x), np.abs(self.mean))
+        with np.errstate(invalid="ignore"):
+            return ~np.isfinite(self.scale) | (self.scale <= ROUND_OFF * size)
+
+    def constant_departures(self, stats: Mapping[Key, float]) -> list[tuple[Key, float, float]]:
+        """The locations where the null has no spread to score the session against (its
+        replicas do not vary, :attr:`constant`, or vary by round-off of the values' size) and
+        the session's statistic is not the replicas' value: ``(key, session value, replicas'
+        value)``, transformed units.
+
+        They are compared by exact match, within :data:`ROUND_OFF` of the larger size: the twin
+        reproduces the value exactly, so any other value departs, by an amount that has no
+        score.
+        """
+        x = self._values(stats)
+        none = self._without_spread(x)
+        out = []
+        for i, k in enumerate(self.keys):
+            m = float(self.mean[i])
+            if none[i] and np.isfinite(x[i]) and abs(x[i] - m) > ROUND_OFF * max(abs(x[i]), abs(m)):
+                out.append((k, float(x[i]), m))
+        return out
+
     def t(self, stats: Mapping[Key, float], shift: Mapping | None = None) -> np.ndarray:
-        """Scores of a session's statistics, shape (L,) (NaN where the session lacks one).
+        """Scores of a session's statistics, shape (L,) (NaN where the session lacks one, or
+        where the null has no spread to score it against: :meth:`constant_departures`).
 
         ``shift`` (key -> (mean, variance), transformed units) moves the null mean by an
         effect added to the twin and widens it by the effect's own scatter across seeds.
         """
-        x = np.array([transform(k, stats[k]) if k in stats else np.nan for k in self.keys])
+        x = self._values(stats)
         shift = shift or {}
         d = np.array([shift.get(k, (0.0, 0.0))[0] for k in self.keys])
         v = np.array([shift.get(k, (0.0, 0.0))[1] for k in self.keys])
-        return (x - self.mean - d) / np.sqrt(self.scale**2 + v)
+        t = (x - self.mean - d) / np.sqrt(self.scale**2 + v)
+        return np.where(self._without_spread(x), np.nan, t)
 
     @property
     def df(self) -> int:

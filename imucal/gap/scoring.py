@@ -17,7 +17,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from imucal.gap.attribution import Candidate, attribute, confusable
+from imucal.gap.attribution import DETECT_Z_CAP, Candidate, attribute, confusable
 from imucal.gap.effects import EffectModel
 from imucal.gap.null import build_null, holm, run_replicas
 from imucal.gap.statictwin import StaticTwin
@@ -51,7 +51,7 @@ REFERENCE_EFFECTS = {"reference_jitter": "the reference's sample timing (referen
 #: Library effects of the acquisition (the host, the logger, the clocks) rather than of the
 #: sensor or the world; the verdict names their kind, so that a user does not read a receive
 #: latency as a physical disturbance. Every other effect is ``physical``.
-ACQUISITION_EFFECTS = ("packet_loss", "timing_jitter", "time_offset")
+ACQUISITION_EFFECTS = ("packet_loss", "timing_jitter", "time_offset", "clock_drift")
 
 
 @dataclass(frozen=True)
@@ -135,11 +135,16 @@ def _effect_record(c: Candidate, model: EffectModel, keys, reject) -> dict:
         "shrink": c.shrink,
         "heldout_shrink": c.heldout_shrink,
         "heldout_deviance": c.heldout_deviance,
+        "heldout_deviance_before": c.heldout_deviance_before,
+        "signature": c.signature or None,
         # judged beside the twin's shortfalls (attribution.judged_locations); None: not evaluated
         "judged_beside_shortfalls": (c.judged is not None) if c.evaluated else None,
         "accepted": c.accepted,
         "detect": _finite_or_none(c.detect),
-        "detect_z": _finite_or_none(c.detect_z),
+        # a detection statistic whose replicas do not vary departs or not by exact match:
+        # no score is reported for it (detection_z gives it its resolution's 1e6)
+        "detect_z": _finite_or_none(c.detect_z) if abs(c.detect_z) < DETECT_Z_CAP else None,
+        "detect_null_without_spread": bool(abs(c.detect_z) >= DETECT_Z_CAP),
         "evident": c.evident,
         "evaluated": c.evaluated,
         "signature_hits": [
@@ -175,6 +180,9 @@ def _shortfall(location: Mapping) -> str | None:
 
 def _name(location: Mapping) -> str:
     parts = [location[f] for f in LOCATION_FIELDS[:4] if location[f] not in ("-", "all")]
+    if location.get("z") is None:  # a statistic the twin reproduces exactly (no spread)
+        return (f"{'/'.join(parts)} {location['statistic']} ({location['value']:.3g} where "
+                f"the twin always has {location['twin']:.3g})")  # fmt: skip
     return f"{'/'.join(parts)} {location['statistic']} (z = {location['z']:.3g})"
 
 
@@ -233,6 +241,10 @@ def verdict_of(result: Mapping) -> dict:
         g = groups.setdefault(what, {"what": what, "weight": 0.0, "locations": []})
         g["weight"] += loc["z"] ** 2
         g["locations"].append(loc)
+    for loc in result.get("null", {}).get("constant_departures", []):
+        what = _shortfall(loc) or "an effect the library does not hold"
+        g = groups.setdefault(what, {"what": what, "weight": 0.0, "locations": []})
+        g["locations"].append({**loc, "z": None})
     total = sum(g["weight"] for g in groups.values()) or 1.0
     lacks = [
         {
@@ -343,14 +355,21 @@ def scored_diagnosis(
     )  # fmt: skip
     t_after = null_full.t(stats[None], shift)
     reject_after = holm(null_full.p_values(t_after), alpha)
+    departs = [
+        {**dict(zip(LOCATION_FIELDS, k, strict=True)), "value": x, "twin": m}
+        for k, x, m in null_full.constant_departures(stats[None])
+    ]
     result = {
         "format_version": FORMAT_VERSION,
         "dataset": dataset,
         "gap": {
             "total": null_full.gap(stats[None]),
             "null_p95": float(np.percentile(loo, 95)),
-            # a location in the gap, or an accepted effect beyond its null on its own
-            "significant": bool(reject.any()) or any(c.accepted and c.evident for c in cands),
+            # a location in the gap, an accepted effect beyond its null on its own, or a
+            # statistic the twin reproduces exactly that the session does not have
+            "significant": bool(reject.any())
+            or any(c.accepted and c.evident for c in cands)
+            or bool(departs),
         },
         "locations": _locations(keys, t_real, reject, True),
         "effects": [
@@ -374,6 +393,8 @@ def scored_diagnosis(
             "constant_locations": [
                 dict(zip(LOCATION_FIELDS, k, strict=True)) for k in null_full.constant
             ],
+            # compared by exact match (no spread to score against): where the session differs
+            "constant_departures": departs,
         },
     }
     return {**result, "verdict": verdict_of(result)}
