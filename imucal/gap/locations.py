@@ -28,6 +28,7 @@ from imucal.columns import (
     temperature_column,
 )
 from imucal.gap.blocks import long_series
+from imucal.gap.clipping import pile_up_rows
 from imucal.gap.session import (
     _alternate,
     _means,
@@ -80,6 +81,36 @@ def stamp_residual(t_s: np.ndarray, seq: np.ndarray) -> np.ndarray:
     return t_s - np.polyval(a, k - k.mean())
 
 
+def stamp_resolution(t_s: np.ndarray) -> float:
+    """The resolution of recorded timestamps (s): the coarsest power of ten, 1 s to 1 ns,
+    that every stamp is a multiple of (as a file written with that many decimals holds them),
+    0 when none is (stamps of full float precision).
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (n,)
+    """
+    t = np.asarray(t_s, dtype=float)
+    t = t[np.isfinite(t)]
+    for d in range(10):
+        scaled = t * 10.0**d
+        if np.all(np.abs(scaled - np.rint(scaled)) <= 1e-3):
+            return 10.0**-d
+    return 0.0
+
+
+def stamp_floor(fit: SessionFit) -> float:
+    """The smallest stamp scatter the session's timestamps can show (s): the rounding of its
+    stamps' resolution (:func:`stamp_resolution` of every IMU recording, or the twin's
+    ``stamp_resolution_s``, which a replica carries from its session), ``resolution /
+    sqrt(12)``, and at least 1e-7 s. A replica held in memory is not rounded as the session's
+    file was; below this floor the two cannot differ by more than that rounding."""
+    res = fit.extra.get("stamp_resolution_s")
+    if res is None:
+        res = max(stamp_resolution(t[TIME].to_numpy(dtype=float)) for t in fit.imu.values())
+    return max(float(res) / np.sqrt(12.0), 1e-7)
+
+
 def allan_deviation(x: np.ndarray, m: int) -> np.ndarray:
     """Overlapping Allan deviation at cluster size ``m`` samples, per column.
 
@@ -115,32 +146,37 @@ def _timing(fit: SessionFit, half) -> dict:
     out = {("ingest", "clock", "-", "all", "loss_fraction"): lost / max(expected, 1)}
     r = np.concatenate(scatter)
     out[("ingest", "clock", "-", "all", "stamp_scatter_s")] = float(
-        max(np.sqrt(np.mean(r**2)), 1e-7)
+        max(np.sqrt(np.mean(r**2)), stamp_floor(fit))
     )
     return out | clipping_locations(fit, half)
 
 
 def clip_fractions(tables: Mapping[str, pd.DataFrame], options, half=None) -> dict[str, float]:
-    """Per sensor, the fraction of its samples (all recordings, one time half or all) within
-    1.5 LSB of its range (``options.limit``: ``range_counts`` of dataset.yaml); sensors whose
-    range is not known are left out."""
+    """Per sensor, the fraction of its samples (all recordings, one time half or all) that
+    clip: within 1.5 LSB of its declared range (``options.limit``: ``range_counts`` of
+    dataset.yaml) or at a pile-up of identical extreme values in its recording
+    (:func:`imucal.gap.clipping.pile_up_rows`: a part whose range is smaller than declared, or
+    not declared at all)."""
     out = {}
     for s in SENSORS:
-        if options.limit(s) is None:
-            continue
         n = hit = 0
         for table in tables.values():
-            x = column_values(table, SENSOR_COLUMNS[s])[time_half(len(table), half)]
-            x = x[np.all(np.isfinite(x), axis=1)]
-            limit = options.limit(s) - 1.5 * float(options.sensitivity[s])
-            hit += int(np.any(np.abs(x) >= limit, axis=1).sum())
-            n += len(x)
-        out[s] = hit / max(n, 1)
+            x = column_values(table, SENSOR_COLUMNS[s])
+            ok = np.all(np.isfinite(x), axis=1)
+            clipped = pile_up_rows(x)
+            if options.limit(s) is not None:
+                limit = options.limit(s) - 1.5 * float(options.sensitivity[s])
+                clipped |= np.any(np.abs(np.nan_to_num(x)) >= limit, axis=1) & ok
+            sl = time_half(len(table), half)
+            hit += int(clipped[sl][ok[sl]].sum())
+            n += int(ok[sl].sum())
+        if n:
+            out[s] = hit / n
     return out
 
 
 def clipping_locations(fit: SessionFit, half) -> dict:
-    """Fraction of samples within one LSB of a sensor's range (range from dataset.yaml)."""
+    """Fraction of samples that clip, per sensor (:func:`clip_fractions`)."""
     fractions = clip_fractions(fit.imu, fit.extra["options"], half)
     return {("ingest", s, "-", "all", "clip_fraction"): f for s, f in fractions.items()}
 

@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SEQ, TIME, temperature_column
 from imucal.gap.blocks import COUNT_COLUMNS, STATIC_WINDOW_S, StaticBlocks
+from imucal.gap.locations import stamp_resolution
 from imucal.gap.statistics import HALVES, compute_statistics
 from imucal.ingest import reference_to_table
 from imucal.io.raw import MtManagerExport
@@ -96,6 +97,10 @@ class Twin:
         The block means of a long static recording (:mod:`imucal.gap.blocks`): the replica
         renders the recording's window at full rate (``config.static_s``) and its blocks with
         :func:`render_static_blocks`. None when the static recording is rendered whole.
+    stamp_resolution_s : float
+        Resolution of the session's timestamps (:func:`imucal.gap.locations.stamp_resolution`,
+        0 for full float precision): a replica's timing statistics are floored at its rounding
+        as the session's are (:func:`imucal.gap.locations.stamp_floor`).
     """
 
     truth: Truth
@@ -106,6 +111,7 @@ class Twin:
     extra_columns: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     static_blocks: BlockSpec | None = None
+    stamp_resolution_s: float = 0.0
 
     def describe(self) -> dict:
         """JSON-ready summary (noise, world, protocol timing)."""
@@ -129,6 +135,7 @@ class Twin:
         statistics on the given ``halves``."""
         imu, reference = render_replica(self, seed, effects)
         fit = calibrate_session(imu, reference, replica_options(self, effects))
+        fit.extra["stamp_resolution_s"] = self.stamp_resolution_s
         if self.static_blocks is not None:
             fit.extra["static_blocks"] = render_static_blocks(self, seed, effects)
         return Replica(seed, fit, {h: compute_statistics(fit, h) for h in halves})
@@ -524,9 +531,10 @@ def build_twin(fit: SessionFit, options: PipelineOptions) -> Twin:
             f"static recording of {blocks.n_rows} rows: its first {STATIC_WINDOW_S:g} s at full "
             f"rate and {len(blocks.table)} block means of {blocks.samples_per_block} rows"
         )
+    resolution = max(stamp_resolution(t[TIME].to_numpy(dtype=float)) for t in fit.imu.values())
     return Twin(
         truth, config, options, tuple(r for r in TWIN_RECORDINGS if r in fit.imu),
-        fit.reference is not None, extra, notes, spec,
+        fit.reference is not None, extra, notes, spec, resolution,
     )  # fmt: skip
 
 
