@@ -47,9 +47,10 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import stats as sps
 
 from imucal.gap.effects import EffectModel
-from imucal.gap.null import NullModel, holm, transform
+from imucal.gap.null import NullModel, holm, total_gap, transform
 from imucal.gap.statictwin import StaticTwin
 from imucal.gap.twin import Twin
 
@@ -70,12 +71,23 @@ class Candidate:
     heldout_before: float | None = None
     heldout_after: float | None = None
     heldout_deviance: float | None = None
+    heldout_deviance_before: float | None = None
+    signature: dict = field(default_factory=dict)
     accepted: bool = False
     evaluated: bool = False
     note: str = ""
     blocked: str = ""
     evident: bool = False
     judged: Callable[[tuple], bool] | None = None
+    acts_on: Callable[[tuple], bool] | None = None
+
+    def criterion(self) -> Callable[[tuple], bool] | None:
+        """The locations its gaps are measured on: where it acts (:attr:`acts_on`) and, beside
+        what the twin cannot replay, those it is judged on (:attr:`judged`); None for all."""
+        keeps = [f for f in (self.judged, self.acts_on) if f is not None]
+        if not keeps:
+            return None
+        return lambda k: all(f(k) for f in keeps)
 
     @property
     def shrink(self):
@@ -90,14 +102,20 @@ class Candidate:
         return 1 - self.heldout_after / self.heldout_before
 
 
+#: Bound of a detection score: a null whose replicas do not vary (no lost packet in any of them)
+#: is scored against a relative resolution of 1e-9, so any departure reaches it; it means
+#: "departs from a null without spread", not a measured size.
+DETECT_Z_CAP = 1e6
+
+
 def detection_z(value: float, null_values) -> float:
     """Score of an effect estimator's detection statistic against its values on the replicas
     (prediction interval; a null that is constant, e.g. no lost packet in any replica, gets a
-    relative resolution), clipped to +-1e6."""
+    relative resolution), clipped to +-:data:`DETECT_Z_CAP`."""
     vals = np.array([v for v in null_values if v is not None], dtype=float)
     spread = np.std(vals, ddof=1) * np.sqrt(1 + 1 / len(vals)) if len(vals) > 2 else np.inf
     spread = max(spread, 1e-9 * max(abs(np.mean(vals)), abs(value)), 1e-300)
-    return float(np.clip((value - np.mean(vals)) / spread, -1e6, 1e6))
+    return float(np.clip((value - np.mean(vals)) / spread, -DETECT_Z_CAP, DETECT_Z_CAP))
 
 
 def evident_on_its_own(z: float, n_null: int, n_tests: int, alpha: float, detect_z: float) -> bool:
@@ -115,6 +133,25 @@ def evident_on_its_own(z: float, n_null: int, n_tests: int, alpha: float, detect
     if not np.isfinite(z) or n_null < 3 or n_tests < 1 or z < detect_z:
         return False
     return bool(sps.t.sf(z, df=n_null - 1) < alpha / n_tests)
+
+
+def widened_where_own(shift: Mapping, own: Sequence[Callable[[tuple], bool]]) -> dict:
+    """A null shift whose widening (its variance across seeds) is kept only at the locations
+    of the effects' own signatures.
+
+    An effect that adds spread widens, through the few seeds it is rendered with, every
+    statistic its noise touches; a widened null holds any departure there, so such an effect
+    would close gaps it does not explain (a time offset, a warm-up beside a wandering bias).
+    Its mean shift is kept everywhere: that is what it predicts.
+
+    Parameters
+    ----------
+    shift : dict
+        Location -> (mean shift, variance), as :func:`statistic_shift`.
+    own : sequence of callable
+        The effects' signatures, ``key -> bool`` (:meth:`EffectModel.matches`).
+    """
+    return {k: (m, v if any(o(k) for o in own) else 0.0) for k, (m, v) in shift.items()}
 
 
 def statistic_shift(pairs) -> dict:
@@ -185,7 +222,7 @@ def detection_z_given(
     Returns
     -------
     float
-        Clipped to +-1e6, as :func:`detection_z`; NaN with fewer than two pairs or three
+        Clipped to +-:data:`DETECT_Z_CAP`, as :func:`detection_z`; NaN with fewer than two pairs or three
         null values.
     """
     vals = np.array([v for v in null_values if v is not None], dtype=float)
@@ -198,7 +235,9 @@ def detection_z_given(
         return float("nan")
     var = np.var(vals, ddof=1) * (1 + 1 / len(vals)) + np.var(diffs, ddof=1)
     spread = max(np.sqrt(var), 1e-9 * max(abs(np.mean(vals)), abs(value)), 1e-300)
-    return float(np.clip((value - np.mean(vals) - np.mean(diffs)) / spread, -1e6, 1e6))
+    return float(
+        np.clip((value - np.mean(vals) - np.mean(diffs)) / spread, -DETECT_Z_CAP, DETECT_Z_CAP)
+    )
 
 
 def add_shifts(a: Mapping, b: Mapping) -> dict:
@@ -302,6 +341,9 @@ def attribute(
         out = (_shift(twin, full, replicas, None, n_seeds, keep),
                _shift(twin, half_a, replicas, "B", n_seeds))  # fmt: skip
         rendered[frozenset(c.name for c in group)] = keep
+        if any(models[c.name].spreads for c in group):
+            own = [models[c.name].matches for c in group]
+            out = tuple(widened_where_own(sh, own) for sh in out)
         return out
 
     def z_given(c: Candidate, accepted: Sequence[str]) -> float:
@@ -446,55 +488,16 @@ def select_forward(
         best = None
         for c in open_:
             c.judged = judged_locations(own[c.name], in_gap, unreplayed) if own else None
-            nf, nb = _on(null_full, c.judged), _on(null_b, c.judged)
-            c.gap_before, c.heldout_before = nf.gap(stats[None], shift), nb.gap(stats["B"], shift_b)
-            if c.blocked:
-                c.gap_after = c.heldout_after = None
-                c.evaluated = False
-                continue
-            if abs(c.detect_z) < detect_z:
-                c.note = f"estimate within the null (|z| = {abs(c.detect_z):.1f} < {detect_z:g})"
-                c.gap_after = c.heldout_after = None
-                c.evaluated = False
-                continue
-            z_acc = z_given(c, explained) if z_given is not None and explained else float("nan")
-            if abs(z_acc) < detect_z:
-                c.note = (
-                    f"estimate within the null of the twin with {', '.join(explained)} "
-                    f"(|z| = {abs(z_acc):.1f} < {detect_z:g})"
-                )
-                c.gap_after = c.heldout_after = None
-                c.evaluated = False
-                continue
-            if not c.shift:
-                try:
-                    c.shift, c.shift_b = shifts_of(c)
-                except ValueError as err:  # its replicas cannot be calibrated: it does not fit
-                    c.blocked = c.note = (
-                        f"not a fit: a replica rendered with this estimate cannot be calibrated "
-                        f"({err})"
-                    )
-                    c.gap_after = c.heldout_after = None
-                    c.evaluated = False
-                    continue
-            c.evaluated = True
-            c.note = (
-                ""
-                if c.heldout_before > 0
-                else (
-                    "half B shows no gap beyond noise"
-                    + (" on the locations it is judged on" if c.judged is not None else "")
-                    + ": the held-out check cannot confirm an effect"
-                )
-            )
-            try:
-                with_c, with_c_b = combined([by_name[n] for n in explained] + [c])
-            except ValueError:  # the joint replicas cannot be calibrated: the shifts add
-                with_c, with_c_b = add_shifts(shift, c.shift), add_shifts(shift_b, c.shift_b)
-            c.gap_after = nf.gap(stats[None], with_c)
-            c.heldout_after = nb.gap(stats["B"], with_c_b)
-            c.heldout_deviance = null_b.deviance(stats["B"], with_c_b)
-            qualifies = c.heldout_shrink is not None and c.heldout_shrink >= min_heldout_shrink
+            qualifies = _evaluate(
+                c, explained, stats, null_full, null_b, (shift, shift_b), shifts_of, combined,
+                by_name, alpha=alpha, detect_z=detect_z, z_given=z_given,
+                own=own[c.name] if own else None,
+                # beside what the twin cannot replay, an effect without evidence of its own
+                # outside it is judged on the whole gap (judged_locations)
+                where_it_acts=unreplayed is None or c.judged is not None,
+            )  # fmt: skip
+            shrink = c.heldout_shrink
+            qualifies = qualifies and shrink is not None and shrink >= min_heldout_shrink
             if qualifies and (best is None or c.heldout_deviance < best.heldout_deviance):
                 best = c
         rounds.append({
@@ -512,6 +515,216 @@ def select_forward(
     rounds += pruned
     shift, shift_b = _safe(combined, [by_name[n] for n in explained])
     return explained, shift, shift_b, rounds
+
+
+def signature_scores(
+    own: Callable[[tuple], bool],
+    null_full: NullModel,
+    null_b: NullModel,
+    stats: Mapping,
+    before: tuple[Mapping, Mapping],
+    after: tuple[Mapping, Mapping],
+) -> dict:
+    """The scores at an effect's own signature locations before and after it joins the twin.
+
+    Parameters
+    ----------
+    own : callable
+        ``key -> bool``, the effect's signature (:meth:`EffectModel.matches`).
+    null_full, null_b : NullModel
+    stats : dict
+        The session's statistics per half.
+    before, after : tuple of dict
+        The null shifts (all statistics, half B) of the twin without and with the effect.
+
+    Returns
+    -------
+    dict
+        ``keys`` (its signature locations), ``z_before``, ``z_after`` (all data) and
+        ``z_after_b`` (half B, the effect at its half-A estimate), one per key (None where a
+        location has no score).
+    """
+    keys = [k for k in null_full.keys if own(k)]
+    sig_full, sig_b = null_full.restricted(own), null_b.restricted(own)
+
+    def scores(null: NullModel, half, shift: Mapping) -> list:
+        t = dict(zip(null.keys, null.t(stats[half], shift), strict=True))
+        return [float(t[k]) if np.isfinite(t.get(k, np.nan)) else None for k in keys]
+
+    return {
+        "keys": [list(k) for k in keys],
+        "z_before": scores(sig_full, None, before[0]),
+        "z_after": scores(sig_full, None, after[0]),
+        "z_after_b": scores(sig_b, "B", after[1]),
+    }
+
+
+def _unevaluated(c: Candidate, note: str) -> bool:
+    """Mark a candidate not evaluated, with the reason; False (it does not qualify)."""
+    c.note = note
+    c.gap_after = c.heldout_after = None
+    c.evaluated = False
+    return False
+
+
+def _evaluate(
+    c: Candidate,
+    explained: Sequence[str],
+    stats: Mapping,
+    null_full: NullModel,
+    null_b: NullModel,
+    shifts: tuple[dict, dict],
+    shifts_of: Callable[[Candidate], tuple[dict, dict]],
+    combined: Callable[[Sequence[Candidate]], tuple[dict, dict]],
+    by_name: Mapping[str, Candidate],
+    *,
+    alpha: float,
+    detect_z: float,
+    z_given: Callable[[Candidate, Sequence[str]], float] | None,
+    own: Callable[[tuple], bool] | None,
+    where_it_acts: bool = True,
+) -> bool:
+    """Evaluate one candidate of a round of :func:`select_forward` against the twin with the
+    effects already accepted (their null shifts ``shifts``: all statistics, half B): its gaps
+    in sample and held out, its held-out deviance and the scores at its own signature.
+
+    A candidate is not evaluated when it is blocked, when its estimate is not beyond the null
+    on the side the effect moves it (one-sided: every effect raises its detection statistic;
+    a session below the twin is not this effect), when the accepted effects account for it,
+    or when its replicas cannot be calibrated. Evaluated, it qualifies only when its own
+    signature locations are consistent with the twin's null once it is in the twin (Holm at
+    ``alpha`` over them, in sample): an effect that leaves a structured residual where it acts
+    is not the cause.
+
+    Returns
+    -------
+    bool
+        Whether the candidate was evaluated and passes its signature's check (the held-out
+        shrink is the caller's test).
+    """
+    shift, shift_b = shifts
+    nf, nb = _on(null_full, c.judged), _on(null_b, c.judged)
+    c.gap_before, c.heldout_before = nf.gap(stats[None], shift), nb.gap(stats["B"], shift_b)
+    c.acts_on = None
+    if c.blocked:
+        return _unevaluated(c, c.blocked)
+    if not c.detect_z >= detect_z:
+        return _unevaluated(
+            c, f"estimate not beyond the null (z = {c.detect_z:.1f} < {detect_z:g})"
+        )
+    z_acc = z_given(c, explained) if z_given is not None and explained else float("nan")
+    if z_acc < detect_z:
+        return _unevaluated(
+            c,
+            f"estimate within the null of the twin with {', '.join(explained)} "
+            f"(z = {z_acc:.1f} < {detect_z:g})",
+        )
+    if not c.shift:
+        try:
+            c.shift, c.shift_b = shifts_of(c)
+        except ValueError as err:  # its replicas cannot be calibrated: it does not fit
+            c.blocked = (
+                f"not a fit: a replica rendered with this estimate cannot be calibrated ({err})"
+            )
+            return _unevaluated(c, c.blocked)
+    try:
+        with_c, with_c_b = combined([by_name[n] for n in explained] + [c])
+    except ValueError:  # the joint replicas cannot be calibrated: the shifts add
+        with_c, with_c_b = add_shifts(shift, c.shift), add_shifts(shift_b, c.shift_b)
+    if own is not None and where_it_acts:
+        c.acts_on = acting_locations(own, null_full, shift, with_c)
+        nf, nb = _on(null_full, c.criterion()), _on(null_b, c.criterion())
+        c.gap_before = nf.gap(stats[None], shift)
+        c.heldout_before = nb.gap(stats["B"], shift_b)
+    c.evaluated = True
+    c.note = (
+        ""
+        if c.heldout_before > 0
+        else (
+            "half B shows no gap beyond noise on the locations it acts on"
+            + (" and is judged on" if c.judged is not None else "")
+            + ": the held-out check cannot confirm an effect"
+        )
+    )
+    c.gap_after = nf.gap(stats[None], with_c)
+    c.heldout_after = nb.gap(stats["B"], with_c_b)
+    c.heldout_deviance = null_b.deviance(stats["B"], with_c_b)
+    c.heldout_deviance_before = null_b.deviance(stats["B"], shift_b)
+    if own is None:
+        return True
+    c.signature = signature_scores(own, null_full, null_b, stats, shifts, (with_c, with_c_b))
+    left = residual_at_signature(c.signature, null_full.df, alpha)
+    if left:
+        c.note = f"leaves a structured residual where it acts: {left}"
+        return False
+    return True
+
+
+#: Share of its own signature's gap an effect must close when a location of it stays in the
+#: gap (:func:`residual_at_signature`): a twin that replays an effect a little off leaves some
+#: residual where the effect is large; one of the wrong shape closes little of it.
+SIGNATURE_SHRINK = 0.9
+
+
+def residual_at_signature(signature: Mapping, df: int, alpha: float) -> str:
+    """The structured residual an effect leaves where it acts, as text; empty when none.
+
+    Its signature locations are tested once the effect is in the twin (Holm at ``alpha`` over
+    the signature's scored locations, in sample). A location still in the gap counts against
+    the effect unless the effect closes at least :data:`SIGNATURE_SHRINK` of its signature's
+    gap (:func:`imucal.gap.null.total_gap` there, before and after): a rendering a little off
+    the session's leaves a residual at the few locations where the effect is largest, a wrong
+    shape leaves most of it.
+    """
+    keys = [tuple(k) for k in signature.get("keys", [])]
+    z = np.array([np.nan if v is None else v for v in signature.get("z_after", [])], dtype=float)
+    if not len(z):
+        return ""
+    reject = holm(2 * sps.t.sf(np.abs(z), df=df), alpha)
+    if not reject.any():
+        return ""
+    before = np.array([np.nan if v is None else v for v in signature["z_before"]], dtype=float)
+    gap_before, gap_after = total_gap(before, df), total_gap(z, df)
+    closed = 1 - gap_after / gap_before if gap_before > 0 else 0.0
+    if closed >= SIGNATURE_SHRINK:
+        return ""
+    left = [f"{'/'.join(k[:4])} {k[4]} (z = {v:.1f})" for k, v, r in zip(keys, z, reject) if r]
+    more = f" and {len(left) - 3} more" if len(left) > 3 else ""
+    return f"{', '.join(left[:3])}{more}; it closes {closed:.0%} of its own locations' gap"
+
+
+#: A location an effect acts on, besides its signature: the twin with it differs there by more
+#: than this many of the null's standard deviations (:func:`acting_locations`).
+ACTS_ON_STD = 1.0
+
+
+def acting_locations(
+    own: Callable[[tuple], bool], null: NullModel, before: Mapping, after: Mapping
+) -> Callable[[tuple], bool]:
+    """The locations an effect acts on: its signature, and where adding it to the twin moves
+    the null's mean by more than :data:`ACTS_ON_STD` of its standard deviations.
+
+    An effect's gaps, in sample and held out, are measured there: a location it leaves as it
+    was can neither confirm it nor count against it, so an effect beside a large departure it
+    does not touch (one outside the library, say) is judged on what it explains, and an effect
+    that moves locations outside its signature answers for them.
+
+    Parameters
+    ----------
+    own : callable
+        ``key -> bool``, the effect's signature.
+    null : NullModel
+        The null of all statistics (its scales).
+    before, after : dict
+        The null shifts of the twin without and with the effect (all statistics).
+    """
+    moved = {
+        k
+        for k, scale in zip(null.keys, null.scale, strict=True)
+        if np.isfinite(scale)
+        and abs(after.get(k, (0.0, 0.0))[0] - before.get(k, (0.0, 0.0))[0]) > ACTS_ON_STD * scale
+    }
+    return lambda k: own(k) or k in moved
 
 
 def _on(null: NullModel, judged: Callable[[tuple], bool] | None) -> NullModel:
@@ -588,7 +801,7 @@ def prune_backward(
     while len(explained) > 1:
         marginal = {}
         for name in explained:
-            judged = by_name[name].judged
+            judged = by_name[name].criterion()
             with_all = gap_b(explained, judged)
             without = gap_b([n for n in explained if n != name], judged)
             marginal[name] = 1 - with_all / without if without > 0 else 0.0

@@ -60,6 +60,10 @@ class EffectModel:
         estimator's spread and ``z`` the detection threshold.
     opens_gap : bool
         False for an effect the pipeline's exact model absorbs (reported, never attributed).
+    spreads : bool
+        Whether the effect adds spread to the twin's null rather than moving its mean (its
+        spec's kind ``spread``, set when the spec is registered): its widening
+        of the null counts at its own signature only.
     """
 
     name: str
@@ -68,6 +72,7 @@ class EffectModel:
     description: str
     gate: Callable | None = None
     opens_gap: bool = True
+    spreads: bool = False
 
     def simulator_effect(self, params: dict):
         return make_effect(self.name, **params)

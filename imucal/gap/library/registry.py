@@ -9,6 +9,7 @@ detection sweep call these functions.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 from imucal.gap.effects import EffectModel
@@ -75,6 +76,15 @@ def register(spec: EffectSpec) -> EffectSpec:
         raise ValueError(f"effect spec {spec.name!r}: {'; '.join(problems)}")
     if spec.name in _SPECS:
         raise ValueError(f"an effect spec named {spec.name!r} is registered already")
+    # the scopes' models say whether the effect adds spread, as its kind does
+    spreads = spec.kind == "spread"
+    scopes = {
+        scope: dataclasses.replace(entry, spreads=spreads)
+        if isinstance(entry, EffectModel) and entry.spreads != spreads
+        else entry
+        for scope, entry in spec.scopes.items()
+    }
+    spec = dataclasses.replace(spec, scopes=scopes)
     _SPECS[spec.name] = spec
     return spec
 
