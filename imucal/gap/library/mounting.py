@@ -45,7 +45,36 @@ def estimate_placement_error(fit: SessionFit, half) -> Estimate | None:
     cube = float(np.degrees(np.sqrt(max(np.sum(acc * field) / np.sum(free), 0.0))))
     tilts = loc.table_mount_tilts(fit)
     table = float(np.degrees(np.sqrt(np.sum(tilts**2) / (2 * len(tilts))))) if len(tilts) else cube
-    return Estimate({"cube_sigma_deg": cube, "table_sigma_deg": table}, cube)
+    evidence = {"acc_tilt": acc, "field_tilt": field, "free": free}
+    return Estimate({"cube_sigma_deg": cube, "table_sigma_deg": table}, cube, evidence)
+
+
+#: Level of the test that the accelerometer's and the field's tilts move together
+#: (:func:`placement_gate`).
+TOGETHER_P = 0.01
+
+
+def placement_gate(est: Estimate, null: list, z: float) -> str:
+    """A rigid turn of the cube tilts gravity and the field alike: the positions' tilts of the
+    accelerometer and of the magnetometer (``evidence``) must be correlated, one-sided at
+    :data:`TOGETHER_P` (Student's t of the correlation on the positions' free degrees of
+    freedom less one). An error of the accelerometer alone (a scale that depends on the
+    force's sign, a cross-axis product) tilts its directions and leaves the field's as they
+    were: it can raise the covariance's estimate through its own size, never the correlation.
+    The reason the estimate is not a placement, or ''."""
+    from scipy import stats as sps
+
+    a, f = (np.asarray(est.evidence.get(k, ()), dtype=float) for k in ("acc_tilt", "field_tilt"))
+    dof = int(round(float(np.sum(est.evidence.get("free", ()))))) - 1
+    if len(a) < 3 or dof < 2 or not (np.any(a) and np.any(f)):
+        return ""
+    r = float(np.sum(a * f) / np.sqrt(np.sum(a * a) * np.sum(f * f)))
+    t = r * np.sqrt(dof / max(1 - r * r, 1e-12))
+    p = float(sps.t.sf(t, dof))
+    if p > TOGETHER_P:
+        return (f"the accelerometer's tilts and the field's do not move together (correlation "
+                f"{r:.2f} over {len(a)} positions, p = {p:.2g}): a rigid turn tilts both")  # fmt: skip
+    return ""
 
 
 def estimate_large_misalignment(fit: SessionFit, half) -> Estimate:
@@ -73,7 +102,7 @@ PLACEMENT_ERROR = register(EffectSpec(
         "protocol": EffectModel("placement_error", estimate_placement_error,
                                 (("acc_cube", "acc", "dir_resid_rad"),),
                                 "cube / table poses tilted from their nominal directions while "
-                                "|a| fits"),
+                                "|a| fits", gate=placement_gate),
         "static": _ONE_POSE,
         "motion": _MEASURED,
         "rests": "each rest is replayed at its own level: the rests' means are not compared "

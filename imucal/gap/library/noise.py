@@ -11,13 +11,14 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from imucal.columns import SENSORS, TIME, temperature_column
+from imucal.columns import ACC, GYR, SENSORS, TIME, temperature_column
 from imucal.gap import session as ses
 from imucal.gap.effects import EffectModel, Estimate
 from imucal.gap.library.registry import register
 from imucal.gap.library.spec import EffectSpec
 from imucal.gap.locations import allan_deviation
 from imucal.gap.streams import Stream, streams_half, white_std
+from imucal.gap.wandershape import WanderColumn, wander_gate
 from imucal.pipeline.full import SessionFit, calibrated
 
 #: Correlation time (s) assumed for the Gauss-Markov part when converting the variance seen
@@ -195,7 +196,7 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
         runs = {k: v[ok] for k, v in runs.items()}
         if len(runs["t"]) < 4:
             runs = None
-    gm2_gyr, excess, excess_var = [], 0.0, 0.0
+    gm2_gyr, excess, excess_var, columns = [], 0.0, 0.0, []
     for k in range(3):
         y, var, times, x = rest.gyr[:, k], rest.gyr_var[:, k], t, design
         if runs is not None:
@@ -213,6 +214,7 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
             var = np.concatenate([var, runs["var"][:, k]])
             times = np.concatenate([t, runs["t"]])
         gm2_k, ex_k, var_k = wander_variance(times, y, var, x, BIAS_TAU_S)
+        columns.append(WanderColumn(times, y, var, x))
         gm2_gyr.append(gm2_k)
         excess, excess_var = excess + ex_k, excess_var + var_k
     gm2 = float(np.mean(gm2_gyr))
@@ -221,7 +223,43 @@ def estimate_bias_instability(fit: SessionFit, half) -> Estimate | None:
         "gyr_gm": float(np.sqrt(max(gm2, 0.0))), "gyr_rw": 0.0, "gyr_tau_s": BIAS_TAU_S,
         "mag_gm": 0.0, "mag_rw": 0.0, "mag_tau_s": BIAS_TAU_S,
     }  # fmt: skip
-    return Estimate(params, excess / np.sqrt(excess_var) if excess_var > 0 else 0.0)
+    evidence = {"columns": columns, "tau_s": BIAS_TAU_S}
+    if "static" in fit.imu:
+        table = fit.imu["static"]
+        t_static = table[TIME].to_numpy(dtype=float)
+        x = np.column_stack([table[c].to_numpy(dtype=float) for c in (*ACC, *GYR)])
+        x = x[np.all(np.isfinite(x), axis=1)]
+        evidence["allan"] = allan_evidence(x, 1 / float(np.median(np.diff(t_static))))
+    detect = excess / np.sqrt(excess_var) if excess_var > 0 else 0.0
+    return Estimate(params, detect, evidence)
+
+
+#: The short cluster time (samples) at which a wander's Allan shape is checked
+#: (:func:`allan_evidence`): long against a sample, short against any wander.
+ALLAN_SHORT_SAMPLES = 10
+
+
+def allan_evidence(x: np.ndarray, rate_hz: float) -> dict | None:
+    """What a wander's Allan shape is checked on (:func:`imucal.gap.wandershape.allan_shape_z`):
+    each column's Allan variance at :data:`ALLAN_SHORT_SAMPLES`, its white-noise level from
+    first differences (as the twin's), the cluster time and the variance's degrees of freedom
+    (the recording's length in clusters). None for a recording of fewer than 20 clusters.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, k)
+        Samples of a static recording (SI), equally spaced at ``rate_hz``.
+    rate_hz : float
+    """
+    m = ALLAN_SHORT_SAMPLES
+    if len(x) < 20 * m:
+        return None
+    return {
+        "avar_short": allan_deviation(x, m) ** 2,
+        "white": white_std(x) ** 2 / rate_hz,
+        "tau_short_s": m / rate_hz,
+        "edf_short": len(x) / m - 1,
+    }
 
 
 def _gm_from_allan(x: np.ndarray, rate_hz: float) -> tuple[float, float]:
@@ -242,15 +280,28 @@ def estimate_static_bias_instability(streams: Mapping[str, Stream], half: str | 
     excess variance. A magnetometer's "bias" wander includes changes of the ambient field.
     """
     streams = streams_half(streams, half)
-    params, detect = {}, []
+    params, detect, shape = {}, [], []
     for s in SENSORS:
         st = next((st for st in streams.values() if s in st.values), None)
         gm = 0.0
         if st is not None:
             gm, lr = _gm_from_allan(st.values[s], st.rate_hz)
             detect.append(lr)
+            if s != "mag":  # the magnetometer's slow part holds the ambient field's changes
+                shape.append(allan_evidence(st.values[s], st.rate_hz))
         params.update({f"{s}_rw": 0.0, f"{s}_gm": gm, f"{s}_tau_s": BIAS_TAU_S})
-    return Estimate(params, float(np.mean(detect)))
+    evidence = {"allan": _pooled_allan([e for e in shape if e is not None])}
+    return Estimate(params, float(np.mean(detect)), evidence)
+
+
+def _pooled_allan(parts: list) -> dict | None:
+    """One :func:`allan_evidence` of several sensors' (their columns side by side; the times
+    and degrees of freedom of the shortest recording)."""
+    if not parts:
+        return None
+    out = {k: np.concatenate([p[k] for p in parts]) for k in ("avar_short", "white")}
+    first = min(parts, key=lambda p: p["edf_short"])
+    return {**out, "tau_short_s": first["tau_short_s"], "edf_short": first["edf_short"]}
 
 
 BIAS_INSTABILITY = register(EffectSpec(
@@ -263,12 +314,13 @@ BIAS_INSTABILITY = register(EffectSpec(
                                  ("noise", "*", "adev_10s_excess"),
                                  ("noise", "*", "trend_per_s"), ("gyr_static", "gyr", "spread")),
                                 "wandering biases: Allan deviation above the white-noise line at "
-                                "long tau"),
+                                "long tau", gate=wander_gate),
         "static": EffectModel("bias_instability", estimate_static_bias_instability,
                               (("noise", "*", "adev_10s_excess"),
                                ("noise", "*", "adev_long_excess"),
                                ("noise", "*", "trend_per_s")),
-                              "wandering biases: Allan deviation above the white-noise line"),
+                              "wandering biases: Allan deviation above the white-noise line",
+                              gate=wander_gate),
         "motion": "no static recording: the Allan deviation needs a long rest",
         "rests": "rests of a few seconds do not resolve a bias wander (correlation times of "
         "100 s): the twin draws white noise, and a wander the rests do show is in their Allan "
