@@ -61,14 +61,24 @@ def estimate_timing_jitter(fit: SessionFit, half) -> Estimate:
 
 
 def estimate_time_offset(fit: SessionFit, half) -> Estimate | None:
-    """Offset (s) and drift (ppm) of the reference clock; detect: ``|offset|``. None without
-    a reference."""
+    """Offset (s) of the reference clock; detect: ``|offset|``. None without a reference. The
+    clocks' rates are ``clock_drift``'s (:func:`estimate_clock_drift`), so that an offset and
+    a drift are named each for itself."""
     if fit.time_alignment is None:
         return None
     stats = loc.reference_clock_locations(fit, half)
     offset = stats[("validate", "clock", "-", "rotation3d", "ref_offset_s")]
+    return Estimate({"offset_s": float(offset), "drift_ppm": 0.0}, abs(float(offset)))
+
+
+def estimate_clock_drift(fit: SessionFit, half) -> Estimate | None:
+    """Rate error (ppm) of the logger's clock against the reference's, from the time
+    alignment's drift (the reference seen from the module's stamps drifts by ``-ppm``);
+    detect: ``|drift|``. None without a reference."""
+    if fit.time_alignment is None:
+        return None
     drift = float(fit.time_alignment.drift_ppm)
-    return Estimate({"offset_s": float(offset), "drift_ppm": drift}, abs(float(offset)))
+    return Estimate({"ppm": -drift}, abs(drift))
 
 
 def estimate_saturation(fit: SessionFit, half) -> Estimate:
@@ -168,6 +178,7 @@ _NO_ORIENTATION_REFERENCE = "no orientation reference in a static recording"
 #: signature (rests: the estimator on their own lengths).
 _RECEIVE_LATENCY = (
     ("ingest", "*", "stamp_scatter_s"),
+    ("ingest", "*", "stamp_wander_s"),
     ("ingest", "*", "burst_fraction"),
     ("ingest", "*", "long_gap_fraction"),
 )
@@ -207,14 +218,29 @@ TIMING_JITTER = register(EffectSpec(
 
 TIME_OFFSET = register(EffectSpec(
     name="time_offset",
-    description="offset and drift of the reference clock against the module's",
+    description="offset of the reference clock against the module's",
     kind="systematic",
     scopes={
         "protocol": EffectModel("time_offset", estimate_time_offset,
-                                (("validate", "clock", "ref_offset_s"),
-                                 ("validate", "clock", "ref_drift_ppm")),
-                                "offset and drift of the reference clock against the module"),
+                                (("validate", "clock", "ref_offset_s"),),
+                                "offset of the reference clock against the module"),
         "static": _NO_REFERENCE,
+        "motion": "the clock against the reference is measured and removed (validation.json)",
+        "rests": _NO_REFERENCE,
+        "field_fit": _NO_REFERENCE,
+    },
+))  # fmt: skip
+
+CLOCK_DRIFT = register(EffectSpec(
+    name="clock_drift",
+    description="the logger's clock and the reference's run at rates some ppm apart",
+    kind="systematic",
+    scopes={
+        "protocol": EffectModel("clock_drift", estimate_clock_drift,
+                                (("validate", "clock", "ref_drift_ppm"),),
+                                "rate error of the logger's clock against the reference's"),
+        "static": "no reference recording: the stamps' rate against the packet counter is the "
+        "module's sample rate as much as the logger's clock",
         "motion": "the clock against the reference is measured and removed (validation.json)",
         "rests": _NO_REFERENCE,
         "field_fit": _NO_REFERENCE,
@@ -248,7 +274,10 @@ REFERENCE_JITTER = register(EffectSpec(
         "static": _NO_ORIENTATION_REFERENCE,
         "motion": EffectModel("reference_jitter", estimate_reference_jitter,
                               (("reference", "gyr", "resid_rms"),
-                               ("reference", "gyr", "ori_median_rad")),
+                               ("reference", "gyr", "ori_median_rad"),
+                               # its rate errors grow with the rate: the residual's slopes on
+                               # the rate's square and cube move with them
+                               ("reference", "gyr", "rate2"), ("reference", "gyr", "rate3")),
                               "the reference's samples taken off their time stamps (an error "
                               "growing with rate)"),
         "rests": _NO_ORIENTATION_REFERENCE,

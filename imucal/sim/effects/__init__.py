@@ -26,7 +26,13 @@ from imucal.sim.effects.sensor import (
     ScaleNonlinearity,
     TemperatureDrift,
 )
-from imucal.sim.effects.timing import PacketLoss, ReferenceJitter, TimeOffset, TimingJitter
+from imucal.sim.effects.timing import (
+    ClockDrift,
+    PacketLoss,
+    ReferenceJitter,
+    TimeOffset,
+    TimingJitter,
+)
 
 #: The canonical effects of the diagnosis, in the order of docs/simulator.md.
 CANONICAL = (
@@ -36,6 +42,7 @@ CANONICAL = (
     "scale_nonlinearity",
     "saturation",
     "time_offset",
+    "clock_drift",
     "packet_loss",
     "timing_jitter",
     "mag_latency",
@@ -72,6 +79,7 @@ __all__ = [
     "REALISTIC",
     "REFERENCE_EFFECTS",
     "BiasInstability",
+    "ClockDrift",
     "EarthRotation",
     "Effect",
     "GSensitivity",

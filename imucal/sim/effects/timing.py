@@ -181,3 +181,33 @@ class ReferenceJitter(Effect):
 
     def magnitude(self) -> Magnitude:
         return Magnitude(self.std_s, "s", "std of the reference's sampling instants")
+
+
+@register
+@dataclass(frozen=True)
+class ClockDrift(Effect):
+    """The logger stamps the packets with a clock that runs fast against true time.
+
+    The stamps of a recording are ``t (1 + ppm 1e-6)`` from its first packet, while the module
+    samples and the reference runs on true time: against the reference the module's clock
+    drifts by ``-ppm`` (the time alignment's ``drift_ppm``). A logger's crystal (20-100 ppm,
+    effects.md #9) or a host clock disciplined badly; which of the two clocks is off the data
+    cannot tell, only that their rates differ.
+
+    Parameters
+    ----------
+    ppm : float
+        Rate error of the logger's clock against the reference's, parts per million.
+        Realistic: 200.
+    """
+
+    name = "clock_drift"
+    scalable = ("ppm",)
+    ppm: float = 200.0
+
+    def on_packets(self, log: PacketLog, ctx: RecordingContext) -> PacketLog:
+        t0 = log.t_s[0] if len(log) else 0.0
+        return log.with_times(t0 + (log.t_s - t0) * (1 + self.ppm * 1e-6))
+
+    def magnitude(self) -> Magnitude:
+        return Magnitude(abs(self.ppm), "ppm", "rate error of the logger's clock")
