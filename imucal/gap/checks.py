@@ -18,6 +18,7 @@ from imucal.gap.blind import failed_diagnosis, score_blind
 from imucal.gap.detection import score_detection
 from imucal.gap.diagnosis import diagnose
 from imucal.gap.figures import render_blind_page, render_detection_page
+from imucal.gap.outside import render_outside_page, score_outside
 from imucal.gap.scoring import DiagnosisSettings
 from imucal.gap.stress import render_stress_page, score_stress
 from imucal.ingest import ingest_recording
@@ -29,6 +30,7 @@ from imucal.pipeline.full import PipelineOptions, calibrate_session
 CHECKS = {
     "blind": (score_blind, render_blind_page),
     "stress": (score_stress, render_stress_page),
+    "outside": (score_outside, render_outside_page),
     "detection": (score_detection, render_detection_page),
 }
 
@@ -45,7 +47,7 @@ def score_check(
 
     Parameters
     ----------
-    check : {'blind', 'stress', 'detection'}
+    check : {'blind', 'stress', 'outside', 'detection'}
     diagnoses, sealed, benchmarks : sequence of path
         The diagnosis JSONs, the answer keys (both named by session) and the diagnose rule's
         Snakemake benchmark files.

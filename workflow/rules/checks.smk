@@ -1,9 +1,10 @@
-# The checks: the sealed plans of the diagnosis's simulated checks (blind, stress, detection) and
+# The checks: the sealed plans of the diagnosis's simulated checks (blind, stress, outside,
+# detection) and
 # the settings of the Monte-Carlo check of the reported uncertainty. No rules here.
 from functools import lru_cache
 
 
-#: The checks of the diagnosis (imucal.gap.blind, .stress, .detection): their sessions are
+#: The checks of the diagnosis (imucal.gap.blind, .stress, .outside, .detection): their sessions are
 #: planned when a check's target is asked for, not when the workflow is parsed.
 @lru_cache(maxsize=None)
 def check_plan(check):
@@ -23,6 +24,10 @@ def check_plan(check):
         from imucal.gap.stress import stress_plan
 
         return stress_plan(settings["seed"], settings["seeds_alone"], settings["n_clean"])
+    if check == "outside":
+        from imucal.gap.outside import outside_plan
+
+        return outside_plan(settings["seed"], settings["n_clean"])
     from imucal.gap.detection import detection_plan
 
     return detection_plan(

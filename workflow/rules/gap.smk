@@ -91,6 +91,7 @@ rule gap_diagnose_partial:
 # reports/blind.html and reports/stress.html are pages of the checks, not datasets' lab reports
 ruleorder: blind_score > report
 ruleorder: stress_score > report
+ruleorder: outside_score > report
 ruleorder: detection_score > report
 
 
@@ -220,6 +221,70 @@ rule stress:
     input:
         "results/stress/score.json",
         "reports/stress.html",
+
+
+# The outside-library check renders with the blind check's script (its specs carry effects of
+# the library and outside it, imucal.sim.outside).
+rule outside_render:
+    output:
+        folder=directory("results/outside/data/{session}"),
+        key="results/outside/sealed/{session}.json",
+    log:
+        "results/outside/logs/render/{session}.log",
+    benchmark:
+        "results/outside/benchmarks/render/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
+    params:
+        spec=check_spec("outside"),
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_blind_render.py"
+
+
+rule outside_diagnose:
+    input:
+        folder="results/outside/data/{session}",
+    output:
+        diagnosis="results/outside/diagnoses/{session}.json",
+    log:
+        "results/outside/logs/diagnose/{session}.log",
+    benchmark:
+        "results/outside/benchmarks/diagnose/{session}.tsv"
+    conda:
+        "../envs/imucal.yaml"
+    params:
+        settings=diagnosis_settings("outside"),
+        pipeline=PIPELINE_SETTINGS,
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_check_diagnose.py"
+
+
+rule outside_score:
+    input:
+        diagnoses=check_files("outside", "results/outside/diagnoses/{session}.json"),
+        sealed=check_files("outside", "results/outside/sealed/{session}.json"),
+        benchmarks=check_files("outside", "results/outside/benchmarks/diagnose/{session}.tsv"),
+    output:
+        score="results/outside/score.json",
+        html="reports/outside.html",
+    log:
+        "results/outside/logs/score.log",
+    conda:
+        "../envs/imucal.yaml"
+    params:
+        check="outside",
+        options={},
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_check_score.py"
+
+
+rule outside:
+    input:
+        "results/outside/score.json",
+        "reports/outside.html",
 
 
 # The detection sweep renders with the blind check's script (a crash is recorded and names
