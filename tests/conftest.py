@@ -34,6 +34,25 @@ def rms_z_limits(n: int, false_alarm: float = 1e-4) -> tuple[float, float]:
     return float(np.sqrt(low / n)), float(np.sqrt(high / n))
 
 
+def binomial_limits(n: int, p: float, false_alarm: float = 1e-4) -> tuple[int, int]:
+    """Central interval of the count of ``n`` independent events of probability ``p``.
+
+    Holds a Binomial(n, p) count with probability at least ``1 - false_alarm`` (the
+    ``false_alarm / 2`` and ``1 - false_alarm / 2`` quantiles): a decision rule's false alarms
+    on data without the thing, or its detections on data with it, must fall inside.
+    """
+    from scipy import stats
+
+    low, high = stats.binom.ppf([false_alarm / 2, 1 - false_alarm / 2], n, p)
+    return int(low), int(high)
+
+
+@pytest.fixture(scope="session")
+def binomial_band():
+    """:func:`binomial_limits` for the false-alarm and power checks of decision rules."""
+    return binomial_limits
+
+
 @pytest.fixture(scope="session")
 def rms_z_band():
     """:func:`rms_z_limits` for the multi-seed checks of reported standard deviations."""
