@@ -34,6 +34,28 @@ def rms_z_limits(n: int, false_alarm: float = 1e-4) -> tuple[float, float]:
     return float(np.sqrt(low / n)), float(np.sqrt(high / n))
 
 
+def z_limit(n: int, false_alarm: float = 1e-4, dof: int | None = None) -> float:
+    """How many standard deviations a test of ``n`` errors allows each of them.
+
+    The two-sided Bonferroni bound: each of the ``n`` errors of a test stays within the bound
+    with probability ``1 - false_alarm / n``, so all of them with at least ``1 - false_alarm``.
+    For a normal error over its std the bound is the normal quantile (3.9 for one error,
+    4.4 for nine at 1e-4); for an error over a std estimated with ``dof`` degrees of freedom,
+    Student's t.
+    """
+    from scipy import stats
+
+    tail = false_alarm / (2 * n)
+    return float(stats.norm.isf(tail) if dof is None else stats.t.isf(tail, dof))
+
+
+@pytest.fixture(scope="session")
+def z_bound():
+    """:func:`z_limit` for the "within N std" checks: N from the test's own false-failure
+    budget."""
+    return z_limit
+
+
 def binomial_limits(n: int, p: float, false_alarm: float = 1e-4) -> tuple[int, int]:
     """Central interval of the count of ``n`` independent events of probability ``p``.
 

@@ -269,3 +269,62 @@ def test_reference_windows_are_disjoint_and_each_spans_the_window():
     assert w.a.size == 118
     fit = fit_gyro_to_reference([(t, omega, tau, quat)], np.eye(3), np.zeros(3))
     assert (fit.n_windows, fit.n_outliers) == (118, 0)
+
+
+def test_reference_covariance_is_the_formal_and_the_delete_a_block_jackknife():
+    """On a linear model with residuals orthogonal to the design (the least-squares solution
+    is the truth, the residuals are ``r``): the formal covariance ``r.r / (3 k - p) (J^T
+    J)^-1`` and the jackknife of the refits with each of the ``N_BLOCKS`` contiguous blocks of
+    windows left out, ``(B - 1) / B sum (d_b - mean d)(d_b - mean d)^T``, here by refitting."""
+    from imucal.fits.reference import N_BLOCKS, _covariance
+
+    rng = np.random.default_rng(47)
+    k, p = 60, 12
+    jac = rng.standard_normal((k, 3, p))
+    a = jac.reshape(-1, p)
+    r = rng.standard_normal(3 * k) * np.repeat([0.5, 1.0, 2.0], k)
+    r -= a @ np.linalg.lstsq(a, r, rcond=None)[0]  # orthogonal to the design
+    free = np.ones(p, dtype=bool)
+    free[4] = False  # a held entry
+    formal, jack = _covariance(r.reshape(k, 3), jac, free)
+    af = a[:, free]
+    np.testing.assert_allclose(
+        formal, r @ r / (3 * k - free.sum()) * np.linalg.inv(af.T @ af), rtol=1e-9
+    )
+    deltas = []
+    for block in np.array_split(np.arange(k), N_BLOCKS):
+        keep = np.setdiff1d(np.arange(k), block)
+        rows = (3 * keep[:, None] + np.arange(3)).ravel()
+        deltas.append(np.linalg.lstsq(af[rows], -r[rows], rcond=None)[0])
+    deltas = np.array(deltas) - np.mean(deltas, axis=0)
+    np.testing.assert_allclose(jack, (N_BLOCKS - 1) / N_BLOCKS * deltas.T @ deltas, rtol=1e-8)
+
+
+def test_magnetometer_alignment_covariance_carries_the_frame_through_alpha():
+    """``T_R``'s covariance: the jackknife of a small rotation of B plus the frame's own, both
+    carried to the rotation vector alpha by ``J C J^T``; with a frame covariance only in one
+    axis and alpha 0.5 rad from zero (J not the identity, not symmetric) the added part is exactly
+    ``J C_frame J^T``."""
+    from imucal.fits.reference import fit_mag_to_reference
+
+    rng = np.random.default_rng(48)
+    n = 600
+    to_world = Rotation.from_rotvec(rng.normal(0, 1.2, (n, 3)))
+    t_r = Rotation.from_rotvec([0.3, -0.2, 0.4])
+    world = np.array([0.4, 0.0, -0.9])
+    field = t_r.inv().apply(to_world.apply(world, inverse=True)) + 0.01 * rng.standard_normal(
+        (n, 3)
+    )
+    frame = np.diag([4e-4, 0.0, 0.0])
+    plain = fit_mag_to_reference(field, to_world)
+    framed = fit_mag_to_reference(field, to_world, frame)
+    np.testing.assert_allclose(plain.alpha_rad, t_r.as_rotvec(), atol=5e-3)
+    rotation = Rotation.from_rotvec(plain.alpha_rad)
+    jac = np.column_stack(
+        [((Rotation.from_rotvec(d) * rotation).as_rotvec()
+          - (Rotation.from_rotvec(-d) * rotation).as_rotvec()) / 2e-7
+         for d in 1e-7 * np.eye(3)]
+    )  # fmt: skip
+    np.testing.assert_allclose(
+        framed.alpha_covariance - plain.alpha_covariance, jac @ frame @ jac.T, rtol=1e-5, atol=1e-12
+    )

@@ -165,3 +165,27 @@ def test_window_comparison_false_alarm_and_power(binomial_band):
         called = sum(v["verdict"] != "no significant difference" for v in verdicts)
         low, high = binomial_band(draws, p)
         assert low <= called <= high, (shift, called, low, high)
+
+
+def test_mounting_std_is_the_inverse_information_of_the_weighted_pairs():
+    """``cov = (sum_s w_s sum_i (|v_i|^2 I - v_i v_i^T))^-1``, ``w_s`` the inverse of the
+    sensor's residual variance per component, ``v = R r``; ``angle_std_deg`` is
+    ``sqrt(trace(cov))`` in degrees."""
+    from scipy.spatial.transform import Rotation
+
+    from imucal.validation.mounting import estimate_mounting
+
+    rng = np.random.default_rng(12)
+    rot = Rotation.from_rotvec([0.02, -0.3, 0.1])
+    ref = {"acc": rng.normal(0, 9.8, (200, 3)), "gyr": rng.normal(0, 1.0, (300, 3))}
+    noise = {"acc": 0.05, "gyr": 0.004}
+    module = {s: rot.apply(v) + noise[s] * rng.standard_normal(v.shape) for s, v in ref.items()}
+    out = estimate_mounting(module, ref)
+    info = np.zeros((3, 3))
+    for s, r in ref.items():
+        v = r @ out.matrix.T
+        w = 1.0 / np.mean((module[s] - v) ** 2)
+        assert out.residual_rms[s] == pytest.approx(np.sqrt(1 / w), rel=1e-12)
+        info += w * (np.sum(v * v) * np.eye(3) - v.T @ v)
+    want = np.degrees(np.sqrt(np.trace(np.linalg.inv(info))))
+    assert out.angle_std_deg == pytest.approx(want, rel=1e-10)
