@@ -328,3 +328,36 @@ def test_magnetometer_alignment_covariance_carries_the_frame_through_alpha():
     np.testing.assert_allclose(
         framed.alpha_covariance - plain.alpha_covariance, jac @ frame @ jac.T, rtol=1e-5, atol=1e-12
     )
+
+
+def test_constant_component_alignment_std_over_n_minus_3_minus_one_per_phase():
+    """Eqs. 25-27 over all samples (``full``), white residuals: ``r.r / (N - 3 - n_phases)
+    (J^T J)^-1``, each phase losing one dof to its constant; 8 samples a phase, where that
+    is 15 % of the dof."""
+    from imucal.fits.alignment import align_constant_component
+
+    rng = np.random.default_rng(49)
+    alpha = np.array([0.02, -0.015, 0.03])
+    t_r = errormodel.rotation_matrix(alpha)
+    phases = {}
+    for a, label in enumerate("xyz"):
+        angle = np.linspace(0, 2 * np.pi, 8, endpoint=False) + rng.uniform(0, 1)
+        u = np.zeros((8, 3))
+        j, k = (b for b in range(3) if b != a)
+        u[:, a], u[:, j], u[:, k] = 0.4, 0.9 * np.cos(angle), 0.9 * np.sin(angle)
+        phases[label] = u @ t_r + 0.01 * rng.standard_normal((8, 3))  # T_R v = u
+    fit = align_constant_component(phases, correlated=False)
+
+    def residuals(p):
+        t = errormodel.rotation_matrix(p)
+        return np.concatenate(
+            [(v - v.mean(axis=0)) @ t["xyz".index(lb)] for lb, v in phases.items()]
+        )
+
+    r = residuals(fit.alpha_rad)
+    jac = np.column_stack(
+        [(residuals(fit.alpha_rad + d) - residuals(fit.alpha_rad - d)) / 2e-7 for d in 1e-7 * np.eye(3)]
+    )
+    want = r @ r / (r.size - 3 - 3) * np.linalg.inv(jac.T @ jac)
+    np.testing.assert_allclose(fit.covariance, want, rtol=1e-4)
+    np.testing.assert_allclose(fit.std_alpha_rad, np.sqrt(np.diag(want)), rtol=1e-4)

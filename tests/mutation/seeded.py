@@ -91,14 +91,14 @@ BUGS = [
         "imucal/fits/alignment.py",
         "dof = r.size - 3 - n_nuisance",
         "dof = r.size - 3",
-        ["tests/fits/test_alignment.py"],
+        ["tests/fits/test_std_exact.py"],
     ),
     (
         "dof time offset",
         "imucal/validation/timing.py",
         "dof = max(sol.fun.size - int(free.sum()), 1)",
         "dof = max(sol.fun.size, 1)",
-        ["tests/validation/test_timing_std.py"],
+        ["tests/validation/test_timing_exact.py"],
     ),
     (
         "dof time offset windows (Birge)",
