@@ -242,6 +242,22 @@ def test_pose_to_pose_std_over_2_n_minus_9_dof():
     )
 
 
+def test_pose_to_pose_matrix_covariance_is_carried_from_scale_xi_alpha():
+    """The matrix entries' covariance ``J C J^T`` (``J`` of eq. 1's composition): carried back
+    to (scale, xi, alpha) by the decomposition it must give their own std again (the
+    composition's Jacobian is not symmetric, so ``J^T C J`` does not), with a bias of zero std
+    and without one."""
+    from imucal import uncertainty
+
+    ups, intervals, bias = _pose_session(np.random.default_rng(46))
+    plain = fit_pose_to_pose(ups[:-1], ups[1:], intervals, bias)
+    joint = fit_pose_to_pose(ups[:-1], ups[1:], intervals, bias, bias_std_rad_s=np.zeros(3))
+    std = uncertainty.std_of(joint.calibration.covariance)
+    back = np.concatenate([std["scale"], std["xi_rad"], std["alpha_rad"]])
+    np.testing.assert_allclose(back, plain.parameter_std, rtol=1e-4)
+    np.testing.assert_allclose(std["matrix"], plain.calibration.std["matrix"], rtol=1e-6)
+
+
 def _reference_recording(duration_s=120.0, ref_hz=100.0, imu_hz=200.0):
     t = np.arange(0.0, duration_s, 1 / imu_hz)
     omega = np.column_stack([np.sin(0.9 * t), np.cos(0.7 * t + 0.3), 0.8 * np.sin(0.5 * t + 1.0)])
@@ -356,7 +372,10 @@ def test_constant_component_alignment_std_over_n_minus_3_minus_one_per_phase():
 
     r = residuals(fit.alpha_rad)
     jac = np.column_stack(
-        [(residuals(fit.alpha_rad + d) - residuals(fit.alpha_rad - d)) / 2e-7 for d in 1e-7 * np.eye(3)]
+        [
+            (residuals(fit.alpha_rad + d) - residuals(fit.alpha_rad - d)) / 2e-7
+            for d in 1e-7 * np.eye(3)
+        ]
     )
     want = r @ r / (r.size - 3 - 3) * np.linalg.inv(jac.T @ jac)
     np.testing.assert_allclose(fit.covariance, want, rtol=1e-4)

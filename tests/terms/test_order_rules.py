@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from imucal.terms.blockspread import _interval, cluster_mean, verdict_of
+from imucal.terms.blockspread import _interval, _part, cluster_mean, verdict_of
 from imucal.terms.heldout import _achieved
 from imucal.terms.poseholdout import choose_order
 
@@ -100,6 +100,11 @@ def test_choose_order_is_the_admissible_then_one_standard_error_rule():
 
 
 def test_ratio_interval_is_students_t_with_satterthwaite_dof():
+    """Each source's variance is ``B / (B - 1) sum phi^2`` over its B blocks with ``B - 1``
+    dof; two sources combine with Satterthwaite's dof."""
+    phi = np.array([0.1, -0.2, 0.05, 0.3])
+    assert _part(phi, 4) == (pytest.approx(4 / 3 * np.sum(phi**2)), 3)
+    assert _part(phi[:1], 1) == (0.0, 0)
     log_ratio = np.log(0.64)
     lo, hi = _interval(log_ratio, [(0.01, 5)])
     half = stats.t.ppf(0.975, 5) * 0.1
