@@ -43,10 +43,15 @@ def test_counts_at_a_limit_are_clipped_and_one_inside_is_not():
     "column, value", [("gyr_x", 101), ("gyr_z", -101), ("acc_y", 32768), ("acc_x", -32769)]
 )
 def test_a_count_one_beyond_a_limit_is_refused(column, value):
-    table = _counts([[0] * 6, [0] * 6])
-    table.loc[1, column] = value
-    with pytest.raises(RawDataError, match=f"{column} is {value} counts, beyond the declared"):
+    """Only the count beyond: the rows at the limit before it are clipped readings, not the
+    first problem of the file, and do not add to the count beyond."""
+    at_limit = [32767, -32768, 32767, 100, -100, 100]
+    table = _counts([at_limit, at_limit, [0] * 6])
+    table.loc[2, column] = value
+    message = f"line 4: {column} is {value} counts, beyond the declared"
+    with pytest.raises(RawDataError, match=message) as err:
         check_count_range(table, "log.csv", LIMITS, 2)
+    assert f"(range_counts.{column[:3]} of dataset.yaml; 1 {column[:3]} count(s)" in str(err.value)
 
 
 def test_batches_count_the_clipped_rows_of_the_whole():

@@ -232,7 +232,13 @@ def sample(args) -> list[Mutant]:
             k = min(PACKAGE_SAMPLE.get(package_of(path), args.sample), args.sample, len(found))
             found = random.Random(f"{args.seed}:{path}").sample(found, k)
         chosen += sorted(found, key=lambda m: (m.line, m.col, m.kind))
-    return chosen
+    # round robin over the modules: a run stopped early has sampled every module alike
+    rank = Counter()
+    order = []
+    for m in chosen:
+        order.append((rank[m.path], m.path, m.line, m.col, m.kind))
+        rank[m.path] += 1
+    return [m for _, m in sorted(zip(order, chosen), key=lambda pair: pair[0])]
 
 
 def run_one(root: Path, m: Mutant) -> tuple[str, float]:
