@@ -105,7 +105,7 @@ BUGS = [
         "imucal/validation/timing.py",
         "/ (win_t_a.size - 2)",
         "/ (win_t_a.size - 1)",
-        ["tests/validation/test_timing_std.py"],
+        ["tests/validation/test_timing_exact.py"],
     ),
     (
         "dof block standard error",
