@@ -4,13 +4,14 @@ Copies the checkout's tracked files to a scratch folder (never edits the checkou
 each mutant of the sample writes the mutated module there, runs the tests that cover its
 module (:data:`TARGETS`, the ``slow`` ones left out) until the first failure, and restores the
 module. A mutant is *killed* when a test fails, *timeout* (counted as killed: the mutant
-loops) when the tests take more than :data:`TIMEOUT_S`, else it *survived*. Run the unmutated
-tests once first (they must pass). Survivors known to be equivalent are listed with their reason in
+loops) when the tests take more than :data:`TIMEOUT_S`, else it *survived*. ``--check`` first
+runs each module's tests on the unmutated copy (they must pass, or every mutant would count as
+killed). Survivors known to be equivalent are listed with their reason in
 ``tests/mutation/equivalent.txt`` and scored apart.
 
 Usage (from the repository root)::
 
-    python tests/mutation/run.py --jobs 2                    # the sampled run of docs/testing.md
+    python tests/mutation/run.py --jobs 2 --check            # the sampled run of docs/testing.md
     python tests/mutation/run.py --base main                 # every mutant of the functions
                                                              # changed since main
     python tests/mutation/run.py --module imucal/fits/reference.py --sample 0   # all of one
@@ -262,6 +263,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scratch", type=Path, help="scratch folder (default: a new temp one)")
     parser.add_argument("--out", type=Path, default=Path("mutation-results.jsonl"))
     parser.add_argument("--list", action="store_true", help="list the sample, run nothing")
+    parser.add_argument(
+        "--check", action="store_true", help="first run each module's tests unmutated (must pass)"
+    )
     args = parser.parse_args(argv)
 
     chosen = sample(args)
@@ -273,6 +277,12 @@ def main(argv: list[str] | None = None) -> int:
     base = args.scratch or Path(tempfile.mkdtemp(prefix="imucal-mutation-"))
     roots = [scratch_copy(base / f"copy{j}" / "repo") for j in range(args.jobs)]
     print(f"scratch copies under {base}; {len(chosen)} mutants, {args.jobs} at once", flush=True)
+    if args.check:
+        for tests in sorted({tuple(targets(m.path)) for m in chosen}):
+            status, seconds = run_tests(roots[0], list(tests), TIMEOUT_S)
+            if status != "survived":
+                raise SystemExit(f"{' '.join(tests)} fail on the unmutated code: {status}")
+            print(f"unmutated: {' '.join(tests)} pass ({seconds:.0f} s)", flush=True)
     equivalent = load_equivalent()
     counts: dict[str, Counter] = defaultdict(Counter)
     free = queue.Queue()
