@@ -16,7 +16,9 @@ Usage (from the repository root)::
                                                              # changed since main
     python tests/mutation/run.py --module imucal/fits/reference.py --sample 0   # all of one
 
-Results are appended as JSON lines to ``--out`` (one per mutant) and summarised per package.
+Results are appended as JSON lines to ``--out`` (one per mutant; by default in the scratch
+folder, outside the checkout) and summarised per package; ``summary.py`` tallies a results file
+(of a run stopped early too).
 """
 
 from __future__ import annotations
@@ -261,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--base", help="only mutants inside functions changed since this ref")
     parser.add_argument("--jobs", type=int, default=1, help="mutants run at once (one copy each)")
     parser.add_argument("--scratch", type=Path, help="scratch folder (default: a new temp one)")
-    parser.add_argument("--out", type=Path, default=Path("mutation-results.jsonl"))
+    parser.add_argument("--out", type=Path, help="results (default: results.jsonl in the scratch)")
     parser.add_argument("--list", action="store_true", help="list the sample, run nothing")
     parser.add_argument(
         "--check", action="store_true", help="first run each module's tests unmutated (must pass)"
@@ -276,7 +278,12 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     base = args.scratch or Path(tempfile.mkdtemp(prefix="imucal-mutation-"))
     roots = [scratch_copy(base / f"copy{j}" / "repo") for j in range(args.jobs)]
-    print(f"scratch copies under {base}; {len(chosen)} mutants, {args.jobs} at once", flush=True)
+    out_path = args.out or base / "results.jsonl"
+    print(
+        f"scratch copies under {base}; {len(chosen)} mutants, {args.jobs} at once; results in "
+        f"{out_path}",
+        flush=True,
+    )
     if args.check:
         for tests in sorted({tuple(targets(m.path)) for m in chosen}):
             status, seconds = run_tests(roots[0], list(tests), TIMEOUT_S)
@@ -296,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             free.put(root)
 
-    with args.out.open("a") as out, ThreadPoolExecutor(args.jobs) as pool:
+    with out_path.open("a") as out, ThreadPoolExecutor(args.jobs) as pool:
         for m, status, seconds in pool.map(work, chosen):
             if status == "survived" and m.name in equivalent:
                 status = "equivalent"
