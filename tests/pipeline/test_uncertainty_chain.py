@@ -120,3 +120,28 @@ def test_mean_of_the_acc_and_mag_angles_follows_its_noise(rms_z_band):
     low, high = rms_z_band(len(z))
     assert low < np.sqrt(np.mean(np.square(z))) < high
     assert inflated <= 20
+
+
+def test_pause_angle_variance_is_the_scatter_across_the_mean_over_n():
+    """Each pause's angle noise is the variance (ddof 1) of its samples' angle from the mean's
+    direction over its samples, ``var / n``; the two pauses add; a pause whose halves agree is
+    not inflated, one whose halves differ by far more than that noise is."""
+    from imucal.pipeline.stages.toolfree import _pause_angle_variance
+
+    rng = np.random.default_rng(5)
+    want = 0.0
+    pauses = []
+    for n, angle in ((40, 0.3), (64, 2.1)):
+        phi = angle + 0.01 * rng.standard_normal(n)
+        phi[n // 2 :] += phi[: n // 2].mean() - phi[n // 2 :].mean()  # the halves agree
+        pause = np.column_stack([rng.normal(0, 1, n), 9.8 * np.cos(phi), 9.8 * np.sin(phi)])
+        mean = pause[:, 1:].mean(axis=0)
+        across = np.array([-mean[1], mean[0]]) / np.linalg.norm(mean)
+        offset = pause[:, 1:] @ across / np.linalg.norm(mean)
+        want += np.var(offset, ddof=1) / n
+        pauses.append(pause)
+    assert _pause_angle_variance(*pauses, "x") == pytest.approx(want, rel=1e-12)
+    moved = pauses[0].copy()
+    moved[20:, 1:] = moved[20:, 1:] @ np.array([[np.cos(0.05), np.sin(0.05)],
+                                                 [-np.sin(0.05), np.cos(0.05)]])  # fmt: skip
+    assert _pause_angle_variance(moved, pauses[1], "x") > 10 * want
