@@ -128,6 +128,13 @@ BUGS = [
         "std_mean_rad_s=noise / n,",
         ["tests/fits/test_std_exact.py"],
     ),
+    (
+        "dof tool-free pause variance",
+        "imucal/pipeline/stages/toolfree.py",
+        "var = float(np.var(offset, ddof=1)) / len(v)",
+        "var = float(np.var(offset)) / len(v)",
+        ["tests/pipeline/test_uncertainty_chain.py"],
+    ),
     # a covariance carried through a matrix instead of its transpose
     (
         "transpose delta method",
