@@ -266,11 +266,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="results (default: results.jsonl in the scratch)")
     parser.add_argument("--list", action="store_true", help="list the sample, run nothing")
     parser.add_argument(
+        "--resume", type=Path, help="a results file: its mutants are not run again (appended to)"
+    )
+    parser.add_argument(
         "--check", action="store_true", help="first run each module's tests unmutated (must pass)"
     )
     args = parser.parse_args(argv)
 
     chosen = sample(args)
+    if args.resume is not None and args.resume.is_file():
+        done = {json.loads(line)["mutant"] for line in args.resume.read_text().splitlines()}
+        chosen = [m for m in chosen if m.name not in done]
+        args.out = args.out or args.resume
     if args.list:
         for m in chosen:
             print(m.name, repr(m.original), "->", repr(m.replacement))
