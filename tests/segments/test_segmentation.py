@@ -140,6 +140,10 @@ def test_table_layout(session):
     assert set(segments["kind"]) <= {"static", "phase", "transition", "position", "run"}
     assert (segments["end_index"] > segments["start_index"]).all()
     assert segments.dtypes["start_index"] == np.int64 and segments.dtypes["turns"] == np.float64
+    # rests and cube positions turn about no axis: no sense, no axis, no turns, no rate
+    rests = segments[segments["kind"].isin(["static", "position"])]
+    assert (rests["sense"] == 0).all() and (rests["axis"] == "").all()
+    assert rests["turns"].isna().all() and rests["rate_dps"].isna().all()
 
 
 def test_rotation3d_phases(session):
