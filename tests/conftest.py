@@ -34,6 +34,47 @@ def rms_z_limits(n: int, false_alarm: float = 1e-4) -> tuple[float, float]:
     return float(np.sqrt(low / n)), float(np.sqrt(high / n))
 
 
+def z_limit(n: int, false_alarm: float = 1e-4, dof: int | None = None) -> float:
+    """How many standard deviations a test of ``n`` errors allows each of them.
+
+    The two-sided Bonferroni bound: each of the ``n`` errors of a test stays within the bound
+    with probability ``1 - false_alarm / n``, so all of them with at least ``1 - false_alarm``.
+    For a normal error over its std the bound is the normal quantile (3.9 for one error,
+    4.4 for nine at 1e-4); for an error over a std estimated with ``dof`` degrees of freedom,
+    Student's t.
+    """
+    from scipy import stats
+
+    tail = false_alarm / (2 * n)
+    return float(stats.norm.isf(tail) if dof is None else stats.t.isf(tail, dof))
+
+
+@pytest.fixture(scope="session")
+def z_bound():
+    """:func:`z_limit` for the "within N std" checks: N from the test's own false-failure
+    budget."""
+    return z_limit
+
+
+def binomial_limits(n: int, p: float, false_alarm: float = 1e-4) -> tuple[int, int]:
+    """Central interval of the count of ``n`` independent events of probability ``p``.
+
+    Holds a Binomial(n, p) count with probability at least ``1 - false_alarm`` (the
+    ``false_alarm / 2`` and ``1 - false_alarm / 2`` quantiles): a decision rule's false alarms
+    on data without the thing, or its detections on data with it, must fall inside.
+    """
+    from scipy import stats
+
+    low, high = stats.binom.ppf([false_alarm / 2, 1 - false_alarm / 2], n, p)
+    return int(low), int(high)
+
+
+@pytest.fixture(scope="session")
+def binomial_band():
+    """:func:`binomial_limits` for the false-alarm and power checks of decision rules."""
+    return binomial_limits
+
+
 @pytest.fixture(scope="session")
 def rms_z_band():
     """:func:`rms_z_limits` for the multi-seed checks of reported standard deviations."""

@@ -201,3 +201,46 @@ def test_goodness_of_fit_record():
         f"covariance x chi2/dof when chi2 > the {uncertainty.INFLATION_QUANTILE:g} quantile of "
         "chi-square(dof)"
     )
+
+
+def test_propagate_is_j_c_j_transpose_for_a_linear_map():
+    """A linear map ``A x`` with ``A`` neither symmetric nor square: ``A C A^T`` exactly (the
+    transpose on the wrong side, or none, gives another matrix)."""
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((4, 6))
+    root = rng.standard_normal((6, 6))
+    cov = root @ root.T
+    out = uncertainty.propagate(lambda x: a @ x, rng.standard_normal(6), cov)
+    np.testing.assert_allclose(out, a @ cov @ a.T, rtol=1e-7, atol=1e-9)
+
+
+def test_two_step_joint_covariance_carries_step_one_through_the_sensitivity():
+    """``(theta, alpha)`` with ``alpha = G theta + a``: the joint covariance is
+    ``L diag(C1, C_alpha) L^T`` with ``L = [[I, 0], [G, I]]``, carried here to the calibration
+    by central differences; the function's 21 x 21 must agree."""
+    from imucal import errormodel
+
+    rng = np.random.default_rng(4)
+    upper = np.array([[1.1, 0.02, -0.03], [0.0, 0.95, 0.01], [0.0, 0.0, 1.05]])
+    bias = np.array([0.1, -0.2, 0.05])
+    alpha = np.array([0.05, -0.02, 0.3])
+    r1, r2 = rng.standard_normal((9, 9)), rng.standard_normal((3, 3))
+    c1, ca = 1e-4 * r1 @ r1.T, 1e-5 * r2 @ r2.T
+    g = rng.standard_normal((3, 9))
+    lower = np.block([[np.eye(9), np.zeros((9, 3))], [g, np.eye(3)]])
+    joint = lower @ np.block([[c1, np.zeros((9, 3))], [np.zeros((3, 9)), ca]]) @ lower.T
+    theta = np.concatenate([upper[np.triu_indices(3)], bias, alpha])
+
+    def calibration(p):
+        u = np.zeros((3, 3))
+        u[np.triu_indices(3)] = p[:6]
+        return np.concatenate([p[6:9], (errormodel.rotation_matrix(p[9:]) @ u).ravel()])
+
+    jac = np.column_stack(
+        [(calibration(theta + d) - calibration(theta - d)) / 2e-7 for d in 1e-7 * np.eye(12)]
+    )
+    want = uncertainty.calibration_covariance(
+        bias, errormodel.rotation_matrix(alpha) @ upper, jac @ joint @ jac.T
+    )
+    got = uncertainty.two_step_covariance(upper, bias, c1, alpha, ca, g)
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-12)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
+from conftest import z_limit
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
@@ -35,9 +38,11 @@ def test_matrix_bias_and_mounting_recovered(seed):
     error = fit.calibration.matrix - matrix
     assert fit.held_nominal == ()
     assert np.abs(error).max() < 2e-3
-    # within 4 of its stated standard deviations (entries of the upper triangle)
-    assert np.all(np.abs(error[UPPER]) < 4 * fit.std_matrix[UPPER])
-    assert np.all(np.abs(fit.calibration.bias - BIAS) < 4 * fit.calibration.std["bias"])
+    # within its stated standard deviations times the bound of 9 normal errors at 1e-4 (the
+    # six entries of the upper triangle and the bias)
+    z = z_limit(9)
+    assert np.all(np.abs(error[UPPER]) < z * fit.std_matrix[UPPER])
+    assert np.all(np.abs(fit.calibration.bias - BIAS) < z * fit.calibration.std["bias"])
     mount_error = Rotation.from_matrix(fit.mounting @ MOUNTING.T).as_rotvec()
     assert np.degrees(np.linalg.norm(mount_error)) < 0.1
     assert fit.n_outliers < 0.02 * fit.n_windows
@@ -57,8 +62,10 @@ def weak_axis_session(seed: int):
     return s, matrix
 
 
-@pytest.mark.slow  # 200 simulated sessions and fits: a few minutes on one core
-def test_weakly_excited_axis_keeps_nominal_scale_within_its_std():
+@functools.cache
+def _weak_axis_z() -> tuple[np.ndarray, int]:
+    """z of the six entries of U and the bias over 200 weak-axis sessions, and how often s_z
+    was held nominal."""
     z, held = [], 0
     for seed in range(200):
         s, matrix = weak_axis_session(seed)
@@ -71,13 +78,35 @@ def test_weakly_excited_axis_keeps_nominal_scale_within_its_std():
                 [error / fit.std_matrix[UPPER], bias_error / fit.calibration.std["bias"]]
             )
         )
-    z = np.abs(np.array(z))
+    return np.array(z), held
+
+
+@pytest.mark.slow  # 200 simulated sessions and fits: a few minutes on one core
+def test_weakly_excited_axis_keeps_nominal_scale_within_its_std():
+    z, held = _weak_axis_z()
+    z = np.abs(z)
     # the z scale is not determined by the motion: held at 1 every time, with a large std
     assert held == 200
     # every entry within 3 reported std in all but 1 % of the sessions (0.27 % for a normal)
     assert np.all(np.mean(z > 3.0, axis=0) <= 0.01), np.mean(z > 3.0, axis=0)
     # and the std is not inflated out of use either: RMS z-score of a determined entry > 0.5
     assert np.sqrt(np.mean(z[:, [0, 3]] ** 2)) > 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="the larger of the formal and the jackknife std overstates the errors: RMS z "
+    "0.13 of the cross terms u_xz, u_yz (their axis barely turns), 0.75-0.95 of the others "
+    "(40 sessions); a std that becomes honest turns this into a failure to update",
+)
+def test_weakly_excited_axis_reports_the_std_of_its_errors(rms_z_band):
+    """The RMS z of each determined entry (s_x, u_xy, s_y and the bias) within the two-sided
+    band of 200 draws, 1e-4 over the six."""
+    z, _ = _weak_axis_z()
+    rms = np.sqrt(np.mean(z[:, [0, 1, 3, 6, 7, 8]] ** 2, axis=0))
+    low, high = rms_z_band(len(z), 1e-4 / 6)
+    assert np.all((low < rms) & (rms < high)), (rms.round(2), low, high)
 
 
 def test_weak_axis_held_nominal_with_its_large_std():
@@ -87,7 +116,7 @@ def test_weak_axis_held_nominal_with_its_large_std():
     assert fit.calibration.matrix[2, 2] == 1.0
     assert fit.std_matrix[2, 2] > MAX_ENTRY_STD
     # the excited axes are still calibrated
-    assert abs(fit.calibration.matrix[0, 0] - matrix[0, 0]) < 3 * fit.std_matrix[0, 0]
+    assert abs(fit.calibration.matrix[0, 0] - matrix[0, 0]) < z_limit(1) * fit.std_matrix[0, 0]
     assert fit.std_matrix[0, 0] < MAX_ENTRY_STD
 
 

@@ -243,6 +243,14 @@ def test_rotation_sections_run_from_rest_to_rest():
     wide = partial.rest_to_rest(apart, "r", apart[apart["kind"] == "phase"])
     assert wide["start_index"].tolist() == [110, 350]
     assert wide["end_index"].tolist() == [300, 500]
+    # next to it: within ADJACENT_SAMPLES of the section, to the sample
+    from imucal.pipeline.partial.gyroscope import ADJACENT_SAMPLES as near
+
+    for gap, widened in ((near, True), (near + 1, False)):
+        shifted = segments.assign(start_index=[0, 100 + gap, 300, 350, 500 + gap, 0])
+        wide = partial.rest_to_rest(shifted, "r", shifted[shifted["kind"] == "phase"])
+        assert (wide["start_index"].tolist()[0] == 50) == widened, gap
+        assert (wide["end_index"].tolist()[1] == 551 + gap // 2) == widened, gap
 
 
 def test_a_fit_worse_than_nominal_on_left_out_positions_is_not_shipped():

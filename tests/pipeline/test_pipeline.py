@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import z_limit
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
@@ -73,9 +74,9 @@ def max_errors(calibration: dict, truth: dict, sensor: str) -> tuple[float, floa
     return float(matrix), float(bias)
 
 
-#: Largest |error| / reported std of one parameter: over the 12 (bias, matrix) entries of
-#: three sensors, a normal error exceeds it with probability 36 * 3.4e-6 = 1.2e-4.
-MAX_Z = 4.5
+#: Largest |error| / reported std of one parameter: the two-sided bound of the 12 (bias,
+#: matrix) entries of three sensors at 1e-4 (4.7).
+MAX_Z = z_limit(36)
 #: chi-square(12) quantile at 1 - 1e-4: the Mahalanobis distance of one sensor's (bias,
 #: matrix) error with its reported 12 x 12 covariance.
 MAX_MAHALANOBIS = float(stats.chi2.ppf(1 - 1e-4, 12))

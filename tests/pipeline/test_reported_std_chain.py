@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import z_limit
 
 from imucal.columns import ACC, MAG
 from imucal.pipeline.full import calibrate_session
@@ -180,3 +181,17 @@ def test_paths_report_the_std_of_their_errors(protocol, sessions, groups, rms_z_
             else:
                 records += mc.run_partial(seed, protocol, ())
     _check(_z(records), groups, rms_z_band)
+
+
+def test_the_ferraris_path_ships_its_known_orientation_fit_within_its_std():
+    """One session cut to the Ferraris protocol (six faces, known-angle turns): the partial
+    path ships the known-orientation accelerometer and the known-rotation gyroscope (it raises
+    when another stage's calibration is shipped), each (bias, matrix) error within its std
+    times Student's t of the fit's 6 dof, two-sided over the 24 at 1e-4."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        records = _benchmark().run_partial(200, "ferraris", ())
+    assert {r["path"] for r in records} == {"acc_known_orientation", "gyr_known_rotation"}
+    for r in records:
+        z = (np.subtract(r["estimate"], r["truth"]) / r["std"])[:12]
+        assert np.all(np.abs(z) < z_limit(24, dof=6)), (r["path"], z.round(2))

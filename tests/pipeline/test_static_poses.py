@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import z_limit
 
 from imucal.columns import ACC, GYR, TIME
 from imucal.fits import gyroscope, orientations
@@ -76,7 +77,7 @@ def test_three_one_sided_poses_refuse_the_cube_fit_and_say_what_it_needs():
     assert bias.artifact["n_segments"] == len(segments) - short
     estimate = np.asarray(bias.artifact["bias_ls_rad_s"])
     std = np.asarray(bias.artifact["std_ls_rad_s"])
-    assert np.all(np.abs(estimate - GYR_BIAS) < 4 * std)
+    assert np.all(np.abs(estimate - GYR_BIAS) < z_limit(3) * std)
 
 
 def test_only_short_pauses_skip_the_gyro_bias_with_the_count_instead_of_stopping():

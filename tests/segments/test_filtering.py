@@ -177,3 +177,18 @@ def test_refusals_name_the_value():
     table.loc[7, ACC[1]] = np.nan
     with pytest.raises(ValueError, match=r"acc: 1 row\(s\) with NaN/inf, first at row 7"):
         lowpass_recording(table, order=ORDER, cutoff_hz=CUTOFF)
+
+
+def test_the_lowest_order_is_one_and_its_gain_at_the_cutoff_is_half_power():
+    """Order 1 is a filter (the smallest the design takes), order 0 is refused; a Butterworth
+    of any order passes the cutoff at half power."""
+    from scipy import signal
+
+    from imucal.segments.filtering import design_lowpass
+
+    for order in (1, 2):
+        sos = design_lowpass(order, 5.0, 100.0)
+        _, h = signal.sosfreqz(sos, worN=[5.0], fs=100.0)
+        assert abs(h[0]) ** 2 == pytest.approx(0.5, rel=1e-9)
+    with pytest.raises(ValueError, match="filter order 0"):
+        design_lowpass(0, 5.0, 100.0)
