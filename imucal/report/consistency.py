@@ -72,7 +72,7 @@ def consistency_section(check: Mapping | None) -> dict | None:
 
 def markdown_table(checks: Mapping[str, Mapping]) -> str:
     """The rows of many sessions' checks as one Markdown table (dataset first)."""
-    header = ("dataset", *COLUMNS)
+    header = [c.replace("|", "\\|") for c in ("dataset", *COLUMNS)]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for dataset, check in checks.items():
         for row in consistency_rows(check):
