@@ -45,9 +45,11 @@ def left_out(stage: str, artifact: Mapping | None) -> dict:
         basis = f"each of {int(keep.sum())} poses against the cube fit on the others"
         rms_after = float(np.sqrt(np.mean(after[keep] ** 2)))
         rms_before = float(np.sqrt(np.mean(before[keep] ** 2)))
+        z = after[keep] / std[keep]
         return {
             "leave_one_out": {
-                "rms_z": float(np.sqrt(np.mean((after[keep] / std[keep]) ** 2))),
+                "rms_z": float(np.sqrt(np.mean(z**2))),
+                "max_abs_z": float(np.abs(z).max()),
                 "n": int(keep.sum()),
                 "basis": basis,
             },
@@ -72,6 +74,7 @@ def left_out(stage: str, artifact: Mapping | None) -> dict:
         return {
             "leave_one_out": {
                 "rms_z": float(np.sqrt(np.mean(z**2))),
+                "max_abs_z": float(z.max()),
                 "n": int(z2.size),
                 "basis": f"each of {z2.size} faces against the fit on the others, z2 / 3 "
                 f"against F(3, {dof})",

@@ -11,7 +11,9 @@ group's RMS z (the difference whitened by the parts' covariance, :func:`group_rm
 ``sqrt(chi2_r / r)`` for the group's rank ``r``. A model error beyond the noise (poses held by a
 hand, a wandering bias) moves the parts apart by more. Where the stage left each pose out in
 turn itself (the cube fit, the six faces), the held-out poses' z against their predicted
-standard deviation are a second check of the same kind.
+standard deviation are a second check of the same kind; since those share the fits on the other
+poses, their RMS z inflates only where the largest is beyond chance too (Bonferroni,
+:func:`loo_p_value`).
 
 Where a group's RMS z exceeds :data:`RMS_Z_LIMIT`, the shipped calibration's standard deviations
 of that group are multiplied by it (the measured excess, Birge's ratio as in the fits' own
@@ -292,6 +294,21 @@ def _parts_entry(scheme: str, fits: list[PartFit], heldout: dict | None) -> dict
     }
 
 
+def loo_p_value(loo: Mapping) -> float:
+    """The probability that the largest |z| of ``loo['n']`` poses left out one at a time is as
+    large by chance: Bonferroni's bound on the normal tail (the poses' held-out errors share the
+    fits on the others, so they are not independent and their sum of squares is not
+    chi-square)."""
+    tail = float(special.ndtr(-float(loo["max_abs_z"])))
+    return min(1.0, 2 * tail * int(loo["n"]))
+
+
+def loo_significant(loo: Mapping) -> bool:
+    """The poses left out call for an inflation: their RMS z is above :data:`RMS_Z_LIMIT` and
+    the largest is beyond chance at :data:`SIGNIFICANT_P`."""
+    return loo["rms_z"] > RMS_Z_LIMIT and loo_p_value(loo) < SIGNIFICANT_P
+
+
 def _excess(stage: str, what: str, rms_z: float, rank: int, basis: str) -> str | None:
     """A warning for an RMS z above the limit that chance alone gives with probability below
     :data:`SIGNIFICANT_P` (chi-square with ``rank`` dof), else None."""
@@ -327,9 +344,13 @@ def _warnings(stage: str, unit: str, entry: Mapping) -> list[str]:
             if g["rms_z"] is not None:
                 what = f"after the inflation its {group} still differs"
                 found.append(_excess(stage, what, g["rms_z"], g["rank"], between))
-    if loo:
-        basis = f"held out ({loo['basis']})"
-        found.append(_excess(stage, "its poses differ", loo["rms_z"], loo["n"], basis))
+    if loo and loo_significant(loo):
+        found.append(
+            f"{stage}: its poses left out one at a time ({loo['basis']}) are off by RMS z "
+            f"{loo['rms_z']:.2f} of their predicted standard deviations, the largest by "
+            f"{loo['max_abs_z']:.1f} (limit {RMS_Z_LIMIT:g}; p = {loo_p_value(loo):.2g} for the "
+            f"largest of {loo['n']}): model error beyond the noise"
+        )
     out = [w for w in found if w]
     factors = entry["inflation"]
     if out and max(factors.values()) > 1.0:
@@ -407,7 +428,8 @@ def check_parts(
         For the held-out errors (:func:`heldout_errors`).
     own : mapping, optional
         Sensor -> what the stage computed itself by leaving one pose out: ``leave_one_out``
-        ``{'rms_z', 'n', 'basis'}`` (the held-out poses' z against their predicted std) and
+        ``{'rms_z', 'max_abs_z', 'n', 'basis'}`` (the held-out poses' z against their
+        predicted std) and
         ``heldout`` ``{'calibrated', 'nominal', 'ratio', 'basis'}`` (their RMS errors).
     sources : mapping, optional
         Sensor -> the recordings its stage fitted: the held-out errors use their data only
@@ -451,30 +473,34 @@ def check_parts(
                     if g is None or g.stage != stage
                 )
             )
-    sensors = {}
-    for sensor, fit in shipped.items():
-        entry: dict = {"stage": fit.stage}
-        if sensor in found:
-            entry["parts"] = found[sensor]
-        else:
-            if fit.stage in TURN_STAGES:
-                tried[sensor].append("within: both parts would hold half of every turn")
-            entry["reason"] = "; ".join(tried[sensor])
-        mine = (own or {}).get(sensor) or {}
-        if mine.get("leave_one_out"):
-            entry["leave_one_out"] = dict(mine["leave_one_out"])
-        if mine.get("heldout"):
-            entry["own_heldout"] = dict(mine["heldout"])
-        factors = (
-            dict(found[sensor]["inflation"]) if sensor in found else dict.fromkeys(INFLATED, 1.0)
-        )
-        loo = entry.get("leave_one_out")
-        if loo and loo["rms_z"] > RMS_Z_LIMIT:
-            factors = {group: max(f, float(loo["rms_z"])) for group, f in factors.items()}
-        entry["inflation"] = factors
-        entry["warnings"] = _warnings(fit.stage, fit.calibration.unit, entry)
-        sensors[sensor] = entry
+    sensors = {
+        sensor: _entry(fit, found.get(sensor), tried[sensor], (own or {}).get(sensor) or {})
+        for sensor, fit in shipped.items()
+    }
     return {"sensors": sensors, "limit_rms_z": RMS_Z_LIMIT, "heldout_ratio": HELDOUT_RATIO}
+
+
+def _entry(fit: PartFit, parts: dict | None, tried: list[str], mine: Mapping) -> dict:
+    """One sensor's entry of the check: its parts' comparison (or why there is none), what its
+    stage left out itself, the inflation of both and the warnings."""
+    entry: dict = {"stage": fit.stage}
+    if parts is not None:
+        entry["parts"] = parts
+    else:
+        if fit.stage in TURN_STAGES:
+            tried = [*tried, "within: both parts would hold half of every turn"]
+        entry["reason"] = "; ".join(tried)
+    if mine.get("leave_one_out"):
+        entry["leave_one_out"] = dict(mine["leave_one_out"])
+    if mine.get("heldout"):
+        entry["own_heldout"] = dict(mine["heldout"])
+    factors = dict(parts["inflation"]) if parts else dict.fromkeys(INFLATED, 1.0)
+    loo = entry.get("leave_one_out")
+    if loo and loo_significant(loo):
+        factors = {group: max(f, float(loo["rms_z"])) for group, f in factors.items()}
+    entry["inflation"] = factors
+    entry["warnings"] = _warnings(fit.stage, fit.calibration.unit, entry)
+    return entry
 
 
 def ship(calibration: Mapping, check: Mapping) -> dict:

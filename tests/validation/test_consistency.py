@@ -217,13 +217,17 @@ def test_a_fit_whose_parts_cannot_run_warns_unless_its_poses_were_left_out():
     entry = _check([], a)["sensors"]["acc"]
     assert "halves: part 1 shipped nothing" in entry["reason"]
     assert any("could not be checked on independent parts" in w for w in entry["warnings"])
-    loo = {"rms_z": 2.5, "n": 10, "basis": "each of 10 poses against the cube fit on the others"}
+    loo = {"rms_z": 2.5, "max_abs_z": 5.0, "n": 10, "basis": "each of 10 poses left out"}
     heldout = {"calibrated": 0.36, "nominal": 0.39, "ratio": 0.36 / 0.39, "basis": loo["basis"]}
     entry = _check([], a, {"acc": {"leave_one_out": loo, "heldout": heldout}})["sensors"]["acc"]
     assert entry["inflation"] == {"bias": 2.5, "matrix": 2.5}
     assert not any("could not be checked" in w for w in entry["warnings"])
     assert any("barely beats the nominal calibration" in w for w in entry["warnings"])
     assert 0.36 / 0.39 > HELDOUT_RATIO
+    # the same RMS z with no pose beyond chance (the largest 2.5 of 10: p = 0.12) inflates nothing
+    loo["max_abs_z"] = 2.5
+    entry = _check([], a, {"acc": {"leave_one_out": loo}})["sensors"]["acc"]
+    assert entry["inflation"] == {"bias": 1.0, "matrix": 1.0}
 
 
 def test_heldout_errors_are_the_rms_of_each_rest_under_the_calibration():

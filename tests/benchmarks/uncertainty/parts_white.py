@@ -67,6 +67,8 @@ for seed in range(first, first + count):
         sensors += 1
         inflated += max(entry["inflation"].values()) > 1.0
         warned += bool(entry["warnings"])
+        for warning in entry["warnings"]:
+            print(f"  seed {seed} {sensor}: {warning}")
         for group, found in (entry.get("parts") or {}).get("groups", {}).items():
             if found["rms_z"] is not None:
                 chi2, dof = pooled.get((sensor, entry["stage"], group), (0.0, 0))
