@@ -53,6 +53,7 @@ _CALIBRATION = Counter(
     gyr=1,
     gap_diagnose=1,
     model_terms=1,
+    consistency_full=1,
     calibration=1,
 )
 _DATASET = _CALIBRATION + Counter(
@@ -84,15 +85,20 @@ PLANS: dict[str, Counter | str] = {
     ),
     "snakemake --cores 2 results/demo/calibrated/static.parquet": _CALIBRATION
     + Counter(apply_calibration=1),
-    # nine datasets of eight public recordings, all on the partial path; four have a rest the
-    # noise stage analyses (noise, export); BROAD's two trials carry an orientation reference each;
-    # the CATS tag's declared poses with a temperature channel get the temperature hold-out
+    # nine datasets of eight public recordings, all on the partial path, each with its
+    # calibration checked on independent parts and shipped at results/NAME/calibration.json (the
+    # table of the checks); four have a rest the noise stage analyses (noise, export); BROAD's
+    # two trials carry an orientation reference each; the CATS tag's declared poses with a
+    # temperature channel get the temperature hold-out
     "snakemake --cores 2 real": Counter(
         ingest=14,
         ingest_summary=9,
         segment=9,
         plot_segments=14,
         partial=9,
+        consistency_partial=9,
+        calibration_partial=9,
+        consistency_table=1,
         noise=4,
         export=4,
         gap_diagnose_partial=9,

@@ -33,6 +33,7 @@ from imucal.columns import SENSORS
 from imucal.constants import REFERENCE
 from imucal.pipeline.outcome import NOT_SHIPPED
 from imucal.report.artifacts import _load_json, _optional_json, read_benchmarks
+from imucal.report.consistency import consistency_section
 from imucal.report.fields import collect_warnings, flatten_fields
 from imucal.report.figures import _caption, embed_figure, figure_section
 from imucal.report.holdout import holdout_section
@@ -86,6 +87,7 @@ def build_report_context(
     terms: Sequence[str | Path] | None = None,
     report_path: str | Path | None = None,
     temperature_holdout: str | Path | None = None,
+    consistency: str | Path | Mapping | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -129,6 +131,9 @@ def build_report_context(
         by their path relative to its folder (none linked without it).
     temperature_holdout : path, optional
         ``temperature_holdout.json`` (:mod:`imucal.report.holdout`), its own section.
+    consistency : mapping or path, optional
+        ``consistency.json`` (:mod:`imucal.validation.consistency`): its own section, and its
+        warnings among each sensor's.
 
     Returns
     -------
@@ -191,6 +196,10 @@ def build_report_context(
     if temperature_holdout is not None:
         holdout = _load_json(temperature_holdout, "temperature_holdout.json")
         warnings += collect_warnings(holdout, "temperature_holdout.json")
+    consistency = _optional_json(consistency, "consistency.json")
+    for sensor, entry in (consistency or {}).get("sensors", {}).items():
+        # the sensor first, so that the summary lists them among the sensor's warnings
+        warnings += collect_warnings(entry, f"{sensor} (consistency.json)")
     # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
     warnings += [
         {"source": "stages.json", "where": row["stage"], "text": row["reason"]}
@@ -302,6 +311,7 @@ def build_report_context(
         "noise": _noise_section(noise),
         "terms": _terms_section(terms, gap),
         "holdout": holdout_section(temperature_holdout),
+        "consistency": consistency_section(consistency),
     }
 
 

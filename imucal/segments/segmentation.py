@@ -16,6 +16,7 @@ The paper (Zhang et al. 2014) segments by hand; the rules here are the implement
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import numpy as np
@@ -23,6 +24,8 @@ import pandas as pd
 
 from imucal.columns import ACC, GYR, KINDS, TIME, column_values
 from imucal.constants import IMU_RECORDINGS, OTHER_RECORDINGS
+from imucal.fits.accelerometer import MIN_SAMPLES_PER_POSITION
+from imucal.fits.orientations import OrientationCoverage, cube_coverage
 from imucal.segments.detector import SHORT_WINDOW_S, DetectorSettings, find_short_rests
 from imucal.segments.protocol import segment_cube, segment_poses, segment_rotation3d, segment_static
 from imucal.segments.ratetable import segment_ratetable
@@ -238,7 +241,9 @@ def segment_dataset(
             frames.append(_segment_pose_recording(name, tables[name], settings))
         held_by_hand += frames[-1].attrs.get("held_by_hand", [])
         logger.info("%s: %d segments", name, len(frames[-1]))
-        hint = short_rest_note(name, tables[name], frames[-1], settings)
+        hint = short_rest_note(name, tables[name], frames[-1], settings) or orientation_note(
+            name, tables[name], frames[-1], settings
+        )
         if hint:
             notes[name] = f"{notes[name]}; {hint}" if name in notes else hint
             logger.warning(hint)
@@ -283,4 +288,76 @@ def short_rest_note(
         f"({where}{', ...' if len(short) > 8 else ''}): the config's segmentation.min_static_s: "
         f"{max(shortest, 2 * window):g} and segmentation.window_s: {window:g} would look for them, "
         "or declare them under segments: in dataset.yaml (kind: static)"
+    )
+
+
+#: Recordings whose rests the cube fit (eq. 32) is run on.
+CUBE_RECORDINGS = ("cube", "poses")
+#: The shortest rests (``min_static_s``, s) tried when a recording's rests show too few
+#: orientations for the cube fit, longest first; the windows are half as long.
+SHORTER_STATIC_S = (0.8, 0.6, 0.5, 0.4, 0.3, 0.2)
+
+
+def rest_coverage(table: pd.DataFrame, segments: pd.DataFrame) -> OrientationCoverage:
+    """The distinct gravity directions of a recording's rests (static and position segments
+    with enough accelerometer samples for the cube fit)."""
+    means, counts = [], []
+    acc = column_values(table, ACC)
+    for a, b in segments.loc[segments["kind"].isin(["static", "position"])][
+        ["start_index", "end_index"]
+    ].itertuples(index=False):
+        values = acc[int(a) : int(b)]
+        values = values[np.isfinite(values).all(axis=1)]
+        if len(values) >= MIN_SAMPLES_PER_POSITION:
+            means.append(values.mean(axis=0))
+            counts.append(len(values))
+    return cube_coverage(np.array(means).reshape(-1, 3), np.array(counts, dtype=float))
+
+
+def orientation_note(
+    recording: str, table: pd.DataFrame, segments: pd.DataFrame, settings: DetectorSettings
+) -> str:
+    """For a recording of poses whose rests show too few orientations for the cube fit: the
+    shorter ``min_static_s`` (and ``window_s``) under which its segmentation finds enough ('' when
+    its rests suffice, or no setting of :data:`SHORTER_STATIC_S` helps).
+
+    Each shorter setting is tried with the recording's own segmenter (:func:`segment_recording`);
+    the one whose rests show the most distinct orientations is named (a hand-held module paused
+    for less than a second has such rests only).
+
+    Parameters
+    ----------
+    recording : str
+    table : DataFrame
+        Ingested recording.
+    segments : DataFrame
+        Its segments as found.
+    settings : DetectorSettings
+    """
+    if recording not in CUBE_RECORDINGS or not all(c in table.columns for c in ACC):
+        return ""
+    found = rest_coverage(table, segments)
+    if found.identifiable:
+        return ""
+    rests = int(segments["kind"].isin(["static", "position"]).sum())
+    best = None  # the setting whose rests show the most orientations (the longer on a tie)
+    for shorter in (s for s in SHORTER_STATIC_S if s < settings.min_static_s):
+        window = min(settings.window_s, shorter / 2)
+        trial = dataclasses.replace(settings, min_static_s=shorter, window_s=window)
+        try:
+            rows = segment_recording(recording, table, settings=trial)
+        except ValueError:  # the segmenter's protocol is not found with these settings either
+            continue
+        coverage = rest_coverage(table, rows)
+        if coverage.identifiable and (best is None or len(coverage.directions) > best[3]):
+            best = (shorter, window, len(rows), len(coverage.directions))
+    if best is None:
+        return ""
+    shorter, window, count, orientations = best
+    return (
+        f"{recording}: its {rests} rest(s) of at least {settings.min_static_s:g} s show gravity "
+        f"in {len(found.directions)} distinct orientation(s), too few for the cube fit, but the "
+        f"recording holds shorter still periods: with the config's segmentation.min_static_s: "
+        f"{shorter:g} and segmentation.window_s: {window:g} the segmentation finds {count} rests "
+        f"in {orientations} distinct orientations"
     )

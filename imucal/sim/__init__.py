@@ -4,7 +4,8 @@ Modules (one concept each): :mod:`.truth` (sensor errors, world, noise, presets)
 (analytic kinematics), :mod:`.protocol` (what happens when, true segments), :mod:`.sensors`
 (true signals -> counts), :mod:`.packets` (the packet log / raw CSV rows), :mod:`.reference`
 (the Xsens reference and its clock), :mod:`.effects` (switchable effects beyond the paper's
-model), :mod:`.session` (render and write a dataset folder). See docs/simulator.md.
+model), :mod:`.session` (render and write a dataset folder), :mod:`.tumble` (a module tumbled
+by hand with brief pauses). See docs/simulator.md.
 """
 
 from imucal.sim.effects import (
@@ -17,7 +18,7 @@ from imucal.sim.effects import (
     parse_effect,
 )
 from imucal.sim.motion import KinematicState, Motion, Piece, evaluate_motion
-from imucal.sim.protocol import ProtocolConfig, RecordingPlan, Segment
+from imucal.sim.protocol import ProtocolConfig, RecordingPlan, Segment, TumbleConfig
 from imucal.sim.reference import ReferenceClock
 from imucal.sim.session import (
     SENSITIVITY,
@@ -29,6 +30,7 @@ from imucal.sim.session import (
     write_session,
 )
 from imucal.sim.truth import PRESETS, Truth, World, make_truth
+from imucal.sim.tumble import HandTumble, simulate_tumble
 
 __all__ = [
     "CANONICAL",
@@ -37,6 +39,7 @@ __all__ = [
     "REALISTIC",
     "SENSITIVITY",
     "Effect",
+    "HandTumble",
     "KinematicState",
     "Magnitude",
     "Motion",
@@ -47,6 +50,7 @@ __all__ = [
     "Segment",
     "Session",
     "Truth",
+    "TumbleConfig",
     "World",
     "evaluate_motion",
     "make_effect",
@@ -56,5 +60,6 @@ __all__ = [
     "preset_effects",
     "simulate",
     "simulate_session",
+    "simulate_tumble",
     "write_session",
 ]

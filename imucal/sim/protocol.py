@@ -275,6 +275,51 @@ def plan_static(config: ProtocolConfig, rng: np.random.Generator) -> RecordingPl
     return tl.plan()
 
 
+@dataclass(frozen=True)
+class TumbleConfig:
+    """Timing of a module turned by hand from one orientation to the next (s, deg).
+
+    Attributes
+    ----------
+    poses : int
+        Orientations held, each drawn uniformly over all rotations.
+    hold_s, move_s : tuple of float
+        Ranges of the pause at each orientation and of the turn to the next.
+    rest_s : float
+        The module lies on the table this long before the hand picks it up.
+    wobble_deg : float
+        Largest wobble amplitude of a turn.
+    """
+
+    poses: int = 26
+    hold_s: tuple[float, float] = (0.5, 0.9)
+    move_s: tuple[float, float] = (1.0, 2.0)
+    rest_s: float = 5.0
+    wobble_deg: float = 3.0
+
+    def __post_init__(self) -> None:
+        if self.poses < 1:
+            raise ValueError(f"poses must be >= 1, got {self.poses}")
+        if not 0 < self.hold_s[0] <= self.hold_s[1] or not 0 < self.move_s[0] <= self.move_s[1]:
+            raise ValueError(
+                f"hold_s {self.hold_s} and move_s {self.move_s} must be ranges 0 < low <= high s"
+            )
+
+
+def plan_tumble(config: TumbleConfig, rng: np.random.Generator) -> RecordingPlan:
+    """A hand-tumbled ``poses`` recording: a rest on the table (``s01``, static), then
+    ``config.poses`` orientations ``p01``.. (kind ``position``) held briefly, joined by
+    handling turns."""
+    tl = _Timeline("poses", _upright((0, 0, 1), rng.uniform(0, 2 * np.pi)))
+    tl.segment(tl.add(hold(0.0, config.rest_s, tl.orientation)), "s01", "static")
+    for i in range(config.poses):
+        target = Rotation.random(random_state=rng)
+        _handle(tl, target, rng.uniform(*config.move_s), config.wobble_deg, rng)
+        piece = hold(tl.t, rng.uniform(*config.hold_s), target)
+        tl.segment(tl.add(piece), f"p{i + 1:02d}", "position")
+    return tl.plan()
+
+
 #: Planner of each IMU recording, in protocol order.
 PLANNERS = {
     "rotation3d": plan_rotation3d,

@@ -200,14 +200,22 @@ def _seq_origin(plans: dict, starts: dict, rng: np.random.Generator) -> int:
     return -wrap_at % SEQ_MODULUS
 
 
-def _render_recording(
+def render_recording(
     plan: RecordingPlan,
     truth: Truth,
     effects: tuple[Effect, ...],
     ctx: RecordingContext,
     seq_start: int,
 ) -> tuple[PacketLog, dict]:
-    """Render one recording of the motion ``plan.motion`` (``ctx.motion`` is the same)."""
+    """Render one recording of the motion ``plan.motion`` (``ctx.motion`` is the same).
+
+    Returns
+    -------
+    log : PacketLog
+        The packets (counts at :data:`RATE_HZ`, the magnetometer on every 10th).
+    clipped : dict
+        Sensor -> counts clipped to the int16 range.
+    """
     n = int(np.floor(plan.motion.duration_s * RATE_HZ)) + 1
     state = evaluate_motion(plan.motion, np.arange(n) / RATE_HZ)
     true = true_signals(state, truth.world)
@@ -319,7 +327,7 @@ def simulate_session(
         rendered[rec] = plan
         ctx = dataclasses.replace(ctx, motion=plan.motion)
         seq_start = (origin + round(starts[rec] * RATE_HZ)) % SEQ_MODULUS
-        logs[rec], clipped[rec] = _render_recording(plan, truth, effects, ctx, seq_start)
+        logs[rec], clipped[rec] = render_recording(plan, truth, effects, ctx, seq_start)
     clock = ReferenceClock()
     for effect in effects:
         clock = effect.on_reference_clock(clock)

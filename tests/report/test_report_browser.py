@@ -138,6 +138,34 @@ def _figure(path: Path, width_in: float) -> Path:
     return path
 
 
+def _consistency() -> dict:
+    """A check of the standard deviations with every column filled and a long reason."""
+    groups = {
+        g: {"rms_z": 10.4, "rank": 3, "p_value": 1e-70}
+        for g in ("bias", "matrix", "scale", "xi_rad", "alpha_rad", "all")
+    }
+    checked = {
+        "stage": "mag_step1",
+        "parts": {"scheme": "halves", "groups": groups, "max_abs_z": 10.3,
+                  "max_parameter": "xi_y_rad", "heldout": {"ratio": 0.041}},
+        "leave_one_out": {"rms_z": 1.19, "n": 53, "basis": "poses"},
+        "inflation": {"bias": 10.4, "matrix": 6.03},
+        "warnings": ["mag_step1: its bias differs between two independent parts"],
+    }  # fmt: skip
+    reason = "halves: part 1 shipped gyr_bias; part 2 shipped gyr_bias; within: both parts "
+    unchecked = {
+        "stage": "gyr_known_rotation",
+        "reason": reason * 3,
+        "inflation": {"bias": 1.0, "matrix": 1.0},
+        "warnings": [f"gyr_known_rotation: not checked ({reason})"],
+    }
+    return {
+        "sensors": {"mag": checked, "gyr": unchecked},
+        "limit_rms_z": 1.5,
+        "heldout_ratio": 0.5,
+    }
+
+
 def test_report_loads_in_chromium_without_errors(tmp_path):
     eye = np.eye(3).tolist()
     calibration = ImuCalibration(
@@ -188,6 +216,7 @@ def test_report_loads_in_chromium_without_errors(tmp_path):
         },  # fmt: skip
         figures=figures,
         config={"datasets": {"demo": "data/demo"}},
+        consistency=_consistency(),
     )
     page = tmp_path / "report.html"
     page.write_text(render_report(context), encoding="utf-8")
@@ -225,7 +254,7 @@ def test_report_loads_in_chromium_without_errors(tmp_path):
 
     result = json.loads(probe)
     assert result["title"] == "IMU calibration report: demo"
-    assert result["h2"] == 11
+    assert result["h2"] == 12
     # nothing wider than the page at 1280 px, and no table scrolls inside its box
     assert result["width"] <= 1280
     assert all(extra <= 1 for extra in result["clipped"]), result["clipped"]

@@ -1,5 +1,6 @@
 # The combined calibration of all three sensors in frame B (with the model terms the closed
-# loop includes), and applying it to a recording.
+# loop includes, its standard deviations checked on independent parts of the data:
+# consistency.smk), and applying it to a recording.
 
 
 # The closed loop (imucal.terms, docs/model-terms.md): per term (config `terms`) off, on, or
@@ -41,6 +42,7 @@ rule calibration:
         gyr="results/{dataset}/gyr.json",
         mag="results/{dataset}/mag.json",
         terms="results/{dataset}/terms.json",
+        check="results/{dataset}/consistency.json",
     output:
         calibration=report(
             "results/{dataset}/calibration.json",
@@ -49,6 +51,8 @@ rule calibration:
         ),
     log:
         "results/{dataset}/logs/calibration.log",
+    wildcard_constraints:
+        dataset=datasets_pattern(full=True),
     conda:
         "../envs/imucal.yaml"
     params:

@@ -221,6 +221,5 @@ def has_orientation_reference(name):
 
 
 def calibration_path(name):
-    """calibration.json of the path a session takes (full protocol or partial)."""
-    path = "calibration.json" if full_protocol(name) else "partial/calibration.json"
-    return f"results/{name}/{path}"
+    """The calibration a session ships, whichever path made it."""
+    return f"results/{name}/calibration.json"

@@ -26,12 +26,10 @@ def dataset_targets(name):
     recordings = dataset_of(name).recordings
     targets = [f"results/{name}/ingest/summary.json", f"reports/{name}.html"]
     targets += [f"results/{name}/stages.json"]
+    targets += [f"results/{name}/calibration.json", f"results/{name}/gap/diagnosis.json"]
     if full_protocol(name):
-        targets += [f"results/{name}/calibration.json", f"results/{name}/tables.csv"]
-        targets += [f"results/{name}/gap/diagnosis.json"]
+        targets += [f"results/{name}/tables.csv"]
     else:
-        targets += [f"results/{name}/partial/calibration.json"]
-        targets += [f"results/{name}/gap/diagnosis.json"]
         if has_orientation_reference(name):
             targets += [f"results/{name}/reference/validation.json"]
     targets += [f"results/{name}/segments/{r}.png" for r in recordings if r != "reference"]
@@ -46,10 +44,17 @@ def all_targets(wildcards):
 
 
 def real_targets(wildcards):
-    """Final outputs of every public recording of config/real."""
+    """Final outputs of every public recording of config/real, and the table of their checks
+    of the standard deviations."""
     if not REAL_DATASETS:
         raise ValueError("config/real holds no dataset configs")
-    return [t for name in sorted(REAL_DATASETS) for t in dataset_targets(name)]
+    targets = [t for name in sorted(REAL_DATASETS) for t in dataset_targets(name)]
+    return targets + ["results/real/consistency.md"]
+
+
+def real_consistency_checks(wildcards):
+    """consistency.json of every public recording, by dataset."""
+    return {name: f"results/{name}/consistency.json" for name in sorted(REAL_DATASETS)}
 
 
 def ingest_benchmarks(name, info):
@@ -88,11 +93,14 @@ def report_inputs(wildcards):
     d = wildcards.dataset
     info = dataset_info(wildcards)
     inputs = {"summary": f"results/{d}/ingest/summary.json", "stages": f"results/{d}/stages.json"}
+    inputs["calibration"] = f"results/{d}/calibration.json"
+    inputs["consistency"] = f"results/{d}/consistency.json"
     figures = [f"results/{d}/segments/{r}.png" for r in info.recordings if r != "reference"]
     if not full_protocol(d):
         inputs.update({k: f"results/{d}/partial/{k}.json" for k in ("mag", "acc", "gyr")})
-        inputs["calibration"] = f"results/{d}/partial/calibration.json"
-        benchmarks = [f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial")]
+        benchmarks = [
+            f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "partial", "consistency")
+        ]
         benchmarks += ingest_benchmarks(d, info)
         inputs["figure_dir"] = f"results/{d}/partial/figures"
         benchmarks.append(f"results/{d}/benchmarks/gap_diagnose_partial.tsv")
@@ -108,7 +116,7 @@ def report_inputs(wildcards):
         noise = noise_report_inputs(d) | holdout_report_inputs(d)
         return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
-    inputs.update(calibration=f"results/{d}/calibration.json", tables=f"results/{d}/tables.csv")
+    inputs.update(tables=f"results/{d}/tables.csv")
     stage_figures, stage_benchmarks = stage_report_files(d, info)
     figures += stage_figures + [
         f"results/{d}/figures/{n}.png" for n in ("acc_phases", "gyr_phases")
@@ -117,7 +125,8 @@ def report_inputs(wildcards):
         f"results/{d}/benchmarks/{rule}.tsv" for rule in ("segment", "lowpass/rotation3d")
     ]
     benchmarks += stage_benchmarks + [
-        f"results/{d}/benchmarks/{rule}.tsv" for rule in ("validate", "gap_diagnose", "model_terms")
+        f"results/{d}/benchmarks/{rule}.tsv"
+        for rule in ("validate", "gap_diagnose", "model_terms", "consistency")
     ]
     benchmarks += ingest_benchmarks(d, info)
     if "reference" in info.recordings:

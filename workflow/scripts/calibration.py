@@ -1,5 +1,6 @@
 """Rule calibration: calibration.json of the three sensors in frame B (with the reason for a
-sensor whose stages did not run), or the closed loop's recalibration with its model terms."""
+sensor whose stages did not run), or the closed loop's recalibration with its model terms; the
+standard deviations inflated where independent parts of the data disagree beyond them."""
 
 import logging
 from typing import TYPE_CHECKING
@@ -7,6 +8,7 @@ from typing import TYPE_CHECKING
 from imucal.io import read_json, write_json
 from imucal.pipeline.stages import calibration_of_what_ran
 from imucal.terms import final_calibration
+from imucal.validation.consistency import ship
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -15,4 +17,5 @@ logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 
 artifacts = {sensor: read_json(snakemake.input[sensor]) for sensor in ("acc", "gyr", "mag")}
 paper = calibration_of_what_ran(artifacts)
-write_json(final_calibration(paper, read_json(snakemake.input.terms)), snakemake.output.calibration)
+calibration = final_calibration(paper, read_json(snakemake.input.terms))
+write_json(ship(calibration, read_json(snakemake.input.check)), snakemake.output.calibration)

@@ -38,5 +38,6 @@ context = build_report_context(
     if "terms" in snakemake.input.keys()  # noqa: SIM118
     else None,
     temperature_holdout=snakemake.input.get("temperature_holdout"),
+    consistency=snakemake.input.get("consistency"),
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")

@@ -30,7 +30,12 @@ listing, the artifacts per sensor and the figures. The public names are re-expor
 """
 
 from imucal.pipeline.outcome import NotApplicable
-from imucal.pipeline.partial.driver import RUNNERS, final_calibration, run_stages
+from imucal.pipeline.partial.driver import (
+    RUNNERS,
+    final_calibration,
+    run_stages,
+    session_keywords,
+)
 from imucal.pipeline.partial.gyroscope import (
     ADJACENT_SAMPLES,
     pose_direction_covariance,
@@ -59,5 +64,6 @@ __all__ = [
     "rest_to_rest",
     "run_stages",
     "sensors_of",
+    "session_keywords",
     "stage_results",
 ]

@@ -5,8 +5,8 @@ fit, and the choice of each sensor's final calibration among the stages that ran
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable, Collection, Iterable, Mapping
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -37,6 +37,9 @@ from imucal.pipeline.partial.gyroscope import (
 from imucal.pipeline.partial.magnetometer import _mag_reference, _mag_step1, _mag_step2
 from imucal.pipeline.partial.session import NotApplicable, Outcome, _Session
 from imucal.pipeline.registry import FINAL, STAGES
+
+if TYPE_CHECKING:
+    from imucal.io.dataset import Dataset
 
 RUNNERS: dict[str, Callable[[_Session], dict]] = {
     "mag_step1": _mag_step1,
@@ -99,6 +102,7 @@ def run_stages(
     reference_where: Mapping[str, str] | None = None,
     methods: FitMethods | None = None,
     exact_rotation: bool = True,
+    stages: Collection[str] | None = None,
 ) -> list[Outcome]:
     """Run every stage the session allows, in :data:`STAGES` order.
 
@@ -129,11 +133,14 @@ def run_stages(
         The method of each fit (the workflow's config; defaults when None).
     exact_rotation : bool
         Exact rotation in the alignments (else the paper's small-angle form, eq. 5).
+    stages : collection of str, optional
+        Run only these stages (those that ran on the whole session, when the chain is run
+        again on part of its data); default all.
 
     Returns
     -------
     list of Outcome
-        One per stage of :data:`STAGES`.
+        One per stage of :data:`STAGES` (of ``stages`` when given).
     """
     # one options object for the stages' settings, as the in-process chain's
     ranges = {"acc": saturation_m_s2, "gyr": saturation_rad_s}
@@ -150,15 +157,16 @@ def run_stages(
         ranges={sensor: value for sensor, value in ranges.items() if value is not None},
     )
     session = _Session(tables, segments, options, notes or {}, references, reference_where)
+    nodes = {k: v for k, v in PARTIAL_PROTOCOL.items() if stages is None or k in stages}
     store = run_graph(
         {"session": session},
         lambda node: {},
-        PARTIAL_PROTOCOL,
+        nodes,
         review=lambda name, artifact, store: _reviewed(name, artifact, store, session),
         reason=_reason,
     )
     outcomes = []
-    for name in PARTIAL_PROTOCOL:
+    for name in nodes:
         artifact = store[name]
         if NOT_RUN in artifact:
             outcomes.append(Outcome(name, "skipped", artifact[NOT_RUN]["reason"]))
@@ -313,3 +321,50 @@ def _calibration_of(
             quality=stages.gyr_bias_quality(artifact),
         ).to_dict()
     return dict(artifact["calibration"])
+
+
+def session_keywords(
+    dataset: Dataset,
+    metadata: Iterable[Mapping],
+    notes: Mapping[str, str],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    settings: Mapping,
+) -> dict[str, Any]:
+    """The keywords of :func:`run_stages` for a session as the workflow reads it.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The session's ``dataset.yaml``.
+    metadata : iterable of mapping
+        The ingested recordings' metadata (their sensors' ranges, :func:`imucal.ingest.sensor_limits`).
+    notes : mapping of str to str
+        The segmentation's notes (the segments' metadata ``notes``).
+    references : mapping
+        Recording -> (ingested orientation reference, its metadata).
+    settings : mapping
+        The pipeline's settings (:func:`imucal.pipeline.options.pipeline_settings`).
+
+    Returns
+    -------
+    dict
+        Every keyword of :func:`run_stages` but the tables, the segments and ``stages``.
+    """
+    from imucal.ingest import sensor_limits
+
+    # readings at a sensor's range are clipped: the fits leave them out where the range is known
+    limits = sensor_limits(metadata, dataset.range_counts)
+    return {
+        "gravity_m_s2": dataset.gravity_m_s2,
+        "field_norm": dataset.field_norm,
+        "ratetable": dataset.ratetable,
+        "saturation_m_s2": limits.get("acc"),
+        "saturation_rad_s": limits.get("gyr"),
+        "notes": dict(notes),
+        "lowpass_order": settings["lowpass_order"],
+        "lowpass_cutoff_hz": settings["lowpass_cutoff_hz"],
+        "references": dict(references),
+        "reference_where": {name: dataset.reference_where(name) for name in references},
+        "methods": FitMethods.of(settings["methods"]),
+        "exact_rotation": settings["exact_rotation"],
+    }

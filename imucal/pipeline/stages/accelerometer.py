@@ -64,7 +64,16 @@ def _pose_recording(tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame) 
         f"needs >= {MIN_CUBE_POSITIONS} static poses in a cube or poses recording with "
         f"accelerometer data (static poses found: {counts or 'no such recording'})"
         + "".join(f"; {reason}" for reason in shown if reason)
+        + setting_hints(segments, with_acc)
     )
+
+
+def setting_hints(segments: pd.DataFrame, recordings: list[str]) -> str:
+    """The segmentation's notes on these recordings that name the settings which would find
+    more rests (``segmentation.min_static_s``), each after a '; '."""
+    notes = segments.attrs.get("notes", {})
+    clauses = [c for r in recordings for c in notes.get(r, "").split("; ")]
+    return "".join(f"; {c}" for c in clauses if "segmentation.min_static_s" in c)
 
 
 def fit_acc_cube(
@@ -118,7 +127,7 @@ def fit_acc_cube(
     rows = pose_rows(segments, recording)
     coverage = pose_coverage(tables[recording], rows)
     if not coverage.identifiable:
-        raise NotApplicable(coverage.reason)
+        raise NotApplicable(coverage.reason + setting_hints(segments, [recording]))
     positions = [v for _, v in cut_finite(tables[recording], rows, ACC)]
     fit = accelerometer.fit_cube(
         positions,

@@ -8,26 +8,31 @@ from dataclasses import dataclass
 import numpy as np
 
 from imucal.sim.effects.base import Effect, Magnitude, RecordingContext, register
-from imucal.sim.motion import Motion, Tremor
+from imucal.sim.motion import KinematicState, Motion, Tremor
 from imucal.sim.protocol import RecordingPlan
+from imucal.sim.sensors import Signals
 
 #: Sinusoids per body axis in each band (sway, tremor).
 COMPONENTS = 2
+#: Recordings whose positions are held by hand: the cube, and a module tumbled by hand
+#: (:func:`imucal.sim.protocol.plan_tumble`).
+HELD = ("cube", "poses")
 
 
 @register
 @dataclass(frozen=True)
 class HandTremor(Effect):
-    """The cube's static positions are held by hand: physiological tremor plus a slow sway.
+    """Static positions held by hand: physiological tremor plus a slow sway.
 
-    Every hold of the ``cube`` recording gets a small rotation on top of its nominal
-    orientation (a :class:`~imucal.sim.motion.Tremor`, analytic, so the specific force and the
+    Every position of the ``cube`` recording (and of a hand-tumbled ``poses`` recording) gets
+    a small rotation on top of its nominal orientation (a :class:`~imucal.sim.motion.Tremor`, analytic, so the specific force and the
     rate stay exactly consistent): per body axis, :data:`COMPONENTS` sway sinusoids of
     amplitude ``sway_deg`` at frequencies drawn in ``sway_min_hz``..``sway_max_hz`` and
     :data:`COMPONENTS` tremor sinusoids of amplitude ``tremor_deg`` drawn in
     ``tremor_min_hz``..``tremor_max_hz``, random phases, under an envelope that rises and falls
     over ``ramp_s`` (at most half the hold) so that the handling motions still join the nominal
-    positions. The other recordings are unchanged. The draws go to
+    positions. The other recordings, and a rest on the table before the hand picks the module
+    up, are unchanged. The draws go to
     ``truth.json["effects_realised"]["hand_tremor"]["cube"]``: per position ``freq_hz``,
     ``amplitude_rad``, ``phase_rad`` (each 3 x 4: sway then tremor components, body axes x, y,
     z) and the realised ``rate_rms_rad_s`` and ``angle_rms_rad`` of the hold.
@@ -48,6 +53,13 @@ class HandTremor(Effect):
         Frequency bands (Hz), 0 < min <= max. Defaults 0.1-0.8 and 4-12.
     ramp_s : float
         Rise and fall of the envelope (s), > 0.
+    sway_mm : float
+        Amplitude of each sinusoid of the hand's sway in translation (mm, world axes), >= 0:
+        :data:`COMPONENTS` per axis in the sway band under the same envelope, seen by the
+        accelerometer as its second derivative (at 3 mm and 0.45 Hz about 0.02 m/s^2, which a
+        hold of a second does not average out; the envelope's ramps, a quarter of a second in a
+        pause of half a second, add up to about 1 m/s^2 per 8 mm at a pause's ends: the hand
+        settling). Default 0: the hand turns the module only.
     """
 
     name = "hand_tremor"
@@ -59,11 +71,12 @@ class HandTremor(Effect):
     tremor_min_hz: float = 4.0
     tremor_max_hz: float = 12.0
     ramp_s: float = 0.5
+    sway_mm: float = 0.0
 
     def __post_init__(self) -> None:
-        for key in ("sway_deg", "tremor_deg"):
+        for key in ("sway_deg", "tremor_deg", "sway_mm"):
             if not getattr(self, key) >= 0:
-                raise ValueError(f"hand_tremor {key} must be >= 0 deg, got {getattr(self, key)}")
+                raise ValueError(f"hand_tremor {key} must be >= 0, got {getattr(self, key)}")
         for band in ("sway", "tremor"):
             low, high = getattr(self, f"{band}_min_hz"), getattr(self, f"{band}_max_hz")
             if not 0 < low <= high:
@@ -74,13 +87,16 @@ class HandTremor(Effect):
             raise ValueError(f"hand_tremor ramp_s must be > 0 s, got {self.ramp_s}")
 
     def on_plan(self, plan: RecordingPlan, ctx: RecordingContext) -> RecordingPlan:
-        if plan.recording != "cube":
+        if plan.recording not in HELD:
             return plan
         rng = ctx.rng(f"effect/{self.name}")
-        labels = iter(s.label for s in plan.segments if s.kind == "position")
+        positions = [s for s in plan.segments if s.kind == "position"]
+        held = {s.start_s for s in positions}
+        labels = iter(s.label for s in positions)
         pieces = []
         for piece in plan.motion.pieces:
-            if piece.profile != "hold":
+            # a rest on the table before the hand picks the module up stays still
+            if piece.profile != "hold" or piece.start_s not in held:
                 pieces.append(piece)
                 continue
             tremor = self._draw(rng, piece.duration_s)
@@ -95,6 +111,29 @@ class HandTremor(Effect):
                 "angle_rms_rad": np.sqrt((angle**2).mean(axis=0)).tolist(),
             })  # fmt: skip
         return dataclasses.replace(plan, motion=Motion(tuple(pieces)))
+
+    def on_true_signals(
+        self, signals: Signals, state: KinematicState, ctx: RecordingContext
+    ) -> Signals:
+        if self.sway_mm == 0 or ctx.recording not in HELD:
+            return signals
+        rng = ctx.rng(f"effect/{self.name}/translation")
+        world = np.zeros_like(signals.acc)
+        for piece in ctx.require(self.name, "motion").pieces:
+            if piece.tremor is None:
+                continue
+            k = COMPONENTS
+            # the translation's sinusoids under the rotation's envelope (Tremor's arithmetic)
+            path = Tremor(
+                np.full((3, k), self.sway_mm * 1e-3),
+                rng.uniform(self.sway_min_hz, self.sway_max_hz, (3, k)),
+                rng.uniform(0.0, 2 * np.pi, (3, k)),
+                piece.tremor.ramp_s,
+            )
+            inside = (state.t_s >= piece.start_s) & (state.t_s < piece.end_s)
+            _, _, world[inside] = path.angles(state.t_s[inside] - piece.start_s, piece.duration_s)
+        # the specific force gains the hand's linear acceleration, seen in B
+        return signals.with_sensor("acc", signals.acc + state.rotation.apply(world, inverse=True))
 
     def _draw(self, rng: np.random.Generator, duration_s: float) -> Tremor:
         k = COMPONENTS
