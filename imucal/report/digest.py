@@ -1,6 +1,6 @@
 """What the lab report shows first and in its tables: the headline per sensor (what was
-calibrated, how well, on what basis, with which warnings), the gap verdict in one sentence, and
-the stage results and the validation as tables with units.
+calibrated, how well, on what basis, with which warnings), and the stage results and the
+validation as tables with units (the gap verdict's sentence: :mod:`imucal.report.gapsection`).
 
 The raw JSON files stay the full record (the report links them); these tables pick the figures
 a lab user reads, each with its unit. A key a stage does not write is left out, so a table holds
@@ -57,11 +57,11 @@ def _row(quantity: str, value: Any, unit: str = "", std: Any = None, digits: int
             f"{_fmt(v, digits)} ± {_fmt(sd[i], 2)}"
             for i, v in enumerate(value)
         ]  # fmt: skip
-        return {"quantity": quantity, "cells": cells, "unit": unit, "note": ""}
+        return {"quantity": quantity, "cells": cells, "unit": unit, "note": "", "link": None}
     text = value if isinstance(value, str) else _fmt(value, digits)
     if std is not None and not isinstance(value, str):
         text = f"{text} ± {_fmt(std, 2)}"
-    return {"quantity": quantity, "cells": [text], "unit": unit, "note": ""}
+    return {"quantity": quantity, "cells": [text], "unit": unit, "note": "", "link": None}
 
 
 def _table(title: str, rows: Sequence[dict | None]) -> dict | None:
@@ -266,9 +266,11 @@ def _offset_note(offset_s: float) -> str:
     )
 
 
-def validation_tables(validation: Mapping | None) -> list[dict]:
+def validation_tables(validation: Mapping | None, reconciled: Mapping | None = None) -> list[dict]:
     """Tables of validation.json (full protocol: ``metrics``) or of reference/validation.json
-    (declared orientation references: ``summary``)."""
+    (declared orientation references: ``summary``); ``reconciled``, the reference's clock offset
+    reconciled with the gap diagnosis (:func:`imucal.report.gapsection.reconcile_offset`),
+    links the two."""
     if not validation:
         return []
     tables: list[dict | None] = []
@@ -300,6 +302,16 @@ def validation_tables(validation: Mapping | None) -> list[dict]:
             offset = {**_row("time offset of the reference's clock", time["offset_s"], "s",
                              time.get("offset_std_s"), 6),
                       "note": _offset_note(float(time["offset_s"]))}  # fmt: skip
+            if reconciled:
+                offset["note"] = (
+                    f"the reference's clock reads {reconciled['validation_s']} s at the "
+                    f"module's first sample and {reconciled['first_stamp_s']} s at its own "
+                    f"first sample: it started {reconciled['lead_s']} s before the module; "
+                    "removed before the comparison"
+                )
+                if reconciled["diagnosis_s"] is not None:
+                    offset["link"] = {"href": "#gap",
+                                      "text": "the time offset of the sim-to-real gap"}  # fmt: skip
         tables.append(
             _table(
                 "Alignment of the reference to the module (removed before the comparison)",
@@ -488,32 +500,3 @@ def headline(
                     "basis": basis, "warnings": own,
                     "anchor": SENSOR_TITLES[sensor].lower()})  # fmt: skip
     return out
-
-
-def gap_sentence(diagnosis: Mapping | None) -> str | None:
-    """The gap verdict in one plain sentence: the diagnosis's own ``verdict`` when it has one,
-    else built from what it holds (effects in the order they were applied)."""
-    if not diagnosis:
-        return None
-    given = diagnosis.get("verdict")
-    if isinstance(given, str) and given:
-        return given
-    if isinstance(given, Mapping) and isinstance(given.get("sentence"), str):
-        return given["sentence"]
-    if diagnosis.get("scope") == "none":
-        return ("The session could not be compared with its simulated twin: "
-                f"{diagnosis.get('reason', 'no location could be scored')}.")  # fmt: skip
-    gap = diagnosis.get("gap") or {}
-    if not gap.get("significant"):
-        return "The session behaves like its simulated twin: nothing departs from it beyond noise."
-    explained = [str(e).replace("_", " ") for e in diagnosis.get("explained", [])]
-    remaining = (diagnosis.get("remaining") or {}).get("significant")
-    if not explained:
-        return ("The session departs from its simulated twin and no effect of the library "
-                "explains it.")  # fmt: skip
-    rest = ("a significant gap remains unexplained" if remaining
-            else "what is left is within noise")  # fmt: skip
-    return (
-        f"The session departs from its simulated twin; {', then '.join(explained)} "
-        f"{'explains' if len(explained) == 1 else 'explain'} it, and {rest}."
-    )

@@ -170,6 +170,17 @@ def location_place(location: Mapping) -> str:
     return f"{what}, {where}"
 
 
+def location_phrase(location: Mapping) -> str:
+    """A location in a sentence: its statistic's label with the sensor and segment it was
+    taken at, ``reference clock offset (clock, rotation3d)``."""
+    sensor = SENSOR_WORDS.get(str(location.get("sensor")), str(location.get("sensor")))
+    axis, segment = str(location.get("axis", "-")), str(location.get("segment", "all"))
+    where = [sensor if axis in ("-", "all") else f"{sensor} {axis}"]
+    if segment not in ("all", "-"):
+        where.append(segment)
+    return f"{statistic_label(str(location.get('statistic')))} ({', '.join(where)})"
+
+
 def location_label(location: Mapping) -> str:
     """A location in words: its statistic's label, unit and place."""
     name = str(location.get("statistic"))

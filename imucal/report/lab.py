@@ -32,15 +32,15 @@ import imucal.report.digest as digest
 from imucal.columns import SENSORS
 from imucal.constants import REFERENCE
 from imucal.pipeline.outcome import NOT_SHIPPED
-from imucal.report.artifacts import _load_json, _optional_json, read_benchmarks
+from imucal.report.artifacts import load_json, optional_json, read_benchmarks
 from imucal.report.fields import collect_warnings, flatten_fields
 from imucal.report.figures import _caption, embed_figure, figure_section
+from imucal.report.gapsection import gap_section, reconcile_offset, verdict_sentence
 from imucal.report.holdout import holdout_section
 from imucal.report.numbers import format_number
 from imucal.report.sections import (
     _RECORDING_ABSENT,
     RATE_TABLE,
-    _gap_section,
     _noise_section,
     _paper_tables,
     _sensor_parameters,
@@ -142,8 +142,8 @@ def build_report_context(
     ValueError
         If an artifact has the wrong form (see the loaders).
     """
-    summary = _load_json(summary, "ingest summary")
-    calibration = _load_json(calibration, "calibration")
+    summary = load_json(summary, "ingest summary")
+    calibration = load_json(calibration, "calibration")
     not_calibrated = dict(calibration.get("missing", {}))
     missing = [s for s in SENSORS if s not in calibration and s not in not_calibrated]
     if missing:
@@ -151,7 +151,7 @@ def build_report_context(
             f"calibration lacks the sensors {missing} and gives no reason for them in 'missing'; "
             "expected acc, gyr and mag"
         )
-    stages = _optional_json(stages, "stages.json")
+    stages = optional_json(stages, "stages.json")
     links = {
         name: _link(obj, report_path)
         for name, obj in (
@@ -162,11 +162,11 @@ def build_report_context(
         )  # fmt: skip
     }
     results = {
-        "mag": _optional_json(mag_result, "mag.json"),
-        "acc": _optional_json(acc_result, "acc.json"),
-        "gyr": _optional_json(gyr_result, "gyr.json"),
+        "mag": optional_json(mag_result, "mag.json"),
+        "acc": optional_json(acc_result, "acc.json"),
+        "gyr": optional_json(gyr_result, "gyr.json"),
     }
-    validation = _optional_json(validation, "validation.json")
+    validation = optional_json(validation, "validation.json")
     if tables is not None and not isinstance(tables, pd.DataFrame):
         tables = pd.read_csv(tables)
     captions = dict(captions or {})
@@ -189,7 +189,7 @@ def build_report_context(
     if validation is not None:
         warnings += collect_warnings(validation, "validation.json")
     if temperature_holdout is not None:
-        holdout = _load_json(temperature_holdout, "temperature_holdout.json")
+        holdout = load_json(temperature_holdout, "temperature_holdout.json")
         warnings += collect_warnings(holdout, "temperature_holdout.json")
     # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
     warnings += [
@@ -235,6 +235,7 @@ def build_report_context(
             }
         )
 
+    diagnosis = optional_json(gap[0], "gap diagnosis") if gap else None
     bench = read_benchmarks(benchmarks, dataset)
     if snakemake_version is None:
         try:
@@ -251,9 +252,7 @@ def build_report_context(
         "generated": generated,
         "session": _session(summary, declared_reference=validation is not None),
         "headline": digest.headline(calibration, results, validation, warnings),
-        "gap_sentence": digest.gap_sentence(
-            _optional_json(gap[0], "gap diagnosis") if gap else None
-        ),
+        "gap_sentence": verdict_sentence(diagnosis),
         "warnings": warnings,
         "methods": [
             {
@@ -279,7 +278,9 @@ def build_report_context(
         },
         "has_reference": REFERENCE in recordings or validation is not None,
         "validation": None if validation is None else flatten_fields(validation),
-        "validation_tables": digest.validation_tables(validation),
+        "validation_tables": digest.validation_tables(
+            validation, reconcile_offset(diagnosis, validation, summary)
+        ),
         "validation_link": links["validation"],
         "validation_figures": figure_items["validation"],
         "provenance": {
@@ -298,7 +299,7 @@ def build_report_context(
             for r in bench.itertuples()
         ],
         "benchmarks_total_s": format_number(float(bench["s"].sum()), 4) if len(bench) else None,
-        "gap": _gap_section(gap),
+        "gap": gap_section(gap, validation, summary),
         "noise": _noise_section(noise),
         "terms": _terms_section(terms, gap),
         "holdout": holdout_section(temperature_holdout),

@@ -16,7 +16,7 @@ import pandas as pd
 from imucal.columns import AXES
 from imucal.constants import REFERENCE
 from imucal.modelterms import ModelTerms
-from imucal.report.artifacts import _load_json
+from imucal.report.artifacts import load_json
 from imucal.report.figures import embed_figure
 from imucal.report.numbers import format_number, format_value
 from imucal.terms.comparison import gap_comparison
@@ -261,9 +261,9 @@ def _terms_section(
     if not paths:
         return None
     terms_path, after_path = paths
-    summary = _load_json(terms_path, "model terms")
-    after = _load_json(after_path, "diagnosis after the model terms")
-    before = _load_json(gap[0], "gap diagnosis") if gap else {}
+    summary = load_json(terms_path, "model terms")
+    after = load_json(after_path, "diagnosis after the model terms")
+    before = load_json(gap[0], "gap diagnosis") if gap else {}
     rows = [
         {
             "term": name,
@@ -305,22 +305,6 @@ def _terms_section(
     }
 
 
-def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
-    """Context of the gap-diagnosis partial (``_gap.html.j2``): diagnosis.json, then figures."""
-    if not paths:
-        return None
-    from imucal.gap.figures import observations_context, report_context
-
-    diagnosis, *figures = [Path(p) for p in paths]
-    d = _load_json(diagnosis, "gap diagnosis")
-    # a partial session's diagnosis (imucal.gap.static) says what it could score, or why not
-    scope = {"scope": d.get("scope", "full"), "reason": d.get("reason", ""),
-             "not_observable": d.get("not_observable", {}), "pose": d.get("pose")}  # fmt: skip
-    if scope["scope"] == "none":
-        return {**observations_context(d), **scope}
-    return {**report_context(d, {f.stem: embed_figure(f) for f in figures}), **scope}
-
-
 def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
     """Context of the noise partial (``_noise.html.j2``): noise.json, then its figure."""
     if not paths:
@@ -328,7 +312,7 @@ def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
     from imucal.pipeline.outcome import not_run_reason
 
     path, *figures = [Path(p) for p in paths]
-    d = _load_json(path, "noise")
+    d = load_json(path, "noise")
     reason = not_run_reason(d)
     if reason:
         return {"reason": reason, "rows": [], "figure": None}

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from imucal.io import read_recording_column, recording_column_names, write_json
 from imucal.noise import characterise_noise
 from imucal.pipeline.outcome import stage_guard
+from imucal.plots.figurefile import save_figure
 from imucal.plots.noise import plot_allan
 
 if TYPE_CHECKING:
@@ -23,4 +24,4 @@ with stage_guard("noise", snakemake.output):
         level=p.level,
     )  # fmt: skip
     write_json(noise, snakemake.output.noise)
-    plot_allan(noise).savefig(snakemake.output.figure, dpi=110)
+    save_figure(plot_allan(noise), snakemake.output.figure)

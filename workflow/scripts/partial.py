@@ -10,6 +10,7 @@ from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 from imucal.pipeline import partial
 from imucal.pipeline.options import FitMethods
+from imucal.plots.figurefile import save_figure
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -63,4 +64,4 @@ for sensor, artifacts in partial.stage_results(outcomes).items():
 figure_dir = Path(snakemake.output.figures)
 figure_dir.mkdir(parents=True, exist_ok=True)
 for name, figure in partial.figures(outcomes, tables).items():
-    figure.savefig(figure_dir / f"{name}.png", dpi=110)
+    save_figure(figure, figure_dir / f"{name}.png")

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 from imucal.io import read_recording, read_segments
 from imucal.pipeline.outcome import read_artifact, stage_guard
 from imucal.pipeline.stages import plot_phases
+from imucal.plots.figurefile import save_figure
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -19,4 +20,4 @@ with stage_guard("phase_figures", snakemake.output):
         figure = plot_phases(
             rotation3d, segments, sensor, read_artifact(snakemake.input[sensor])["calibration"]
         )
-        figure.savefig(snakemake.output[sensor], dpi=110)
+        save_figure(figure, snakemake.output[sensor])

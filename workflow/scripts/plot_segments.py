@@ -4,6 +4,7 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording
+from imucal.plots.figurefile import save_figure
 from imucal.plots.segmentation import plot_segments
 
 if TYPE_CHECKING:
@@ -17,7 +18,7 @@ try:
     fig = plot_segments(
         table, segments, recording=w.recording, title=f"{w.dataset} / {w.recording}"
     )
-    fig.savefig(snakemake.output.png, dpi=120)
+    save_figure(fig, snakemake.output.png)
 except Exception:
     logging.exception("segments plot of %s failed", snakemake.input.table)
     raise

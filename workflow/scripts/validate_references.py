@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.reference import validate_references
+from imucal.plots.figurefile import save_figure
 from imucal.plots.reference import plot_orientation_errors
 
 if TYPE_CHECKING:
@@ -29,4 +30,4 @@ result = validate_references(
     windows_s=snakemake.params.windows_s,
 )
 write_json(result, snakemake.output.validation)
-plot_orientation_errors(result).savefig(snakemake.output.figure, dpi=110)
+save_figure(plot_orientation_errors(result), snakemake.output.figure)

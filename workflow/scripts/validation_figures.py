@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 from imucal.io import read_calibration, read_recording
 from imucal.pipeline.outcome import read_artifact, stage_guard
 from imucal.pipeline.stages import plot_validation
+from imucal.plots.figurefile import save_figure
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
@@ -21,5 +22,5 @@ with stage_guard("validation_figures", snakemake.output):
         read_calibration(snakemake.input.calibration),
         read_artifact(snakemake.input.validation),
     )
-    figures["validation_magnitudes"].savefig(snakemake.output.magnitudes, dpi=110)
-    figures["validation_xcorr"].savefig(snakemake.output.xcorr, dpi=110)
+    save_figure(figures["validation_magnitudes"], snakemake.output.magnitudes)
+    save_figure(figures["validation_xcorr"], snakemake.output.xcorr)
