@@ -86,6 +86,7 @@ def build_report_context(
     terms: Sequence[str | Path] | None = None,
     report_path: str | Path | None = None,
     temperature_holdout: str | Path | None = None,
+    simulated: Mapping | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -129,6 +130,10 @@ def build_report_context(
         by their path relative to its folder (none linked without it).
     temperature_holdout : path, optional
         ``temperature_holdout.json`` (:mod:`imucal.report.holdout`), its own section.
+    simulated : mapping, optional
+        The dataset's ``simulated`` declaration (:attr:`imucal.io.dataset.Dataset.simulated`):
+        the report opens with a banner saying the data are simulated, what rendered them and
+        what its "truth" rows are. None for recorded data: no banner.
 
     Returns
     -------
@@ -251,6 +256,12 @@ def build_report_context(
         "dataset": dataset,
         "generated": generated,
         "session": _session(summary, declared_reference=validation is not None),
+        "simulated": None
+        if simulated is None
+        else {
+            "by": str(simulated.get("by", "a simulator")),
+            "truth": Path(simulated["truth"]).name if simulated.get("truth") else None,
+        },
         "headline": digest.headline(calibration, results, validation, warnings),
         "gap_sentence": verdict_sentence(diagnosis),
         "warnings": warnings,

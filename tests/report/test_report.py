@@ -620,3 +620,24 @@ def test_every_figure_of_the_rules_has_the_lab_reports_caption_file():
         assert (RULES_DIR / caption).resolve() == CAPTIONS_DIR / f"{stem}.rst", out
         assert stem in DEFAULT_CAPTIONS
         assert "\\" not in DEFAULT_CAPTIONS[stem]
+
+
+def test_the_simulated_banner_only_for_simulated_data(artifacts):
+    """A dataset that declares itself simulated gets the banner with what rendered it and what
+    its truth rows are; a recorded one gets neither."""
+    kwargs = {"dataset": "demo", "summary": artifacts["summary"],
+              "calibration": artifacts["calibration"],
+              "tables": artifacts["results"] / "tables.csv"}  # fmt: skip
+    simulated = render_report(
+        build_report_context(
+            **kwargs, simulated={"by": "imucal.sim, preset demo", "truth": "/x/truth.json"}
+        )
+    )
+    assert parse(simulated).errors == []
+    assert '<div class="simulated"' in simulated
+    assert "rendered by a simulator (imucal.sim, preset demo), not measured" in simulated
+    assert "<code>truth.json</code> in the dataset's folder" in simulated
+    assert "the value the simulator rendered the data from" in simulated
+    recorded = render_report(build_report_context(**kwargs))
+    assert 'class="simulated"' not in recorded and "Simulated data" not in recorded
+    assert "the value in the dataset's truth.json" in recorded

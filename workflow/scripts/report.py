@@ -4,6 +4,7 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from imucal.io.dataset import read_dataset
 from imucal.report import build_report_context, render_report
 from imucal.report.provenance import workflow_commit
 
@@ -38,5 +39,6 @@ context = build_report_context(
     if "terms" in snakemake.input.keys()  # noqa: SIM118
     else None,
     temperature_holdout=snakemake.input.get("temperature_holdout"),
+    simulated=read_dataset(Path(snakemake.input.dataset_yaml).parent).simulated,
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")
