@@ -459,10 +459,51 @@ def _fallback(sensor: str, result: Mapping | None) -> tuple[list[str], str] | No
 WARNING_CHARS = 90
 
 
+def merged_warnings(warnings: Sequence[Mapping]) -> list[dict]:
+    """The run's warnings with one entry per message: the same text from several sources (a
+    rule's log and another's) counted once, with its sources; in order of first appearance.
+
+    Returns
+    -------
+    list of dict
+        ``text``, ``count`` (summed over the sources), ``sources`` and ``summary`` (the short
+        form, with the count).
+    """
+    merged: dict[str, dict] = {}
+    for w in warnings:
+        entry = merged.setdefault(
+            str(w["text"]), {**dict(w), "text": str(w["text"]), "count": 0, "sources": []}
+        )
+        entry["count"] += int(w.get("count", 1))
+        if w.get("source") not in entry["sources"]:
+            entry["sources"].append(w.get("source"))
+    for entry in merged.values():
+        entry["summary"] = short_warning(entry)
+    return list(merged.values())
+
+
+def short_warning(warning: Mapping) -> str:
+    """A warning for the summary: its first clause, ``(39 times)`` when a log repeats it."""
+    count = int(warning.get("count", 1))
+    return _short(str(warning["text"])) + (f" ({count} times)" if count > 1 else "")
+
+
 def _short(text: str) -> str:
-    """A warning's first clause, for the summary."""
-    text = text.split(" (", 1)[0]
+    """A warning's first clause."""
+    text = (text.splitlines() or [""])[0].split(" (", 1)[0]
     return text if len(text) <= WARNING_CHARS else text[: WARNING_CHARS - 1].rstrip() + "…"
+
+
+def _names_sensor(warning: Mapping, sensor: str) -> bool:
+    """Whether a warning is about one sensor: its stage's, or one of the validation or of a
+    rule's log that names it (``mag: ...``, ``... magnetometer ...``)."""
+    source, text = str(warning.get("source", "")), str(warning["text"])
+    name = SENSOR_TITLES[sensor].lower()
+    if source.startswith(sensor):
+        return True
+    if source.startswith(("validation", "logs/")):
+        return text.startswith(f"{sensor}:") or name in text.lower()
+    return False
 
 
 def headline(
@@ -470,27 +511,22 @@ def headline(
     results: Mapping[str, Mapping | None],
     validation: Mapping | None,
     warnings: Sequence[Mapping],
+    undetermined: Mapping[str, Sequence[str]] | None = None,
 ) -> list[dict]:
-    """Per sensor: what was calibrated and how, the figures that say how well (held out against
-    the reference where there is one, else the reference-free ones, with their basis), and the
-    warnings of its stage."""
+    """Per sensor: what was calibrated and how, what was not determined or was fixed, the
+    figures that say how well (held out against the reference where there is one, else the
+    reference-free ones, with their basis), and the warnings that name it."""
     missing = dict(calibration.get("missing", {}))
+    undetermined = undetermined or {}
     out = []
     for sensor in ("acc", "gyr", "mag"):
-        # its stage's warnings, and those of the validation that name it
-        name = SENSOR_TITLES[sensor].lower()
-        own = [
-            w["text"]
-            for w in warnings
-            if str(w.get("source", "")).startswith(sensor)
-            or (str(w.get("source", "")).startswith("validation") and name in w["text"].lower())
-        ]
-        own = list(dict.fromkeys(_short(t) for t in own))
+        own = [w["summary"] for w in merged_warnings(warnings) if _names_sensor(w, sensor)]
         if sensor in missing:
             first = str(missing[sensor]).split(": ", 1)[0]  # the sensor section has the rest
             out.append({"sensor": SENSOR_TITLES[sensor], "calibrated": False,
                         "what": f"not calibrated: {first}", "figures": [], "basis": "",
-                        "warnings": own, "anchor": SENSOR_TITLES[sensor].lower()})  # fmt: skip
+                        "warnings": own, "undetermined": [],
+                        "anchor": SENSOR_TITLES[sensor].lower()})  # fmt: skip
             continue
         cal = calibration.get(sensor) or {}
         found = _held_out(sensor, validation) or _fallback(sensor, results.get(sensor))
@@ -498,5 +534,6 @@ def headline(
         out.append({"sensor": SENSOR_TITLES[sensor], "calibrated": True,
                     "what": cal.get("method") or "method not stated", "figures": figures,
                     "basis": basis, "warnings": own,
+                    "undetermined": list(undetermined.get(sensor, [])),
                     "anchor": SENSOR_TITLES[sensor].lower()})  # fmt: skip
     return out

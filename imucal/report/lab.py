@@ -33,7 +33,7 @@ from imucal.columns import SENSORS
 from imucal.constants import REFERENCE
 from imucal.pipeline.outcome import NOT_SHIPPED
 from imucal.report.artifacts import load_json, optional_json, read_benchmarks
-from imucal.report.fields import collect_warnings, flatten_fields
+from imucal.report.fields import collect_warnings, flatten_fields, log_warnings
 from imucal.report.figures import _caption, embed_figure, figure_section
 from imucal.report.gapsection import gap_section, reconcile_offset, verdict_sentence
 from imucal.report.holdout import holdout_section
@@ -46,6 +46,7 @@ from imucal.report.sections import (
     _sensor_parameters,
     _session,
     _terms_section,
+    undetermined_parameters,
 )
 
 #: Section of the report for each sensor, in report order.
@@ -87,6 +88,7 @@ def build_report_context(
     report_path: str | Path | None = None,
     temperature_holdout: str | Path | None = None,
     simulated: Mapping | None = None,
+    logs: Sequence[str | Path] = (),
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -130,6 +132,9 @@ def build_report_context(
         by their path relative to its folder (none linked without it).
     temperature_holdout : path, optional
         ``temperature_holdout.json`` (:mod:`imucal.report.holdout`), its own section.
+    logs : sequence of path
+        The log of every rule behind the report: their warnings (WARNING and above) are
+        listed with the stages' own, repeats counted.
     simulated : mapping, optional
         The dataset's ``simulated`` declaration (:attr:`imucal.io.dataset.Dataset.simulated`):
         the report opens with a banner saying the data are simulated, what rendered them and
@@ -187,21 +192,9 @@ def build_report_context(
     ):
         item["number"] = number
 
-    warnings: list[dict] = []
-    for sensor, result in results.items():
-        if result is not None:
-            warnings += collect_warnings(result, f"{sensor}.json")
-    if validation is not None:
-        warnings += collect_warnings(validation, "validation.json")
-    if temperature_holdout is not None:
-        holdout = load_json(temperature_holdout, "temperature_holdout.json")
-        warnings += collect_warnings(holdout, "temperature_holdout.json")
-    # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
-    warnings += [
-        {"source": "stages.json", "where": row["stage"], "text": row["reason"]}
-        for row in (stages or {}).get("stages", [])
-        if str(row.get("reason", "")).startswith(NOT_SHIPPED)
-    ]
+    warnings = run_warnings(
+        results, validation, temperature_holdout, gap, noise, terms, stages, logs
+    )
 
     recordings = summary.get("recordings", {})
     sensors = []
@@ -262,9 +255,20 @@ def build_report_context(
             "by": str(simulated.get("by", "a simulator")),
             "truth": Path(simulated["truth"]).name if simulated.get("truth") else None,
         },
-        "headline": digest.headline(calibration, results, validation, warnings),
+        "headline": digest.headline(
+            calibration,
+            results,
+            validation,
+            warnings,
+            {
+                s: undetermined_parameters(s, calibration[s], recordings)
+                for s in SENSORS
+                if s not in not_calibrated
+            },
+        ),
         "gap_sentence": verdict_sentence(diagnosis),
         "warnings": warnings,
+        "summary_warnings": digest.merged_warnings(warnings),
         "methods": [
             {
                 "sensor": SECTION_TITLES[section],
@@ -276,7 +280,13 @@ def build_report_context(
             }
             for s, section in SENSOR_SECTIONS.items()
         ],
-        "stages": None if stages is None else list(stages.get("stages", [])),
+        # a stage that ran needs no reason (the listing repeats what it does there)
+        "stages": None
+        if stages is None
+        else [
+            {**row, "reason": "" if row.get("reason") == row.get("what") else row.get("reason")}
+            for row in stages.get("stages", [])
+        ],
         "segmentation_figures": figure_items["segmentation"],
         "other_figures": figure_items["other"],
         "sensors": sensors,
@@ -315,6 +325,48 @@ def build_report_context(
         "terms": _terms_section(terms, gap),
         "holdout": holdout_section(temperature_holdout),
     }
+
+
+def run_warnings(
+    results: Mapping[str, Mapping | None],
+    validation: Mapping | None,
+    temperature_holdout: str | Path | None,
+    gap: Sequence[str | Path] | None,
+    noise: Sequence[str | Path] | None,
+    terms: Sequence[str | Path] | None,
+    stages: Mapping | None,
+    logs: Sequence[str | Path],
+) -> list[dict]:
+    """Every warning of the run: the stage results' (``warnings`` lists at any depth), the
+    refused fits of the stage listing, and every rule's log (repeats counted).
+
+    Returns
+    -------
+    list of dict
+        ``source``, ``where``, ``text``, ``count`` and ``summary`` (its short form).
+    """
+    warnings: list[dict] = []
+    for sensor, result in results.items():
+        if result is not None:
+            warnings += collect_warnings(result, f"{sensor}.json")
+    if validation is not None:
+        warnings += collect_warnings(validation, "validation.json")
+    if temperature_holdout is not None:
+        holdout = load_json(temperature_holdout, "temperature_holdout.json")
+        warnings += collect_warnings(holdout, "temperature_holdout.json")
+    for name, paths in (("gap/diagnosis.json", gap), ("noise.json", noise), ("terms.json", terms)):
+        if paths:
+            warnings += collect_warnings(load_json(paths[0], name), name)
+    # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
+    warnings += [
+        {"source": "stages.json", "where": row["stage"], "text": row["reason"]}
+        for row in (stages or {}).get("stages", [])
+        if str(row.get("reason", "")).startswith(NOT_SHIPPED)
+    ]
+    warnings = [{"count": 1, **w} for w in warnings] + log_warnings(logs)
+    for w in warnings:
+        w["summary"] = digest.short_warning(w)
+    return warnings
 
 
 def _link(obj: Any, report_path: str | Path | None) -> str | None:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -54,10 +54,15 @@ _RECORDING_ABSENT = {
 }
 
 
+#: A fixed parameter this close to 0 is printed as 0 (the rounding of a matrix decomposition).
+FIXED_ZERO = 1e-12
+
+
 def _with_std(value: Any, std: Any) -> str:
     """``value ± std`` (std with 2 significant digits), or the value alone if std is unknown."""
     if std is not None and float(std) == 0.0:
-        return f"{format_number(value)} (fixed, not observable)"
+        shown = 0.0 if abs(float(value)) < FIXED_ZERO else value
+        return f"{format_number(shown)} (fixed, not observable)"
     if std is None or not math.isfinite(float(std)):
         return format_number(value)
     return f"{format_number(value)} ± {format_number(std, 2)}"
@@ -175,6 +180,34 @@ def _sensor_parameters(sensor: str, cal: Mapping) -> dict:
         "quality": _quality_rows(cal.get("quality") or {}),
         "has_covariance": cal.get("covariance") is not None,
     }
+
+
+def undetermined_parameters(sensor: str, cal: Mapping, recordings: Collection[str]) -> list[str]:
+    """What one sensor's calibration did not determine: parameters fixed (standard deviation
+    0) and parameters with no standard deviation, each with the reason where it is known."""
+    std = cal.get("std") or {}
+    why = (
+        "not observable without a rate table"
+        if sensor == "gyr" and RATE_TABLE not in recordings
+        else "not observable from these recordings"
+    )
+    out = []
+    for key in ("bias", "scale", "xi_rad", "alpha_rad"):
+        if key not in cal:
+            continue
+        sd = std.get(key)
+        if sd is None:
+            out.append(f"{PARAMETER_NAMES[key]}: no standard deviation known")
+            continue
+        fixed = [a for a, v in zip(AXES, sd, strict=True) if v is not None and float(v) == 0.0]
+        if fixed:
+            values = {float(cal[key][AXES.index(a)]) for a in fixed}
+            at = format_number(0.0 if all(abs(v) < FIXED_ZERO for v in values) else min(values))
+            axes = "" if len(fixed) == 3 else f" ({', '.join(fixed)})"
+            out.append(f"{PARAMETER_NAMES[key]}{axes}: fixed at {at}, {why}")
+    if "matrix" in cal and "matrix" not in std:
+        out.append("calibration matrix: no standard deviation known")
+    return out
 
 
 def _quality_rows(quality: Mapping) -> list[dict]:

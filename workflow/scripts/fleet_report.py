@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from imucal.fleet import read_sample_sheet, summarize_fleet
 from imucal.io import read_json, write_json
+from imucal.io.logs import log_to
 from imucal.plots.figurefile import save_figure
 from imucal.plots.fleet import plot_bias_over_time, plot_fleet_parameters
 from imucal.report import embed_figure
@@ -14,7 +15,7 @@ from imucal.report.fleet import render_fleet_report
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 out = snakemake.output
 sheet = read_sample_sheet(p.sheet)

@@ -9,6 +9,7 @@ from imucal.gap import DiagnosisSettings, diagnose
 from imucal.gap.blocks import read_decimated_static
 from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.pipeline.full import PipelineOptions
 from imucal.plots.figurefile import save_figure
 from imucal.report.gapfigures import plot_effects, plot_gap_map
@@ -16,7 +17,7 @@ from imucal.report.gapfigures import plot_effects, plot_gap_map
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 recordings = dict(snakemake.input.items())
 imu = {

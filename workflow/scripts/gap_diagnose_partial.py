@@ -11,13 +11,14 @@ from imucal.gap.motion import reference_part
 from imucal.gap.poses import diagnose_poses
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.plots.figurefile import save_figure
 from imucal.report.gapfigures import plot_effects, plot_gap_map
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 info = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 inputs = dict(snakemake.input.items())
 scope = partial_scope(

@@ -1,10 +1,10 @@
 """Rule noise: Allan deviation and IEEE 952 noise terms of the static recording."""
 
-import logging
 from functools import partial
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording_column, recording_column_names, write_json
+from imucal.io.logs import log_to
 from imucal.noise import characterise_noise
 from imucal.pipeline.outcome import stage_guard
 from imucal.plots.figurefile import save_figure
@@ -13,7 +13,7 @@ from imucal.plots.noise import plot_allan
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 
 with stage_guard("noise", snakemake.output):

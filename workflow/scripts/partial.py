@@ -8,6 +8,7 @@ from imucal.calibration import FORMAT_VERSION
 from imucal.ingest import sensor_limits
 from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.pipeline import partial
 from imucal.pipeline.options import FitMethods
 from imucal.plots.figurefile import save_figure
@@ -15,7 +16,7 @@ from imucal.plots.figurefile import save_figure
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 settings = snakemake.params.pipeline
 methods = FitMethods.of(settings["methods"])
 
