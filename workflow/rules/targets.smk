@@ -1,5 +1,7 @@
 # What a run produces: each dataset's final targets, its report's inputs and the fleet's
-# calibrations. No rules here.
+# calibrations, and the line that names the reports a run wrote. No rules here.
+import atexit
+import sys
 from imucal.export.formats import FORMATS as EXPORT_FORMATS
 from imucal.pipeline.graph import FULL_PROTOCOL
 
@@ -179,3 +181,27 @@ def fleet_calibrations(wildcards):
             "the fleet target needs a sample sheet: set config fleet.sessions (docs/fleet.md)"
         )
     return {name: calibration_path(name) for name in FLEET_SHEET["dataset"]}
+
+
+def reports_written(since):
+    """The lab reports written since a time (s since the epoch), by name."""
+    return sorted(str(p) for p in Path("reports").glob("*.html") if p.stat().st_mtime >= since)
+
+
+def print_reports(since):
+    """Name the lab reports a run wrote (the run's last line)."""
+    written = reports_written(since)
+    if written:
+        which = "Lab report" if len(written) == 1 else "Lab reports"
+        print(f"{which} written: {', '.join(written)} (open in a browser)", file=sys.stderr)
+    else:
+        print(
+            "No lab report was written in this run; a dataset's report is the target "
+            "reports/NAME.html",
+            file=sys.stderr,
+        )
+
+
+def announce_reports(since):
+    """At the end of a successful run, after Snakemake's own lines, name its reports."""
+    atexit.register(print_reports, since)
