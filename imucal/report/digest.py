@@ -266,6 +266,15 @@ def _offset_note(offset_s: float) -> str:
     )
 
 
+def _angle_row(name: str, dip: Mapping | None) -> dict | None:
+    """The angle between specific force and field of one source, with the dip it implies."""
+    mean = _get(dip, "mean_deg")
+    row = _maybe(f"angle, {name}", mean, "°", _get(dip, "std_deg"))
+    if row is not None and mean is not None and np.isfinite(mean):
+        row["note"] = f"dip {_fmt(float(mean) - 90.0)}° (the angle less 90°)"
+    return row
+
+
 def validation_tables(validation: Mapping | None, reconciled: Mapping | None = None) -> list[dict]:
     """Tables of validation.json (full protocol: ``metrics``) or of reference/validation.json
     (declared orientation references: ``summary``); ``reconciled``, the reference's clock offset
@@ -332,14 +341,11 @@ def validation_tables(validation: Mapping | None, reconciled: Mapping | None = N
         if dip:
             tables.append(
                 _table(
-                    "Dip angle between gravity and the magnetic field",
+                    "Angle between the specific force and the magnetic field at rest (90° plus "
+                    "the field's dip below the horizontal; its spread over the rests checks "
+                    "the accelerometer against the magnetometer)",
                     [
-                        _maybe(
-                            f"dip, {name}",
-                            _get(dip, name, "mean_deg"),
-                            "°",
-                            _get(dip, name, "std_deg"),
-                        )  # fmt: skip
+                        _angle_row(name, dip.get(name))
                         for name in ("raw", "calibrated", "reference")
                     ],
                 )

@@ -89,6 +89,7 @@ def build_report_context(
     temperature_holdout: str | Path | None = None,
     simulated: Mapping | None = None,
     logs: Sequence[str | Path] = (),
+    dataset_folder: str | Path | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -132,6 +133,8 @@ def build_report_context(
         by their path relative to its folder (none linked without it).
     temperature_holdout : path, optional
         ``temperature_holdout.json`` (:mod:`imucal.report.holdout`), its own section.
+    dataset_folder : path, optional
+        The dataset's folder: the files table gives the raw files' paths relative to it.
     logs : sequence of path
         The log of every rule behind the report: their warnings (WARNING and above) are
         listed with the stages' own, repeats counted.
@@ -248,7 +251,9 @@ def build_report_context(
     return {
         "dataset": dataset,
         "generated": generated,
-        "session": _session(summary, declared_reference=validation is not None),
+        "session": _session(
+            summary, declared_reference=validation is not None, folder=dataset_folder
+        ),
         "simulated": None
         if simulated is None
         else {

@@ -6,6 +6,7 @@ diagnosis and the noise.
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
@@ -68,7 +69,21 @@ def _with_std(value: Any, std: Any) -> str:
     return f"{format_number(value)} ± {format_number(std, 2)}"
 
 
-def _session(summary: Mapping, declared_reference: bool = False) -> dict:
+def _shown_path(path: str | Path, folder: str | Path | None) -> str:
+    """A raw file's path as the report shows it: relative to the dataset's folder."""
+    if folder is None:
+        return str(path)
+    return Path(os.path.relpath(Path(path).resolve(), Path(folder).resolve())).as_posix()
+
+
+def _name_parts(name: str) -> list[str]:
+    """A file name cut after its separators (``_ - .``): the places a table may break it."""
+    return [part for part in re.split(r"(?<=[_\-.])", name) if part]
+
+
+def _session(
+    summary: Mapping, declared_reference: bool = False, folder: str | Path | None = None
+) -> dict:
     recordings = summary.get("recordings", {})
     rows, gaps = [], []
     for name, rec in recordings.items():
@@ -77,7 +92,8 @@ def _session(summary: Mapping, declared_reference: bool = False) -> dict:
             {
                 "recording": name,
                 "file": Path(rec["source"]).name if rec.get("source") else "n/a",
-                "source": rec.get("source") or "n/a",
+                "file_parts": _name_parts(Path(rec["source"]).name if rec.get("source") else "n/a"),
+                "source": _shown_path(rec["source"], folder) if rec.get("source") else "n/a",
                 "format": rec.get("format") or "n/a",
                 "sha256": rec.get("sha256") or "n/a",
                 "rows": format_number(rec.get("rows")),
@@ -137,7 +153,16 @@ def _session(summary: Mapping, declared_reference: bool = False) -> dict:
             )
         ),
         "notes": notes,
+        "folder": None if folder is None else _folder_shown(folder),
     }
+
+
+def _folder_shown(folder: str | Path) -> str:
+    """The dataset's folder: relative to the working directory when inside it."""
+    try:
+        return Path(folder).resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return str(folder)
 
 
 def _sensor_parameters(sensor: str, cal: Mapping) -> dict:
@@ -338,6 +363,21 @@ def _terms_section(
     }
 
 
+#: The IEEE 952 noise terms' names.
+NOISE_TERMS = {
+    "Q": "Q, quantisation",
+    "N": "N, white noise (density)",
+    "B": "B, bias instability",
+    "K": "K, rate random walk",
+    "R": "R, rate ramp",
+}
+
+
+def _pretty_unit(unit: str) -> str:
+    """A unit as the report prints it: ``(m/s^2)/sqrt(Hz)`` as ``(m/s²)/√Hz``."""
+    return unit.replace("^2", "²").replace("sqrt(Hz)", "√Hz").replace("sqrt(s)", "√s")
+
+
 def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
     """Context of the noise partial (``_noise.html.j2``): noise.json, then its figure."""
     if not paths:
@@ -349,8 +389,9 @@ def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
     reason = not_run_reason(d)
     if reason:
         return {"reason": reason, "rows": [], "figure": None}
-    rows = []
+    tables = []
     for sensor, data in d["sensors"].items():
+        rows = []
         for axis, fit in data["axes"].items():
             cells = {}
             for term, t in fit["terms"].items():
@@ -358,10 +399,15 @@ def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
                     cells[term] = f"{format_number(t['value'], 3)} ± {format_number(t['std'], 2)}"
                 else:
                     cells[term] = f"< {format_number(t['upper_bound'], 3)}"
-            rows.append({"sensor": sensor, "axis": axis, "cells": cells,
-                         "chi2": format_number(fit["reduced_chi2"], 2)})  # fmt: skip
-    units = {s: {t: next(iter(v["axes"].values()))["terms"][t]["unit"] for t in d["terms"]}
-             for s, v in d["sensors"].items()}  # fmt: skip
+            rows.append(
+                {"axis": axis, "cells": cells, "chi2": format_number(fit["reduced_chi2"], 2)}
+            )
+        first = next(iter(data["axes"].values()))["terms"]
+        headers = [{"term": t, "name": NOISE_TERMS.get(t, t), "unit": _pretty_unit(first[t]["unit"])}
+                   for t in d["terms"]]  # fmt: skip
+        title = {"acc": "Accelerometer", "gyr": "Gyroscope", "mag": "Magnetometer"}.get(sensor)
+        tables.append({"sensor": sensor, "title": title or sensor, "headers": headers,
+                       "rows": rows})  # fmt: skip
     return {
         "reason": None,
         "recording": d["recording"],
@@ -369,8 +415,7 @@ def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
         "rate_hz": format_number(d["rate_hz"], 4),
         "level": format_number(d["level"], 3),
         "terms": d["terms"],
-        "units": units,
-        "rows": rows,
+        "tables": tables,
         "skipped": d.get("skipped", {}),
         "figure": embed_figure(figures[0]) if figures else None,
     }

@@ -694,3 +694,46 @@ def test_the_summary_lists_undetermined_parameters_and_every_logged_warning(arti
     assert "logs/gap_diagnose.log, <code>imucal.segments.filtering</code>, 39 times" in section
     # the gyroscope's table prints the fixed parameter as 0, not as -7.59e-19
     assert "-7.59e-19" not in html and "0 (fixed, not observable)" in html
+
+
+def test_files_are_named_relative_to_the_dataset_and_broken_at_separators(artifacts):
+    context = build_report_context(
+        dataset="demo", summary=artifacts["summary"], calibration=artifacts["calibration"],
+        dataset_folder=artifacts["root"] / "raw",
+    )  # fmt: skip
+    html = render_report(context)
+    # the folder once, as the config gives it; each file relative to it
+    assert html.count(str(artifacts["root"])) == 1
+    assert f"folder, <code>{artifacts['root'] / 'raw'}</code>" in html
+    assert '<td class="text"><code>mtx_rotation3d.txt</code></td>' in html
+    # a file name breaks only after its separators, never mid-word
+    assert '<code class="filename" title="rotation3d.csv">rotation3d.<wbr>csv</code>' in html
+    assert "paths relative to the dataset's folder" in html
+
+
+def test_the_angle_between_force_and_field_gives_the_dip():
+    from imucal.report.digest import validation_tables
+
+    dip = {"calibrated": {"mean_deg": 153.97, "std_deg": 0.27}}
+    tables = validation_tables({"metrics": {"calibrated": {}}, "dip": dip})
+    row = tables[0]["rows"][0]
+    assert tables[0]["title"].startswith("Angle between the specific force and the magnetic")
+    assert row["quantity"] == "angle, calibrated" and row["cells"] == ["154 ± 0.27"]
+    assert row["note"] == "dip 63.97° (the angle less 90°)"
+
+
+def test_noise_tables_carry_the_units_in_their_headers(tmp_path):
+    from imucal.report.sections import _noise_section
+
+    term = {"resolved": True, "value": 2e-4, "std": 1e-5, "unit": "(m/s^2)/sqrt(Hz)"}
+    noise = {"recording": "static", "duration_s": 120.0, "rate_hz": 100.0, "level": 0.683,
+             "terms": ["N"], "sensors": {"acc": {"axes": {"x": {"terms": {"N": term},
+                                                              "reduced_chi2": 1.1}}}}}  # fmt: skip
+    path = tmp_path / "noise.json"
+    path.write_text(json.dumps(noise))
+    table = _noise_section([path])["tables"][0]
+    assert table["title"] == "Accelerometer"
+    assert table["headers"] == [
+        {"term": "N", "name": "N, white noise (density)", "unit": "(m/s²)/√Hz"}
+    ]
+    assert table["rows"][0]["cells"]["N"] == "0.0002 ± 1e-05"

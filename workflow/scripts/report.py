@@ -40,6 +40,7 @@ context = build_report_context(
     else None,
     temperature_holdout=snakemake.input.get("temperature_holdout"),
     logs=list(snakemake.input.logs),
+    dataset_folder=Path(snakemake.input.dataset_yaml).parent,
     simulated=read_dataset(Path(snakemake.input.dataset_yaml).parent).simulated,
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")
