@@ -8,6 +8,7 @@ from snakemake.exceptions import WorkflowError
 from snakemake.utils import min_version, validate
 
 from imucal.io.configfile import command_line_problem, config_problem
+from imucal.modelterms.registry import settings_schema
 from imucal.terms import TermSettings
 
 min_version("8.0")
@@ -24,6 +25,7 @@ CONFIG_PROBLEM = config_problem(
     config,
     "workflow/schemas/config.schema.yaml",
     ["config/config.yaml", *workflow.overwrite_configfiles],
+    sections={"terms": settings_schema()},
 )
 if CONFIG_PROBLEM:
     raise WorkflowError(CONFIG_PROBLEM)

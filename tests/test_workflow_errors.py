@@ -86,6 +86,8 @@ def test_a_misspelt_dataset_key_suggests_the_setting(tmp_path, misspelt):
         ("datasets:\n  demo: data/demo\nlowpass:\n  cutof_hz: 4.0\n",
          "my.yaml: key 'lowpass/cutof_hz' is not a setting, did you mean 'cutoff_hz'? Settings "
          "of 'lowpass': cutoff_hz, order"),
+        ("terms:\n  temperatur: auto\n",
+         "my.yaml: key 'terms/temperatur' is not a setting, did you mean 'temperature'?"),
         ("gap:\n  replica: 8\n",
          "my.yaml: key 'gap/replica' is not a setting, did you mean 'replicas'?"),
         ("lowpass:\n  cutoff_hz: five\n",

@@ -83,7 +83,9 @@ def _key(path: Sequence) -> str:
     return "/".join(str(p) for p in path)
 
 
-def _unknown_key(err: jsonschema.ValidationError, files: Sequence[Path]) -> str | None:
+def _unknown_key(
+    err: jsonschema.ValidationError, files: Sequence[Path], elsewhere: Sequence[str] = ()
+) -> str | None:
     known = sorted(err.schema.get("properties", {}))
     extra = [k for k in err.instance if k not in known]
     if not extra:
@@ -96,10 +98,12 @@ def _unknown_key(err: jsonschema.ValidationError, files: Sequence[Path]) -> str 
         hint = f", did you mean {close[0]!r}?" if close else "."
         parts.append(f"{_source(files, path)}: key {_key(path)!r} is not a setting{hint}")
     scope = f"of {where!r}" if where else "at the top level"
-    return (
-        f"{' '.join(parts)} Settings {scope}: {', '.join(known)} (each with its default and "
-        "unit in workflow/schemas/config.schema.yaml)."
+    declared = (
+        "each declared with its default and unit by its model term, docs/model-terms.md"
+        if err.absolute_path and err.absolute_path[0] in elsewhere
+        else "each with its default and unit in workflow/schemas/config.schema.yaml"
     )
+    return f"{' '.join(parts)} Settings {scope}: {', '.join(known)} ({declared})."
 
 
 def _wrong_value(err: jsonschema.ValidationError, files: Sequence[Path]) -> str:
@@ -117,7 +121,10 @@ def _wrong_value(err: jsonschema.ValidationError, files: Sequence[Path]) -> str:
 
 
 def config_problem(
-    config: Mapping, schema_path: str | Path, files: Sequence[str | Path] = ()
+    config: Mapping,
+    schema_path: str | Path,
+    files: Sequence[str | Path] = (),
+    sections: Mapping[str, Mapping] | None = None,
 ) -> str | None:
     """What is wrong with a config against its schema, in one paragraph, or None.
 
@@ -130,6 +137,10 @@ def config_problem(
     files : sequence of path
         The config files merged into ``config``, in order (the workflow's own first); the
         message names the one that sets the offending key.
+    sections : mapping, optional
+        Top-level section -> its schema, for sections whose schema is made elsewhere (the
+        model terms' ``terms``, :func:`imucal.modelterms.registry.settings_schema`); they
+        replace the file's.
 
     Returns
     -------
@@ -151,6 +162,7 @@ def config_problem(
                 f"the option to its value (--configfile={configs or 'my.yaml'} {target})."
             )
     schema = yaml.safe_load(Path(schema_path).read_text(encoding="utf-8"))
+    schema["properties"].update(dict(sections or {}))
     validator = jsonschema.validators.validator_for(schema)(schema)
     errors = sorted(validator.iter_errors(dict(config)), key=lambda e: list(e.absolute_path))
     if not errors:
@@ -158,7 +170,7 @@ def config_problem(
     unknown = [e for e in errors if e.validator == "additionalProperties" and
                isinstance(e.instance, Mapping)]  # fmt: skip
     for err in unknown:
-        text = _unknown_key(err, files)
+        text = _unknown_key(err, files, list(sections or {}))
         if text:
             return text
     return _wrong_value(jsonschema.exceptions.best_match(errors), files)
