@@ -171,9 +171,18 @@ def _add_lookup(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_lookup(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from imucal.fleet import calibration_for
     from imucal.io import read_json
 
+    if not Path(args.store).is_file():
+        raise FileNotFoundError(
+            f"{args.store}: no calibration store here. The target fleet writes it from a sample "
+            "sheet (a TSV of dataset, path, serial, date, operator): set config fleet.sessions "
+            "to the sheet and run snakemake --cores 2 fleet --configfile fleet.yaml "
+            "(docs/fleet.md)"
+        )
     entry = calibration_for(read_json(args.store), args.serial, args.date)
     print(entry["calibration"])
     return 0

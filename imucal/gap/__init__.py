@@ -11,7 +11,7 @@ estimators in :mod:`.motionstats`, their twin in :mod:`.motiontwin`), :mod:`.nul
 estimator and signature or the reason it cannot be observed), :mod:`.attribution` (held-out
 forward selection), :mod:`.diagnosis` (diagnosis.json: one assembly for both twins),
 :mod:`.static` (what a static recording can show: the partial session's diagnosis),
-:mod:`.figures` (report section), :mod:`.blind` (the blind check), :mod:`.stress` (the stress
+:mod:`.figures` (the checks' pages), :mod:`.blind` (the blind check), :mod:`.stress` (the stress
 set), :mod:`.detection` (detection limits), :mod:`.checks` (scoring the checks). See docs/gap.md.
 """
 

@@ -1,160 +1,18 @@
-"""Figures and template context of the report's gap section (figures are returned, never saved).
+"""The pages of the diagnosis's checks (blind check, detection sweep), self-contained HTML.
 
-* :func:`plot_gap_map`: heat map of the scores, locations (stage / sensor / axis / segment) by
-  statistic, in a colour-blind-safe diverging map (``cividis`` of |z| on a log scale, the sign
-  printed in the cell);
-* :func:`plot_effects`: the ranked effects, gap before and after adding each to the twin, in
-  sample and held out.
+The lab report's gap section and its figures are drawn from ``diagnosis.json`` in the report
+layer (:mod:`imucal.report.gapsection`, :mod:`imucal.report.gapfigures`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from html import escape
-from typing import TYPE_CHECKING
-
-import numpy as np
-
-if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn: the report's context needs none
-    from matplotlib.figure import Figure
 
 
 def _percent(x) -> str:
     """A share as a percentage, or 'n/a' when it is undefined (no gap to close)."""
     return "n/a" if x is None else f"{x:.0%}"
-
-
-def plot_gap_map(diagnosis: Mapping) -> Figure:
-    """Heat map of |z| per location (rows: stage/sensor/axis/segment, columns: statistic)."""
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
-
-    locs = diagnosis["all_locations"]
-    rows = sorted({(d["stage"], d["sensor"], d["axis"], d["segment"]) for d in locs})
-    cols = sorted({d["statistic"] for d in locs})
-    z = np.full((len(rows), len(cols)), np.nan)
-    flag = np.zeros(z.shape, dtype=bool)
-    for d in locs:
-        i = rows.index((d["stage"], d["sensor"], d["axis"], d["segment"]))
-        j = cols.index(d["statistic"])
-        z[i, j], flag[i, j] = d["z"], d["in_gap"]
-    # at most 10 in wide: saved at 110 dpi it fits the report's page without being scaled
-    # down, so that the 8-point labels stay readable (about 12 px)
-    fig = Figure(figsize=(min(10, max(6, 0.4 * len(cols) + 4)), max(4, 0.2 * len(rows) + 2.5)))
-    ax = fig.add_subplot()
-    a = np.abs(z)
-    im = ax.imshow(np.where(np.isfinite(a), np.maximum(a, 0.1), np.nan), cmap="cividis",
-                   norm=LogNorm(0.1, max(10.0, np.nanmax(a) if np.isfinite(a).any() else 10)),
-                   aspect="auto")  # fmt: skip
-    for i, j in zip(*np.where(flag), strict=True):
-        ax.text(j, i, "+" if z[i, j] > 0 else "-", ha="center", va="center", color="red",
-                fontsize=9, fontweight="bold")  # fmt: skip
-    ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=8)
-    ax.set_yticks(range(len(rows)), ["/".join(r) for r in rows], fontsize=8)
-    ax.set_xlabel("statistic")
-    ax.set_ylabel("stage / sensor / axis / segment")
-    fig.colorbar(im, ax=ax, label="|z| against the twin's null (marked: in the gap, Holm)")
-    ax.set_title(f"Gap map of {diagnosis['dataset']}")
-    fig.tight_layout()
-    return fig
-
-
-def plot_effects(diagnosis: Mapping) -> Figure:
-    """Gap before and after each evaluated effect, in sample and held out (symlog scale)."""
-    from matplotlib.figure import Figure
-
-    ev = [e for e in diagnosis["effects"] if e["evaluated"]]
-    fig = Figure(figsize=(7, 1.2 + 0.5 * max(len(ev), 1)))
-    ax = fig.add_subplot()
-    if not ev:
-        ax.text(0.5, 0.5, "no effect's estimate was outside the null", ha="center",
-                va="center", transform=ax.transAxes)  # fmt: skip
-        ax.set_axis_off()
-        return fig
-    y = np.arange(len(ev))
-    ax.barh(y - 0.2, [e["gap_before"] for e in ev], 0.4, color="#999999", label="gap before")
-    ax.barh(y + 0.2, [e["gap_after"] for e in ev], 0.4, color="#0072B2", label="gap after")
-    for i, e in enumerate(ev):
-        ax.text(e["gap_before"], i - 0.2, f"  shrink {_percent(e['shrink'])}, held out "
-                f"{_percent(e['heldout_shrink'])}{' (accepted)' if e['accepted'] else ''}",
-                va="center", fontsize=7)  # fmt: skip
-    ax.axvline(diagnosis["gap"]["null_p95"], color="#D55E00", ls="--", label="null 95 %")
-    ax.set_xscale("symlog", linthresh=1.0)  # a gap closed entirely is 0
-    ax.set_yticks(y, [e["name"] for e in ev])
-    ax.set_xlabel("total gap (squared scores beyond what noise gives)")
-    ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(0, 1.0), ncol=3, frameon=False)
-    fig.tight_layout()
-    return fig
-
-
-def verdict(diagnosis: Mapping) -> str:
-    """The diagnosis's verdict in one sentence (:func:`imucal.gap.scoring.verdict_of`), or
-    the summary for a diagnosis.json written before verdicts were."""
-    found = diagnosis.get("verdict")
-    return found["sentence"] if found else summary(diagnosis)
-
-
-def summary(diagnosis: Mapping) -> str:
-    """A plain-language summary of the diagnosis: where the gap lies, what explains it."""
-    gap = diagnosis["gap"]
-    if not gap["significant"]:
-        return ("The session behaves like its twin: no location is outside what noise alone "
-                f"gives (total gap {gap['total']:.0f}, null 95 % {gap['null_p95']:.0f}).")  # fmt: skip
-    top = ", ".join(f"{d['stage']}/{d['sensor']}/{d['axis']} {d['statistic']} (z = {d['z']:.3g})"
-                    for d in diagnosis["locations"][:3])  # fmt: skip
-    text = (f"The session departs from its twin at {len(diagnosis['locations'])} location(s), "
-            f"most at {top}; total gap {gap['total']:.3g} against a null 95 % of "
-            f"{gap['null_p95']:.3g}. ")  # fmt: skip
-    acc = [e for e in diagnosis["effects"] if e["accepted"]]
-    if acc:
-        text += "Explained by " + "; then ".join(
-            f"{e['name']} ({_params(e['params'])}: held-out shrink {e['heldout_shrink']:.0%})"
-            for e in acc) + ". "  # fmt: skip
-    rem = diagnosis["remaining"]
-    if rem["significant"]:
-        where = ", ".join(f"{d['stage']}/{d['sensor']}/{d['axis']} {d['statistic']}"
-                          for d in rem["locations"][:3])  # fmt: skip
-        text += f"A significant gap remains unexplained at {where}."
-    else:
-        text += "The gap left is within what noise alone gives."
-    return text
-
-
-def _params(params: Mapping) -> str:
-    return ", ".join(
-        f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in params.items()
-    )
-
-
-def observations_context(diagnosis: Mapping) -> dict:
-    """What the diagnosis says besides the gap (any scope): why the full diagnosis could not
-    run, what it noted, which recordings were held by hand, which rest stands in for a static
-    recording."""
-    return {
-        "fallback": diagnosis.get("fallback"),
-        "held_by_hand": diagnosis.get("held_by_hand", []),
-        "noted": diagnosis.get("noted", []),
-        "saturation": diagnosis.get("saturation"),
-        "static_source": diagnosis.get("static_source"),
-    }
-
-
-def report_context(diagnosis: Mapping, figures: Mapping[str, str]) -> dict:
-    """Context of the ``_gap.html.j2`` partial: verdict, tables, embedded figure data."""
-    return {
-        **observations_context(diagnosis),
-        "verdict": verdict(diagnosis),
-        "outcome": (diagnosis.get("verdict") or {}).get("outcome"),
-        "summary": summary(diagnosis),
-        "gap": diagnosis["gap"],
-        "locations": diagnosis["locations"][:20],
-        "effects": diagnosis["effects"],
-        "explained": diagnosis["explained"],
-        "remaining": diagnosis["remaining"],
-        "confusable": diagnosis.get("confusable", []),
-        "null": diagnosis.get("null", {}),
-        "figures": dict(figures),
-    }
 
 
 def _page(title: str, body: str) -> str:

@@ -2,9 +2,11 @@
 
 ``raw`` reads the native IMU CSV log and the MT Manager export; ``readers`` the declared
 formats (tables, MATLAB, HDF5, streams); ``dataset`` the ``dataset.yaml`` declaration; ``store``
-what the pipeline writes and reads back. Only this layer touches files.
+what the pipeline writes and reads back; ``logs`` the rules' log files. Only this layer touches
+files.
 """
 
+from imucal.io.logs import LOG_FORMAT, LoggedWarning, log_to, read_log_warnings
 from imucal.io.raw import (
     BATCH_BYTES,
     IMU_CSV_FORMAT,
@@ -37,6 +39,8 @@ from imucal.io.store import (
 __all__ = [
     "BATCH_BYTES",
     "IMU_CSV_FORMAT",
+    "LOG_FORMAT",
+    "LoggedWarning",
     "ImuCsvStream",
     "METADATA_KEY",
     "MT_MANAGER_FORMAT",
@@ -46,7 +50,9 @@ __all__ = [
     "read_benchmark_seconds",
     "read_calibration",
     "read_imu_csv",
+    "log_to",
     "read_json",
+    "read_log_warnings",
     "read_mt_manager_export",
     "read_recording",
     "read_recording_batches",

@@ -75,6 +75,10 @@ class Dataset:
         Recording name -> the declaration of the orientation reference recorded with it (the
         ``reference`` key of its declaration, ``file`` absolute); read by
         :func:`imucal.io.orientation.read_orientation_reference`.
+    simulated : dict or None
+        The ``simulated`` declaration (``by``: what rendered the recordings; ``truth``: the
+        ground truth's file, absolute) of a session rendered by a simulator; None for a
+        recorded session.
     """
 
     name: str
@@ -92,6 +96,7 @@ class Dataset:
     yaml_path: Path | None = None
     count_range: dict = field(default_factory=dict)
     orientation_references: dict = field(default_factory=dict)
+    simulated: dict | None = None
 
     def has(self, recording: str) -> bool:
         return recording in self.recordings
@@ -204,7 +209,24 @@ def read_dataset(folder: str | Path) -> Dataset:
         yaml_path=path,
         count_range=count_range,
         orientation_references=references,
+        simulated=_simulated(cfg.get("simulated"), folder, path),
     )
+
+
+def _simulated(declared: dict | None, folder: Path, path: Path) -> dict | None:
+    """The ``simulated`` declaration with its truth file made absolute (and checked)."""
+    if declared is None:
+        return None
+    out = dict(declared)
+    if "truth" in out:
+        truth = _resolve(folder, out["truth"])
+        if not truth.is_file():
+            raise FileNotFoundError(
+                f"{path}: key 'simulated/truth': {out['truth']!r} is not a file in {folder}; "
+                "expected the file with the ground truth the data were rendered from"
+            )
+        out["truth"] = truth
+    return out
 
 
 def _unknown_keys(err: jsonschema.ValidationError) -> str | None:

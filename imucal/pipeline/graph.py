@@ -397,7 +397,9 @@ def read_source(source: str, path: str | Path) -> Any:
 def write_output(value: Any, path: str | Path) -> None:
     """A node's figure (PNG) or table (CSV) at ``path``."""
     if hasattr(value, "savefig"):
-        value.savefig(path, dpi=110)
+        from imucal.plots.figurefile import save_figure
+
+        save_figure(value, path)
     else:
         value.to_csv(path, index=False)
 

@@ -83,11 +83,13 @@ def read_optional_artifact(path: str | Path) -> dict | None:
 def _not_run_figure(stage: str, reason: str, path: Path) -> None:
     from matplotlib.figure import Figure
 
+    from imucal.plots.figurefile import save_figure
+
     fig = Figure(figsize=(8, 2.2))
     fig.text(0.02, 0.85, f"{stage} did not run", fontsize=12, weight="bold", va="top")
-    text = textwrap.fill(reason, width=110, max_lines=6, placeholder=" ...")
+    text = textwrap.fill(reason, width=100, max_lines=6, placeholder=" ...")
     fig.text(0.02, 0.65, text, fontsize=8, va="top", family="monospace")
-    fig.savefig(path, dpi=90)
+    save_figure(fig, path)
 
 
 def write_not_run(stage: str, reason: str, outputs: Mapping[str, str | Path]) -> None:

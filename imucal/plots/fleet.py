@@ -8,6 +8,7 @@ from matplotlib.figure import Figure
 
 from imucal.columns import AXES, SENSORS
 from imucal.fleet.summary import PARAMETERS
+from imucal.plots.style import MIN_FONT_PT, PAGE_WIDTH_IN
 
 
 def plot_fleet_parameters(scores: pd.DataFrame) -> Figure:
@@ -23,7 +24,7 @@ def plot_fleet_parameters(scores: pd.DataFrame) -> Figure:
     Figure
         Rows: sensors; columns: bias, scale, xi, alpha; x: axis; the fleet's median as a bar.
     """
-    fig = Figure(figsize=(12, 7.5), layout="constrained")
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 7.5), layout="constrained")
     axes = fig.subplots(len(SENSORS), len(PARAMETERS), squeeze=False)
     rng = np.random.default_rng(0)  # jitter only, for legibility
     for i, sensor in enumerate(SENSORS):
@@ -42,7 +43,12 @@ def plot_fleet_parameters(scores: pd.DataFrame) -> Figure:
                 ax.plot(x[~bad], r["value"][~bad], ".", color="tab:blue", ms=4)
                 ax.plot(x[bad], r["value"][bad], "o", color="tab:red", ms=5)
                 for xx, (_, o) in zip(x[bad], r[bad].iterrows(), strict=True):
-                    ax.annotate(str(o["serial"]), (xx, o["value"]), fontsize=7, color="tab:red")
+                    ax.annotate(
+                        str(o["serial"]),
+                        (xx, o["value"]),
+                        fontsize=MIN_FONT_PT + 0.5,
+                        color="tab:red",
+                    )
                 if len(r):
                     ax.hlines(r["median"].iloc[0], k - 0.3, k + 0.3, color="k", lw=1)
             ax.tick_params(labelsize=7)
@@ -63,7 +69,7 @@ def plot_bias_over_time(table: pd.DataFrame) -> Figure:
     Figure
         Rows: sensors; columns: axes; one line per unit with two or more sessions.
     """
-    fig = Figure(figsize=(12, 7), layout="constrained")
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 7), layout="constrained")
     axes = fig.subplots(len(SENSORS), 3, squeeze=False, sharex=True)
     bias = table[table["parameter"] == "bias"]
     for i, sensor in enumerate(SENSORS):

@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 from imucal.columns import AXES
 from imucal.fits.alignment import phase_samples
 from imucal.fits.magnetometer import EllipsoidFit, field_samples
+from imucal.plots.style import PAGE_WIDTH_IN
 
 COLOURS = {"x": "tab:red", "y": "tab:green", "z": "tab:blue"}
 
@@ -40,7 +41,7 @@ def plot_field(t_s: np.ndarray, field: np.ndarray, title: str, norm: float | Non
     -------
     Figure
     """
-    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 4.3), layout="constrained")
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax3.scatter(*field.T, s=3, c=t_s, cmap="viridis")
     if norm is not None:
@@ -89,7 +90,7 @@ def plot_phases(
     Figure
     """
     labels = [lb for lb in AXES if lb in phases]
-    fig = Figure(figsize=(4.2 * len(labels), 4), layout="constrained")
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 3.8), layout="constrained")
     axes = fig.subplots(1, len(labels), sharey=True, squeeze=False)
     for ax, label in zip(axes[0], labels):
         t, v = phases[label]
@@ -101,7 +102,7 @@ def plot_phases(
             idx = np.asarray(used_points[label], dtype=int)
             for i in range(3):
                 ax.plot(t[idx], v[idx, i], "kx", ms=7)
-        ax.set_title(f"phase {label}: m_{label} must stay constant")
+        ax.set_title(f"phase {label}: m_{label} must stay constant", fontsize="medium")
         ax.set_xlabel("time (s)")
     axes[0][0].set_ylabel("field (normalised)")
     axes[0][-1].legend(loc="lower right", fontsize="small")

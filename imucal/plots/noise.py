@@ -9,6 +9,7 @@ from matplotlib.figure import Figure
 
 from imucal.noise.fit import term_adev
 from imucal.plots.inertial import AXIS_COLOURS
+from imucal.plots.style import PAGE_WIDTH_IN
 
 _TERM_STYLE = {"Q": ":", "N": "--", "B": "-.", "K": (0, (1, 3)), "R": (0, (5, 5))}
 
@@ -23,8 +24,13 @@ def plot_allan(noise: Mapping) -> Figure:
         The ``noise.json`` content (:func:`imucal.noise.characterise_noise`).
     """
     sensors = noise["sensors"]
-    fig = Figure(figsize=(5.2 * len(sensors), 4.2), layout="constrained")
-    axs = fig.subplots(1, len(sensors), squeeze=False)[0]
+    # the sensors side by side across the page, two per row past two
+    cols = min(len(sensors), 2)
+    rows = -(-len(sensors) // cols)
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 3.9 * rows + 0.4), layout="constrained")
+    axs = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax in axs[len(sensors) :]:
+        ax.set_axis_off()
     for ax, (sensor, data) in zip(axs, sensors.items()):
         for axis, fit in data["axes"].items():
             colour = AXIS_COLOURS[axis]
@@ -38,11 +44,11 @@ def plot_allan(noise: Mapping) -> Figure:
                             ls=_TERM_STYLE[term], alpha=0.7)  # fmt: skip
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("averaging time tau (s)")
+        ax.set_xlabel("averaging time τ (s)")
         ax.set_ylabel(f"Allan deviation ({data['unit']})")
         ax.set_title(sensor)
         ax.grid(True, which="both", lw=0.3)
-        ax.legend(fontsize=8, title="axis (lines: fit; thin: terms)", title_fontsize=7)
+        ax.legend(fontsize=9, title="axis (lines: fit; thin: terms)", title_fontsize=9)
     fig.suptitle(
         f"{noise['recording']}: {noise['duration_s']:.0f} s at {noise['rate_hz']:.1f} Hz, "
         f"bars {100 * noise['level']:.0f} % confidence",

@@ -7,6 +7,11 @@ from collections.abc import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
+from imucal.plots.style import PAGE_WIDTH_IN
+
+#: Panels (recordings) per row.
+PER_ROW = 3
+
 #: Colours of the gyroscope variants.
 _COLOURS = {"raw": "tab:red", "bias": "tab:orange", "calibrated": "tab:green"}
 
@@ -26,8 +31,13 @@ def plot_orientation_errors(validation: Mapping) -> Figure:
         (as read, bias only, calibrated), log scale in deg.
     """
     recordings = validation["recordings"]
-    fig = Figure(figsize=(4.5 * max(len(recordings), 1), 3.6), layout="constrained")
-    axes = fig.subplots(1, max(len(recordings), 1), squeeze=False)[0]
+    n = max(len(recordings), 1)
+    cols = min(n, PER_ROW)
+    rows = -(-n // cols)
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 3.3 * rows + 0.4), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax in axes[n:]:
+        ax.set_axis_off()
     for ax, (name, record) in zip(axes, recordings.items()):
         labels = [v for v in ("raw", "bias", "calibrated") if v in record]
         windows = list(record[labels[0]]["orientation"])
@@ -40,7 +50,7 @@ def plot_orientation_errors(validation: Mapping) -> Figure:
         ax.set_xticks(np.arange(len(windows)) + 0.4 - width / 2, windows)
         ax.set_yscale("log")
         ax.set_xlabel("window")
-        ax.set_ylabel("median orientation error, deg")
+        ax.set_ylabel("median orientation error (°)")
         held = " (held out)" if record["held_out"] else " (fitted on)"
         ax.set_title(f"{name}{held}")
         ax.legend(fontsize="small")

@@ -7,6 +7,16 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from imucal.columns import ACC, AXES, GYR, MAG, TIME
+from imucal.plots.style import MIN_FONT_PT, PAGE_WIDTH_IN
+
+#: Font size of the segments' labels and the legends (pt).
+LABEL_PT = max(MIN_FONT_PT, 7.5)
+#: Share of the figure's width the time axis takes (the legends sit to its right).
+AXIS_SHARE = 0.76
+#: Width of a character of the labels over the font size (DejaVu Sans, with a margin).
+CHAR_EM = 0.62
+#: Lanes of horizontal labels above the top panel before they are turned upright.
+MAX_LANES = 3
 
 #: Okabe-Ito colours (colour-blind safe) per segment kind and per axis.
 KIND_COLOURS = {
@@ -60,7 +70,7 @@ def plot_segments(
         )
     if recording is not None:
         segments = segments[segments["recording"] == recording]
-    fig = Figure(figsize=(12, 2 + 2.2 * len(panels)), layout="constrained")
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 2.4 + 2.2 * len(panels)), layout="constrained")
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (sensor, cols, factor, label) in zip(axes, panels):
         values = table[list(cols)].to_numpy(dtype=float) * factor
@@ -76,6 +86,7 @@ def plot_segments(
         ax.set_ylabel(label)
     ax_g, ax_a = axes[0], axes[-1]
     seen = set()
+    labels = []
     for row in segments.itertuples(index=False):
         colour = KIND_COLOURS.get(row.kind, "#999999")
         for ax in axes:
@@ -91,18 +102,46 @@ def plot_segments(
         text = row.label
         if row.kind in ("phase", "transition") and np.isfinite(row.turns):
             text += f"\n{row.turns:+.2f} turns"
-        ax_g.annotate(
-            text,
-            ((row.start_s + row.end_s) / 2, 1.0),
-            xycoords=("data", "axes fraction"),
-            ha="center",
-            va="bottom",
-            fontsize=7,
-            rotation=90 if len(segments) > 14 else 0,
-        )
+        labels.append(((row.start_s + row.end_s) / 2, text))
+    span = (float(np.nanmin(table[TIME])), float(np.nanmax(table[TIME])))
+    for (centre, text), (dy, rotation) in zip(labels, _label_lanes(labels, span), strict=True):
+        ax_g.annotate(text, (centre, 1.0), xycoords=("data", "axes fraction"),
+                      xytext=(0, dy), textcoords="offset points", ha="center", va="bottom",
+                      fontsize=LABEL_PT, rotation=rotation)  # fmt: skip
     ax_a.set_xlabel("time (s)")
     for ax in axes:
-        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=LABEL_PT)
     if title:
         fig.suptitle(title)
     return fig
+
+
+def _label_lanes(labels: list[tuple[float, str]], span: tuple[float, float]) -> list[tuple]:
+    """Where each segment label goes above the top panel so that no two overlap: the lane's
+    offset (points) and the rotation, in the order given. Labels side by side share a lane;
+    one that would touch its neighbour goes a lane up; past :data:`MAX_LANES` lanes every
+    label is turned upright (its width is then its lines' height)."""
+    width_s = (span[1] - span[0]) or 1.0
+    axis_pt = AXIS_SHARE * PAGE_WIDTH_IN * 72.0
+    line_pt = 1.25 * LABEL_PT
+
+    def lanes(extent) -> list[int]:
+        ends: list[float] = []
+        out = [0] * len(labels)
+        for i in sorted(range(len(labels)), key=lambda k: labels[k][0]):
+            centre, text = labels[i]
+            half = extent(text) / axis_pt * width_s / 2
+            lane = next((k for k, end in enumerate(ends) if end <= centre - half), len(ends))
+            if lane == len(ends):
+                ends.append(0.0)
+            ends[lane] = centre + half
+            out[i] = lane
+        return out
+
+    flat = lanes(lambda t: CHAR_EM * LABEL_PT * max(len(line) for line in t.split("\n")) + 4)
+    if max(flat, default=0) < MAX_LANES:
+        height = max((t.count("\n") + 1 for _, t in labels), default=1) * line_pt
+        return [(lane * height, 0) for lane in flat]
+    upright = lanes(lambda t: (t.count("\n") + 1) * line_pt + 2)
+    longest = max((CHAR_EM * LABEL_PT * max(map(len, t.split("\n"))) for _, t in labels), default=0)
+    return [(lane * (longest + 4), 90) for lane in upright]

@@ -7,6 +7,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SI_UNITS, TIME
+from imucal.plots.style import PAGE_WIDTH_IN
 from imucal.validation import TimeAlignment, correlate_offsets
 
 _TITLES = {"acc": "accelerometer", "gyr": "gyroscope", "mag": "magnetometer"}
@@ -41,7 +42,7 @@ def plot_magnitudes(
             f"{len(reference_aligned)} rows"
         )
     t = reference_aligned[TIME].to_numpy(dtype=float)
-    fig = Figure(figsize=(10, 8), layout="constrained")
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 8), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     for ax, sensor in zip(axes, SENSORS):
         ref, raw, cal = (_norm(x, sensor) for x in (reference_aligned, module_raw, module))
@@ -88,7 +89,7 @@ def plot_cross_correlation(
     rho = correlate_offsets(
         t_module, gyr_module, t_reference, gyr_reference, offsets, alignment.drift_ppm
     )
-    fig = Figure(figsize=(10, 4), layout="constrained")
+    fig = Figure(figsize=(PAGE_WIDTH_IN, 4), layout="constrained")
     left, right = fig.subplots(1, 2)
     rel_ms = (offsets - alignment.offset_s) * 1e3
     left.plot(rel_ms, rho, color="C0")

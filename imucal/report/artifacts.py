@@ -12,7 +12,7 @@ import pandas as pd
 from imucal import io
 
 
-def _load_json(obj: Mapping | str | Path, what: str) -> dict:
+def load_json(obj: Mapping | str | Path, what: str) -> dict:
     """A JSON artifact given as a path or as the loaded dict."""
     data = obj if isinstance(obj, Mapping) else io.read_json(obj)
     if not isinstance(data, Mapping):
@@ -21,8 +21,8 @@ def _load_json(obj: Mapping | str | Path, what: str) -> dict:
     return dict(data)
 
 
-def _optional_json(obj: Mapping | str | Path | None, what: str) -> dict | None:
-    return None if obj is None else _load_json(obj, what)
+def optional_json(obj: Mapping | str | Path | None, what: str) -> dict | None:
+    return None if obj is None else load_json(obj, what)
 
 
 def read_benchmarks(

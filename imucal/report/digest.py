@@ -1,6 +1,6 @@
 """What the lab report shows first and in its tables: the headline per sensor (what was
-calibrated, how well, on what basis, with which warnings), the gap verdict in one sentence, and
-the stage results and the validation as tables with units.
+calibrated, how well, on what basis, with which warnings), and the stage results and the
+validation as tables with units (the gap verdict's sentence: :mod:`imucal.report.gapsection`).
 
 The raw JSON files stay the full record (the report links them); these tables pick the figures
 a lab user reads, each with its unit. A key a stage does not write is left out, so a table holds
@@ -57,11 +57,11 @@ def _row(quantity: str, value: Any, unit: str = "", std: Any = None, digits: int
             f"{_fmt(v, digits)} ± {_fmt(sd[i], 2)}"
             for i, v in enumerate(value)
         ]  # fmt: skip
-        return {"quantity": quantity, "cells": cells, "unit": unit, "note": ""}
+        return {"quantity": quantity, "cells": cells, "unit": unit, "note": "", "link": None}
     text = value if isinstance(value, str) else _fmt(value, digits)
     if std is not None and not isinstance(value, str):
         text = f"{text} ± {_fmt(std, 2)}"
-    return {"quantity": quantity, "cells": [text], "unit": unit, "note": ""}
+    return {"quantity": quantity, "cells": [text], "unit": unit, "note": "", "link": None}
 
 
 def _table(title: str, rows: Sequence[dict | None]) -> dict | None:
@@ -266,9 +266,20 @@ def _offset_note(offset_s: float) -> str:
     )
 
 
-def validation_tables(validation: Mapping | None) -> list[dict]:
+def _angle_row(name: str, dip: Mapping | None) -> dict | None:
+    """The angle between specific force and field of one source, with the dip it implies."""
+    mean = _get(dip, "mean_deg")
+    row = _maybe(f"angle, {name}", mean, "°", _get(dip, "std_deg"))
+    if row is not None and mean is not None and np.isfinite(mean):
+        row["note"] = f"dip {_fmt(float(mean) - 90.0)}° (the angle less 90°)"
+    return row
+
+
+def validation_tables(validation: Mapping | None, reconciled: Mapping | None = None) -> list[dict]:
     """Tables of validation.json (full protocol: ``metrics``) or of reference/validation.json
-    (declared orientation references: ``summary``)."""
+    (declared orientation references: ``summary``); ``reconciled``, the reference's clock offset
+    reconciled with the gap diagnosis (:func:`imucal.report.gapsection.reconcile_offset`),
+    links the two."""
     if not validation:
         return []
     tables: list[dict | None] = []
@@ -300,6 +311,16 @@ def validation_tables(validation: Mapping | None) -> list[dict]:
             offset = {**_row("time offset of the reference's clock", time["offset_s"], "s",
                              time.get("offset_std_s"), 6),
                       "note": _offset_note(float(time["offset_s"]))}  # fmt: skip
+            if reconciled:
+                offset["note"] = (
+                    f"the reference's clock reads {reconciled['validation_s']} s at the "
+                    f"module's first sample and {reconciled['first_stamp_s']} s at its own "
+                    f"first sample: it started {reconciled['lead_s']} s before the module; "
+                    "removed before the comparison"
+                )
+                if reconciled["diagnosis_s"] is not None:
+                    offset["link"] = {"href": "#gap",
+                                      "text": "the time offset of the sim-to-real gap"}  # fmt: skip
         tables.append(
             _table(
                 "Alignment of the reference to the module (removed before the comparison)",
@@ -320,14 +341,11 @@ def validation_tables(validation: Mapping | None) -> list[dict]:
         if dip:
             tables.append(
                 _table(
-                    "Dip angle between gravity and the magnetic field",
+                    "Angle between the specific force and the magnetic field at rest (90° plus "
+                    "the field's dip below the horizontal; its spread over the rests checks "
+                    "the accelerometer against the magnetometer)",
                     [
-                        _maybe(
-                            f"dip, {name}",
-                            _get(dip, name, "mean_deg"),
-                            "°",
-                            _get(dip, name, "std_deg"),
-                        )  # fmt: skip
+                        _angle_row(name, dip.get(name))
                         for name in ("raw", "calibrated", "reference")
                     ],
                 )
@@ -447,10 +465,54 @@ def _fallback(sensor: str, result: Mapping | None) -> tuple[list[str], str] | No
 WARNING_CHARS = 90
 
 
+def merged_warnings(warnings: Sequence[Mapping]) -> list[dict]:
+    """The run's warnings with one entry per message: the same text from several sources (a
+    rule's log and another's) counted once, with its sources; in order of first appearance.
+
+    Returns
+    -------
+    list of dict
+        ``text``, ``count`` (summed over the sources), ``sources`` and ``summary`` (the short
+        form, with the count).
+    """
+    merged: dict[str, dict] = {}
+    for w in warnings:
+        entry = merged.setdefault(
+            str(w["text"]), {**dict(w), "text": str(w["text"]), "count": 0, "sources": []}
+        )
+        entry["count"] += int(w.get("count", 1))
+        if w.get("source") not in entry["sources"]:
+            entry["sources"].append(w.get("source"))
+    for entry in merged.values():
+        entry["summary"] = short_warning(entry)
+    return list(merged.values())
+
+
+def short_warning(warning: Mapping) -> str:
+    """A warning for the summary: its first clause, ``(39 times)`` when a log repeats it."""
+    count = int(warning.get("count", 1))
+    return _short(str(warning["text"])) + (f" ({count} times)" if count > 1 else "")
+
+
 def _short(text: str) -> str:
-    """A warning's first clause, for the summary."""
-    text = text.split(" (", 1)[0]
+    """A warning's first clause."""
+    text = (text.splitlines() or [""])[0].split(" (", 1)[0]
     return text if len(text) <= WARNING_CHARS else text[: WARNING_CHARS - 1].rstrip() + "…"
+
+
+def _names_sensor(warning: Mapping, sensor: str) -> bool:
+    """Whether a warning is about one sensor: its stage's (its consistency check's too), one of
+    the validation or of a rule's log that names it (``mag: ...``, ``... magnetometer ...``), or
+    a flag of the temperature hold-out on one of its axes."""
+    source, text = str(warning.get("source", "")), str(warning["text"])
+    name = SENSOR_TITLES[sensor].lower()
+    if source.startswith(sensor):
+        return True
+    if source.startswith("temperature_holdout"):
+        return f" {sensor} " in f" {text}"
+    if source.startswith(("validation", "logs/")):
+        return text.startswith(f"{sensor}:") or name in text.lower()
+    return False
 
 
 def headline(
@@ -458,32 +520,22 @@ def headline(
     results: Mapping[str, Mapping | None],
     validation: Mapping | None,
     warnings: Sequence[Mapping],
+    undetermined: Mapping[str, Sequence[str]] | None = None,
 ) -> list[dict]:
-    """Per sensor: what was calibrated and how, the figures that say how well (held out against
-    the reference where there is one, else the reference-free ones, with their basis), and the
-    warnings of its stage."""
+    """Per sensor: what was calibrated and how, what was not determined or was fixed, the
+    figures that say how well (held out against the reference where there is one, else the
+    reference-free ones, with their basis), and the warnings that name it."""
     missing = dict(calibration.get("missing", {}))
+    undetermined = undetermined or {}
     out = []
     for sensor in ("acc", "gyr", "mag"):
-        # its stage's warnings, those of the validation that name it and the temperature
-        # hold-out's flags of its axes
-        name = SENSOR_TITLES[sensor].lower()
-        own = [
-            w["text"]
-            for w in warnings
-            if str(w.get("source", "")).startswith(sensor)
-            or (str(w.get("source", "")).startswith("validation") and name in w["text"].lower())
-            or (
-                str(w.get("source", "")).startswith("temperature_holdout")
-                and f" {sensor} " in f" {w['text']}"
-            )
-        ]
-        own = list(dict.fromkeys(_short(t) for t in own))
+        own = [w["summary"] for w in merged_warnings(warnings) if _names_sensor(w, sensor)]
         if sensor in missing:
             first = str(missing[sensor]).split(": ", 1)[0]  # the sensor section has the rest
             out.append({"sensor": SENSOR_TITLES[sensor], "calibrated": False,
                         "what": f"not calibrated: {first}", "figures": [], "basis": "",
-                        "warnings": own, "anchor": SENSOR_TITLES[sensor].lower()})  # fmt: skip
+                        "warnings": own, "undetermined": [],
+                        "anchor": SENSOR_TITLES[sensor].lower()})  # fmt: skip
             continue
         cal = calibration.get(sensor) or {}
         found = _held_out(sensor, validation) or _fallback(sensor, results.get(sensor))
@@ -491,34 +543,6 @@ def headline(
         out.append({"sensor": SENSOR_TITLES[sensor], "calibrated": True,
                     "what": cal.get("method") or "method not stated", "figures": figures,
                     "basis": basis, "warnings": own,
+                    "undetermined": list(undetermined.get(sensor, [])),
                     "anchor": SENSOR_TITLES[sensor].lower()})  # fmt: skip
     return out
-
-
-def gap_sentence(diagnosis: Mapping | None) -> str | None:
-    """The gap verdict in one plain sentence: the diagnosis's own ``verdict`` when it has one,
-    else built from what it holds (effects in the order they were applied)."""
-    if not diagnosis:
-        return None
-    given = diagnosis.get("verdict")
-    if isinstance(given, str) and given:
-        return given
-    if isinstance(given, Mapping) and isinstance(given.get("sentence"), str):
-        return given["sentence"]
-    if diagnosis.get("scope") == "none":
-        return ("The session could not be compared with its simulated twin: "
-                f"{diagnosis.get('reason', 'no location could be scored')}.")  # fmt: skip
-    gap = diagnosis.get("gap") or {}
-    if not gap.get("significant"):
-        return "The session behaves like its simulated twin: nothing departs from it beyond noise."
-    explained = [str(e).replace("_", " ") for e in diagnosis.get("explained", [])]
-    remaining = (diagnosis.get("remaining") or {}).get("significant")
-    if not explained:
-        return ("The session departs from its simulated twin and no effect of the library "
-                "explains it.")  # fmt: skip
-    rest = ("a significant gap remains unexplained" if remaining
-            else "what is left is within noise")  # fmt: skip
-    return (
-        f"The session departs from its simulated twin; {', then '.join(explained)} "
-        f"{'explains' if len(explained) == 1 else 'explain'} it, and {rest}."
-    )

@@ -1,20 +1,46 @@
-"""Generic rendering of nested JSON for the lab report: the warnings at any depth and the
-dotted-key rows of an artifact.
+"""Generic rendering of nested JSON for the lab report: the warnings at any depth (and those of
+the rules' logs) and the dotted-key rows of an artifact.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from imucal.io.logs import read_log_warnings
 from imucal.report.numbers import format_value
 
 
 def _is_scalar(value: Any) -> bool:
     return value is None or isinstance(value, (str, bool, int, float, np.number, np.bool_))
+
+
+def log_warnings(paths: Sequence[str | Path]) -> list[dict]:
+    """The warnings of the rules' logs, repeats counted (:func:`imucal.io.read_log_warnings`).
+
+    Returns
+    -------
+    list of dict
+        ``source`` (the log's path from its ``logs`` folder on, e.g.
+        ``logs/gap_diagnose.log``), ``where`` (the logger), ``text`` and ``count``.
+    """
+    out = []
+    for path in map(Path, paths):
+        parts = path.parts
+        source = (
+            "/".join(parts[len(parts) - parts[::-1].index("logs") - 1 :])
+            if "logs" in parts
+            else path.name
+        )
+        out += [
+            {"source": source, "where": w.logger, "text": w.text, "count": w.count}
+            for w in read_log_warnings(path)
+        ]
+    return out
 
 
 def collect_warnings(obj: Any, source: str) -> list[dict]:

@@ -32,21 +32,22 @@ import imucal.report.digest as digest
 from imucal.columns import SENSORS
 from imucal.constants import REFERENCE
 from imucal.pipeline.outcome import NOT_SHIPPED
-from imucal.report.artifacts import _load_json, _optional_json, read_benchmarks
+from imucal.report.artifacts import load_json, optional_json, read_benchmarks
 from imucal.report.consistency import consistency_section
-from imucal.report.fields import collect_warnings, flatten_fields
+from imucal.report.fields import collect_warnings, flatten_fields, log_warnings
 from imucal.report.figures import _caption, embed_figure, figure_section
+from imucal.report.gapsection import gap_section, reconcile_offset, verdict_sentence
 from imucal.report.holdout import holdout_section
 from imucal.report.numbers import format_number
 from imucal.report.sections import (
     _RECORDING_ABSENT,
     RATE_TABLE,
-    _gap_section,
     _noise_section,
     _paper_tables,
     _sensor_parameters,
     _session,
     _terms_section,
+    undetermined_parameters,
 )
 
 #: Section of the report for each sensor, in report order.
@@ -88,6 +89,9 @@ def build_report_context(
     report_path: str | Path | None = None,
     temperature_holdout: str | Path | None = None,
     consistency: str | Path | Mapping | None = None,
+    simulated: Mapping | None = None,
+    logs: Sequence[str | Path] = (),
+    dataset_folder: str | Path | None = None,
 ) -> dict:
     """Collect the artifacts of one dataset into the context of the report template.
 
@@ -134,6 +138,15 @@ def build_report_context(
     consistency : mapping or path, optional
         ``consistency.json`` (:mod:`imucal.validation.consistency`): its own section, and its
         warnings among each sensor's.
+    dataset_folder : path, optional
+        The dataset's folder: the files table gives the raw files' paths relative to it.
+    logs : sequence of path
+        The log of every rule behind the report: their warnings (WARNING and above) are
+        listed with the stages' own, repeats counted.
+    simulated : mapping, optional
+        The dataset's ``simulated`` declaration (:attr:`imucal.io.dataset.Dataset.simulated`):
+        the report opens with a banner saying the data are simulated, what rendered them and
+        what its "truth" rows are. None for recorded data: no banner.
 
     Returns
     -------
@@ -147,8 +160,8 @@ def build_report_context(
     ValueError
         If an artifact has the wrong form (see the loaders).
     """
-    summary = _load_json(summary, "ingest summary")
-    calibration = _load_json(calibration, "calibration")
+    summary = load_json(summary, "ingest summary")
+    calibration = load_json(calibration, "calibration")
     not_calibrated = dict(calibration.get("missing", {}))
     missing = [s for s in SENSORS if s not in calibration and s not in not_calibrated]
     if missing:
@@ -156,7 +169,7 @@ def build_report_context(
             f"calibration lacks the sensors {missing} and gives no reason for them in 'missing'; "
             "expected acc, gyr and mag"
         )
-    stages = _optional_json(stages, "stages.json")
+    stages = optional_json(stages, "stages.json")
     links = {
         name: _link(obj, report_path)
         for name, obj in (
@@ -167,11 +180,11 @@ def build_report_context(
         )  # fmt: skip
     }
     results = {
-        "mag": _optional_json(mag_result, "mag.json"),
-        "acc": _optional_json(acc_result, "acc.json"),
-        "gyr": _optional_json(gyr_result, "gyr.json"),
+        "mag": optional_json(mag_result, "mag.json"),
+        "acc": optional_json(acc_result, "acc.json"),
+        "gyr": optional_json(gyr_result, "gyr.json"),
     }
-    validation = _optional_json(validation, "validation.json")
+    validation = optional_json(validation, "validation.json")
     if tables is not None and not isinstance(tables, pd.DataFrame):
         tables = pd.read_csv(tables)
     captions = dict(captions or {})
@@ -187,25 +200,10 @@ def build_report_context(
     ):
         item["number"] = number
 
-    warnings: list[dict] = []
-    for sensor, result in results.items():
-        if result is not None:
-            warnings += collect_warnings(result, f"{sensor}.json")
-    if validation is not None:
-        warnings += collect_warnings(validation, "validation.json")
-    if temperature_holdout is not None:
-        holdout = _load_json(temperature_holdout, "temperature_holdout.json")
-        warnings += collect_warnings(holdout, "temperature_holdout.json")
-    consistency = _optional_json(consistency, "consistency.json")
-    for sensor, entry in (consistency or {}).get("sensors", {}).items():
-        # the sensor first, so that the summary lists them among the sensor's warnings
-        warnings += collect_warnings(entry, f"{sensor} (consistency.json)")
-    # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
-    warnings += [
-        {"source": "stages.json", "where": row["stage"], "text": row["reason"]}
-        for row in (stages or {}).get("stages", [])
-        if str(row.get("reason", "")).startswith(NOT_SHIPPED)
-    ]
+    consistency = optional_json(consistency, "consistency.json")
+    warnings = run_warnings(
+        results, validation, temperature_holdout, gap, noise, terms, stages, logs, consistency
+    )
 
     recordings = summary.get("recordings", {})
     sensors = []
@@ -244,6 +242,7 @@ def build_report_context(
             }
         )
 
+    diagnosis = optional_json(gap[0], "gap diagnosis") if gap else None
     bench = read_benchmarks(benchmarks, dataset)
     if snakemake_version is None:
         try:
@@ -258,12 +257,29 @@ def build_report_context(
     return {
         "dataset": dataset,
         "generated": generated,
-        "session": _session(summary, declared_reference=validation is not None),
-        "headline": digest.headline(calibration, results, validation, warnings),
-        "gap_sentence": digest.gap_sentence(
-            _optional_json(gap[0], "gap diagnosis") if gap else None
+        "session": _session(
+            summary, declared_reference=validation is not None, folder=dataset_folder
         ),
+        "simulated": None
+        if simulated is None
+        else {
+            "by": str(simulated.get("by", "a simulator")),
+            "truth": Path(simulated["truth"]).name if simulated.get("truth") else None,
+        },
+        "headline": digest.headline(
+            calibration,
+            results,
+            validation,
+            warnings,
+            {
+                s: undetermined_parameters(s, calibration[s], recordings)
+                for s in SENSORS
+                if s not in not_calibrated
+            },
+        ),
+        "gap_sentence": verdict_sentence(diagnosis),
         "warnings": warnings,
+        "summary_warnings": digest.merged_warnings(warnings),
         "methods": [
             {
                 "sensor": SECTION_TITLES[section],
@@ -275,7 +291,13 @@ def build_report_context(
             }
             for s, section in SENSOR_SECTIONS.items()
         ],
-        "stages": None if stages is None else list(stages.get("stages", [])),
+        # a stage that ran needs no reason (the listing repeats what it does there)
+        "stages": None
+        if stages is None
+        else [
+            {**row, "reason": "" if row.get("reason") == row.get("what") else row.get("reason")}
+            for row in stages.get("stages", [])
+        ],
         "segmentation_figures": figure_items["segmentation"],
         "other_figures": figure_items["other"],
         "sensors": sensors,
@@ -288,7 +310,9 @@ def build_report_context(
         },
         "has_reference": REFERENCE in recordings or validation is not None,
         "validation": None if validation is None else flatten_fields(validation),
-        "validation_tables": digest.validation_tables(validation),
+        "validation_tables": digest.validation_tables(
+            validation, reconcile_offset(diagnosis, validation, summary)
+        ),
         "validation_link": links["validation"],
         "validation_figures": figure_items["validation"],
         "provenance": {
@@ -307,12 +331,59 @@ def build_report_context(
             for r in bench.itertuples()
         ],
         "benchmarks_total_s": format_number(float(bench["s"].sum()), 4) if len(bench) else None,
-        "gap": _gap_section(gap),
+        "gap": gap_section(gap, validation, summary),
         "noise": _noise_section(noise),
         "terms": _terms_section(terms, gap),
         "holdout": holdout_section(temperature_holdout),
         "consistency": consistency_section(consistency),
     }
+
+
+def run_warnings(
+    results: Mapping[str, Mapping | None],
+    validation: Mapping | None,
+    temperature_holdout: str | Path | None,
+    gap: Sequence[str | Path] | None,
+    noise: Sequence[str | Path] | None,
+    terms: Sequence[str | Path] | None,
+    stages: Mapping | None,
+    logs: Sequence[str | Path],
+    consistency: Mapping | None = None,
+) -> list[dict]:
+    """Every warning of the run: the stage results' (``warnings`` lists at any depth), the
+    consistency check's per sensor, the refused fits of the stage listing, and every rule's
+    log (repeats counted).
+
+    Returns
+    -------
+    list of dict
+        ``source``, ``where``, ``text``, ``count`` and ``summary`` (its short form).
+    """
+    warnings: list[dict] = []
+    for sensor, result in results.items():
+        if result is not None:
+            warnings += collect_warnings(result, f"{sensor}.json")
+    if validation is not None:
+        warnings += collect_warnings(validation, "validation.json")
+    if temperature_holdout is not None:
+        holdout = load_json(temperature_holdout, "temperature_holdout.json")
+        warnings += collect_warnings(holdout, "temperature_holdout.json")
+    for name, paths in (("gap/diagnosis.json", gap), ("noise.json", noise), ("terms.json", terms)):
+        if paths:
+            warnings += collect_warnings(load_json(paths[0], name), name)
+    for sensor, entry in (consistency or {}).get("sensors", {}).items():
+        # the sensor first, so that the summary lists them among the sensor's warnings
+        warnings += collect_warnings(entry, f"{sensor} (consistency.json)")
+    # a stage whose fit was refused (the simpler one's calibration is shipped) says why here too
+    warnings += [
+        {"source": "stages.json", "where": row["stage"], "text": row["reason"]}
+        for row in (stages or {}).get("stages", [])
+        if str(row.get("reason", "")).startswith(NOT_SHIPPED)
+    ]
+    warnings = [{"count": 1, **w} for w in warnings] + log_warnings(logs)
+    for w in warnings:
+        w["summary"] = digest.short_warning(w)
+    return warnings
 
 
 def _link(obj: Any, report_path: str | Path | None) -> str | None:

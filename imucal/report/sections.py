@@ -6,8 +6,9 @@ diagnosis and the noise.
 from __future__ import annotations
 
 import math
+import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,7 @@ import pandas as pd
 from imucal.columns import AXES
 from imucal.constants import REFERENCE
 from imucal.modelterms import ModelTerms
-from imucal.report.artifacts import _load_json
+from imucal.report.artifacts import load_json
 from imucal.report.figures import embed_figure
 from imucal.report.numbers import format_number, format_value
 from imucal.terms.comparison import gap_comparison
@@ -54,16 +55,35 @@ _RECORDING_ABSENT = {
 }
 
 
+#: A fixed parameter this close to 0 is printed as 0 (the rounding of a matrix decomposition).
+FIXED_ZERO = 1e-12
+
+
 def _with_std(value: Any, std: Any) -> str:
     """``value ± std`` (std with 2 significant digits), or the value alone if std is unknown."""
     if std is not None and float(std) == 0.0:
-        return f"{format_number(value)} (fixed, not observable)"
+        shown = 0.0 if abs(float(value)) < FIXED_ZERO else value
+        return f"{format_number(shown)} (fixed, not observable)"
     if std is None or not math.isfinite(float(std)):
         return format_number(value)
     return f"{format_number(value)} ± {format_number(std, 2)}"
 
 
-def _session(summary: Mapping, declared_reference: bool = False) -> dict:
+def _shown_path(path: str | Path, folder: str | Path | None) -> str:
+    """A raw file's path as the report shows it: relative to the dataset's folder."""
+    if folder is None:
+        return str(path)
+    return Path(os.path.relpath(Path(path).resolve(), Path(folder).resolve())).as_posix()
+
+
+def _name_parts(name: str) -> list[str]:
+    """A file name cut after its separators (``_ - .``): the places a table may break it."""
+    return [part for part in re.split(r"(?<=[_\-.])", name) if part]
+
+
+def _session(
+    summary: Mapping, declared_reference: bool = False, folder: str | Path | None = None
+) -> dict:
     recordings = summary.get("recordings", {})
     rows, gaps = [], []
     for name, rec in recordings.items():
@@ -72,7 +92,8 @@ def _session(summary: Mapping, declared_reference: bool = False) -> dict:
             {
                 "recording": name,
                 "file": Path(rec["source"]).name if rec.get("source") else "n/a",
-                "source": rec.get("source") or "n/a",
+                "file_parts": _name_parts(Path(rec["source"]).name if rec.get("source") else "n/a"),
+                "source": _shown_path(rec["source"], folder) if rec.get("source") else "n/a",
                 "format": rec.get("format") or "n/a",
                 "sha256": rec.get("sha256") or "n/a",
                 "rows": format_number(rec.get("rows")),
@@ -132,7 +153,16 @@ def _session(summary: Mapping, declared_reference: bool = False) -> dict:
             )
         ),
         "notes": notes,
+        "folder": None if folder is None else _folder_shown(folder),
     }
+
+
+def _folder_shown(folder: str | Path) -> str:
+    """The dataset's folder: relative to the working directory when inside it."""
+    try:
+        return Path(folder).resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return str(folder)
 
 
 def _sensor_parameters(sensor: str, cal: Mapping) -> dict:
@@ -175,6 +205,34 @@ def _sensor_parameters(sensor: str, cal: Mapping) -> dict:
         "quality": _quality_rows(cal.get("quality") or {}),
         "has_covariance": cal.get("covariance") is not None,
     }
+
+
+def undetermined_parameters(sensor: str, cal: Mapping, recordings: Collection[str]) -> list[str]:
+    """What one sensor's calibration did not determine: parameters fixed (standard deviation
+    0) and parameters with no standard deviation, each with the reason where it is known."""
+    std = cal.get("std") or {}
+    why = (
+        "not observable without a rate table"
+        if sensor == "gyr" and RATE_TABLE not in recordings
+        else "not observable from these recordings"
+    )
+    out = []
+    for key in ("bias", "scale", "xi_rad", "alpha_rad"):
+        if key not in cal:
+            continue
+        sd = std.get(key)
+        if sd is None:
+            out.append(f"{PARAMETER_NAMES[key]}: no standard deviation known")
+            continue
+        fixed = [a for a, v in zip(AXES, sd, strict=True) if v is not None and float(v) == 0.0]
+        if fixed:
+            values = {float(cal[key][AXES.index(a)]) for a in fixed}
+            at = format_number(0.0 if all(abs(v) < FIXED_ZERO for v in values) else min(values))
+            axes = "" if len(fixed) == 3 else f" ({', '.join(fixed)})"
+            out.append(f"{PARAMETER_NAMES[key]}{axes}: fixed at {at}, {why}")
+    if "matrix" in cal and "matrix" not in std:
+        out.append("calibration matrix: no standard deviation known")
+    return out
 
 
 def _quality_rows(quality: Mapping) -> list[dict]:
@@ -261,9 +319,9 @@ def _terms_section(
     if not paths:
         return None
     terms_path, after_path = paths
-    summary = _load_json(terms_path, "model terms")
-    after = _load_json(after_path, "diagnosis after the model terms")
-    before = _load_json(gap[0], "gap diagnosis") if gap else {}
+    summary = load_json(terms_path, "model terms")
+    after = load_json(after_path, "diagnosis after the model terms")
+    before = load_json(gap[0], "gap diagnosis") if gap else {}
     rows = [
         {
             "term": name,
@@ -305,20 +363,19 @@ def _terms_section(
     }
 
 
-def _gap_section(paths: Sequence[str | Path] | None) -> dict | None:
-    """Context of the gap-diagnosis partial (``_gap.html.j2``): diagnosis.json, then figures."""
-    if not paths:
-        return None
-    from imucal.gap.figures import observations_context, report_context
+#: The IEEE 952 noise terms' names.
+NOISE_TERMS = {
+    "Q": "Q, quantisation",
+    "N": "N, white noise (density)",
+    "B": "B, bias instability",
+    "K": "K, rate random walk",
+    "R": "R, rate ramp",
+}
 
-    diagnosis, *figures = [Path(p) for p in paths]
-    d = _load_json(diagnosis, "gap diagnosis")
-    # a partial session's diagnosis (imucal.gap.static) says what it could score, or why not
-    scope = {"scope": d.get("scope", "full"), "reason": d.get("reason", ""),
-             "not_observable": d.get("not_observable", {}), "pose": d.get("pose")}  # fmt: skip
-    if scope["scope"] == "none":
-        return {**observations_context(d), **scope}
-    return {**report_context(d, {f.stem: embed_figure(f) for f in figures}), **scope}
+
+def _pretty_unit(unit: str) -> str:
+    """A unit as the report prints it: ``(m/s^2)/sqrt(Hz)`` as ``(m/s²)/√Hz``."""
+    return unit.replace("^2", "²").replace("sqrt(Hz)", "√Hz").replace("sqrt(s)", "√s")
 
 
 def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
@@ -328,12 +385,13 @@ def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
     from imucal.pipeline.outcome import not_run_reason
 
     path, *figures = [Path(p) for p in paths]
-    d = _load_json(path, "noise")
+    d = load_json(path, "noise")
     reason = not_run_reason(d)
     if reason:
         return {"reason": reason, "rows": [], "figure": None}
-    rows = []
+    tables = []
     for sensor, data in d["sensors"].items():
+        rows = []
         for axis, fit in data["axes"].items():
             cells = {}
             for term, t in fit["terms"].items():
@@ -341,10 +399,15 @@ def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
                     cells[term] = f"{format_number(t['value'], 3)} ± {format_number(t['std'], 2)}"
                 else:
                     cells[term] = f"< {format_number(t['upper_bound'], 3)}"
-            rows.append({"sensor": sensor, "axis": axis, "cells": cells,
-                         "chi2": format_number(fit["reduced_chi2"], 2)})  # fmt: skip
-    units = {s: {t: next(iter(v["axes"].values()))["terms"][t]["unit"] for t in d["terms"]}
-             for s, v in d["sensors"].items()}  # fmt: skip
+            rows.append(
+                {"axis": axis, "cells": cells, "chi2": format_number(fit["reduced_chi2"], 2)}
+            )
+        first = next(iter(data["axes"].values()))["terms"]
+        headers = [{"term": t, "name": NOISE_TERMS.get(t, t), "unit": _pretty_unit(first[t]["unit"])}
+                   for t in d["terms"]]  # fmt: skip
+        title = {"acc": "Accelerometer", "gyr": "Gyroscope", "mag": "Magnetometer"}.get(sensor)
+        tables.append({"sensor": sensor, "title": title or sensor, "headers": headers,
+                       "rows": rows})  # fmt: skip
     return {
         "reason": None,
         "recording": d["recording"],
@@ -352,8 +415,7 @@ def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
         "rate_hz": format_number(d["rate_hz"], 4),
         "level": format_number(d["level"], 3),
         "terms": d["terms"],
-        "units": units,
-        "rows": rows,
+        "tables": tables,
         "skipped": d.get("skipped", {}),
         "figure": embed_figure(figures[0]) if figures else None,
     }

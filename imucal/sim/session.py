@@ -118,6 +118,7 @@ class Session:
         d = {
             "name": self.name,
             "description": self.description,
+            "simulated": {"by": self.rendered_by(), "truth": "truth.json"},
             "gravity_m_s2": self.truth.world.gravity_m_s2,
             "sensitivity": dict(self.sensitivity),
             "recordings": {rec: FILES[rec] for rec in (*self.plans, "reference")},
@@ -126,6 +127,11 @@ class Session:
         for effect in self.effects:
             d.update(effect.dataset_overrides())
         return d
+
+    def rendered_by(self) -> str:
+        """What rendered the session, for dataset.yaml's ``simulated`` declaration."""
+        effects = ", ".join(e.name for e in self.effects) or "none"
+        return f"imucal.sim, preset {self.truth.preset}, seed {self.seed}, effects: {effects}"
 
     def truth_dict(self) -> dict:
         """Content of ``truth.json`` (conformance format plus world, noise, reference, segments)."""

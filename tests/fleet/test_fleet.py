@@ -174,6 +174,12 @@ def test_imucal_lookup_prints_the_calibration_path(tmp_path, capsys) -> None:
     assert imucal_main(["lookup", str(store), "S2", "2026-03-01"]) == 0
     assert capsys.readouterr().out.strip() == "/r/c.json"
     assert imucal_main(["lookup", str(store), "S2", "2026-01-01"]) == 2
+    # without a store: say that the fleet target writes it from a sample sheet
+    capsys.readouterr()
+    assert imucal_main(["lookup", str(tmp_path / "none.json"), "S2", "2026-03-01"]) == 2
+    err = capsys.readouterr().err
+    assert "no calibration store here" in err and "sample sheet" in err
+    assert "config fleet.sessions" in err
 
 
 def test_the_summary_lists_the_outlier_unit_and_the_store() -> None:

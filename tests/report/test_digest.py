@@ -1,9 +1,8 @@
-"""The report's headline, gap sentence and designed tables (imucal.report.digest)."""
+"""The report's headline and designed tables (imucal.report.digest)."""
 
 import numpy as np
-import pytest
 
-from imucal.report.digest import gap_sentence, headline, stage_tables, validation_tables
+from imucal.report.digest import headline, stage_tables, validation_tables
 
 VALIDATION = {
     "time_alignment": {"offset_s": 18.375, "offset_std_s": 4e-4, "drift_ppm": 10.3},
@@ -69,21 +68,3 @@ def test_the_reference_clock_offset_is_explained():
     offset = tables[1]["rows"][0]
     assert offset["cells"] == ["18.375 ± 0.0004"] and offset["unit"] == "s"
     assert "started that far apart" in offset["note"]
-
-
-@pytest.mark.parametrize(
-    ("diagnosis", "sentence"),
-    [
-        ({"verdict": "Given by the diagnosis."}, "Given by the diagnosis."),
-        ({"gap": {"significant": False}}, "The session behaves like its simulated twin"),
-        (
-            {"gap": {"significant": True}, "explained": ["time_offset", "packet_loss"],
-             "remaining": {"significant": False}},
-            "The session departs from its simulated twin; time offset, then packet loss explain "
-            "it, and what is left is within noise.",
-        ),
-        ({"scope": "none", "reason": "no static recording"}, "The session could not be compared"),
-    ],
-)  # fmt: skip
-def test_gap_sentence(diagnosis, sentence):
-    assert gap_sentence(diagnosis).startswith(sentence)

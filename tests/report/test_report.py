@@ -214,8 +214,11 @@ def test_sections_in_order_and_table_of_contents(report):
     assert doc.headings == list(SECTION_HEADINGS)
     links = [a["href"] for tag, a in doc.tags if tag == "a"]
     # the contents list every section once; the summary links its warnings to their section
+    # and a sensor's undetermined parameters to its section
     assert len(set(links)) == len(SECTION_HEADINGS)
-    assert len(links) - links.count("#warnings") + 1 == len(SECTION_HEADINGS)
+    sensors = [f"#{s}" for s in ("accelerometer", "gyroscope", "magnetometer")]
+    summary_links = links.count("#warnings") - 1 + sum(links.count(s) - 1 for s in sensors)
+    assert len(links) - summary_links == len(SECTION_HEADINGS)
     assert all(h.startswith("#") and h[1:] in doc.ids for h in links)
 
 
@@ -343,7 +346,8 @@ def test_missing_artifacts_give_sentences(artifacts):
     assert "No segmentation figure was given." in html
     assert "No benchmark files were given" in html
     assert "No configuration was given." in html
-    assert "No stage reported a warning." in html
+    assert "No warning: none in any stage result and none in any rule's log." in html
+    assert "<strong>Warnings of the run:</strong> none in any stage result or rule log." in html
 
     no_tables = render_report(
         build_report_context(dataset="demo", summary=summary, calibration=artifacts["calibration"])
@@ -620,3 +624,116 @@ def test_every_figure_of_the_rules_has_the_lab_reports_caption_file():
         assert (RULES_DIR / caption).resolve() == CAPTIONS_DIR / f"{stem}.rst", out
         assert stem in DEFAULT_CAPTIONS
         assert "\\" not in DEFAULT_CAPTIONS[stem]
+
+
+def test_the_simulated_banner_only_for_simulated_data(artifacts):
+    """A dataset that declares itself simulated gets the banner with what rendered it and what
+    its truth rows are; a recorded one gets neither."""
+    kwargs = {"dataset": "demo", "summary": artifacts["summary"],
+              "calibration": artifacts["calibration"],
+              "tables": artifacts["results"] / "tables.csv"}  # fmt: skip
+    simulated = render_report(
+        build_report_context(
+            **kwargs, simulated={"by": "imucal.sim, preset demo", "truth": "/x/truth.json"}
+        )
+    )
+    assert parse(simulated).errors == []
+    assert '<div class="simulated"' in simulated
+    assert "rendered by a simulator (imucal.sim, preset demo), not measured" in simulated
+    assert "<code>truth.json</code> in the dataset's folder" in simulated
+    assert "the value the simulator rendered the data from" in simulated
+    recorded = render_report(build_report_context(**kwargs))
+    assert 'class="simulated"' not in recorded and "Simulated data" not in recorded
+    assert "the value in the dataset's truth.json" in recorded
+
+
+def test_the_summary_lists_undetermined_parameters_and_every_logged_warning(artifacts, tmp_path):
+    """A gyroscope without a rate table has its non-orthogonality fixed at 0 (one axis at
+    -7.6e-19 from the decomposition): the summary says so; the warnings of every rule's log
+    reach the summary and the Warnings section with their counts."""
+    calibration = json.loads(json.dumps(artifacts["calibration"]))
+    gyr = calibration["gyr"]
+    gyr["xi_rad"] = [-7.59e-19, 0.0, 3.1e-18]
+    gyr["std"] = {"bias": [1e-5] * 3, "matrix": np.full((3, 3), 1e-4).tolist(),
+                  "scale": [1e-4] * 3, "xi_rad": [0.0] * 3, "alpha_rad": [1e-3] * 3}  # fmt: skip
+    logs = tmp_path / "results" / "demo" / "logs"
+    logs.mkdir(parents=True)
+    nyquist = "mag: cutoff 5 Hz is not below its Nyquist frequency (5 Hz at 10 Hz); kept unfiltered"
+    (logs / "gap_diagnose.log").write_text(
+        f"INFO:root:start\n{f'WARNING:imucal.segments.filtering:{nyquist}' + chr(10)}" * 39
+    )
+    (logs / "segment.log").write_text("INFO:root:segments written\n")
+    (logs / "lowpass").mkdir()
+    (logs / "lowpass" / "rotation3d.log").write_text(
+        f"WARNING:imucal.segments.filtering:{nyquist}\n"
+    )
+    summary = json.loads(json.dumps(artifacts["summary"]))
+    del summary["recordings"]["ratetable"]
+    html = render_report(
+        build_report_context(
+            dataset="demo", summary=summary, calibration=calibration,
+            logs=[logs / "gap_diagnose.log", logs / "segment.log",
+                  logs / "lowpass" / "rotation3d.log"],
+        )
+    )  # fmt: skip
+    assert parse(html).errors == []
+    summary = html[html.index('id="summary"') : html.index('<nav class="toc"')]
+    assert (
+        "<strong>Not determined:</strong> non-orthogonality ξ: fixed at 0, not observable "
+        "without a rate table" in summary
+    )
+    # one message from two logs: once in the summary, counted over both
+    assert (
+        'mag: cutoff 5 Hz is not below its Nyquist frequency (40 times) <span class="note">'
+        "(logs/gap_diagnose.log, logs/lowpass/rotation3d.log)" in summary
+    )
+    assert 'Warnings of the run:</strong> <span class="flagmark">⚠</span> 1' in summary
+    assert "none of its own" in summary  # accelerometer and gyroscope: the run has one
+    assert ">none<" not in summary
+    section = html[html.index('<section id="warnings">') :]
+    assert "logs/gap_diagnose.log, <code>imucal.segments.filtering</code>, 39 times" in section
+    # the gyroscope's table prints the fixed parameter as 0, not as -7.59e-19
+    assert "-7.59e-19" not in html and "0 (fixed, not observable)" in html
+
+
+def test_files_are_named_relative_to_the_dataset_and_broken_at_separators(artifacts):
+    context = build_report_context(
+        dataset="demo", summary=artifacts["summary"], calibration=artifacts["calibration"],
+        dataset_folder=artifacts["root"] / "raw",
+    )  # fmt: skip
+    html = render_report(context)
+    # the folder once, as the config gives it; each file relative to it
+    assert html.count(str(artifacts["root"])) == 1
+    assert f"folder, <code>{artifacts['root'] / 'raw'}</code>" in html
+    assert '<td class="text"><code>mtx_rotation3d.txt</code></td>' in html
+    # a file name breaks only after its separators, never mid-word
+    assert '<code class="filename" title="rotation3d.csv">rotation3d.<wbr>csv</code>' in html
+    assert "paths relative to the dataset's folder" in html
+
+
+def test_the_angle_between_force_and_field_gives_the_dip():
+    from imucal.report.digest import validation_tables
+
+    dip = {"calibrated": {"mean_deg": 153.97, "std_deg": 0.27}}
+    tables = validation_tables({"metrics": {"calibrated": {}}, "dip": dip})
+    row = tables[0]["rows"][0]
+    assert tables[0]["title"].startswith("Angle between the specific force and the magnetic")
+    assert row["quantity"] == "angle, calibrated" and row["cells"] == ["154 ± 0.27"]
+    assert row["note"] == "dip 63.97° (the angle less 90°)"
+
+
+def test_noise_tables_carry_the_units_in_their_headers(tmp_path):
+    from imucal.report.sections import _noise_section
+
+    term = {"resolved": True, "value": 2e-4, "std": 1e-5, "unit": "(m/s^2)/sqrt(Hz)"}
+    noise = {"recording": "static", "duration_s": 120.0, "rate_hz": 100.0, "level": 0.683,
+             "terms": ["N"], "sensors": {"acc": {"axes": {"x": {"terms": {"N": term},
+                                                              "reduced_chi2": 1.1}}}}}  # fmt: skip
+    path = tmp_path / "noise.json"
+    path.write_text(json.dumps(noise))
+    table = _noise_section([path])["tables"][0]
+    assert table["title"] == "Accelerometer"
+    assert table["headers"] == [
+        {"term": "N", "name": "N, white noise (density)", "unit": "(m/s²)/√Hz"}
+    ]
+    assert table["rows"][0]["cells"]["N"] == "0.0002 ± 1e-05"

@@ -126,6 +126,32 @@ def test_dataset_yaml_validates(base):
     )
     assert all(p.is_file() for p in ds.recordings.values())
     assert ds.ratetable == {"axes": ["x", "y", "z"], "rates_dps": list(range(-400, 401, 100))}
+    # the folder says it is simulated and where its truth is (the report's banner)
+    assert ds.simulated == {
+        "by": f"imucal.sim, preset paper, seed {SEED}, effects: none",
+        "truth": base / "truth.json",
+    }
+
+
+def test_a_simulated_declaration_names_an_existing_truth(base, tmp_path):
+    folder = tmp_path / "copy"
+    folder.mkdir()
+    for path in base.iterdir():
+        (folder / path.name).symlink_to(path)
+    (folder / "dataset.yaml").unlink()
+    text = (base / "dataset.yaml").read_text()
+    (folder / "dataset.yaml").write_text(text.replace("truth: truth.json", "truth: truth2.json"))
+    with pytest.raises(FileNotFoundError, match="key 'simulated/truth': 'truth2.json' is not a"):
+        read_dataset(folder)
+    # a recorded session declares nothing: no banner
+    (folder / "dataset.yaml").write_text(
+        "\n".join(
+            line
+            for line in text.splitlines()
+            if not line.startswith(("simulated", "  by", "  truth"))
+        )
+    )
+    assert read_dataset(folder).simulated is None
 
 
 def test_csv_header_time_and_magnetometer_cells(base):

@@ -12,6 +12,7 @@ from snakemake.utils import validate
 import imucal
 from imucal.constants import RECORDING_NAMES
 from imucal.fleet import read_sample_sheet
+from imucal.io.configfile import config_problem
 from imucal.io.dataset import read_dataset
 from imucal.pipeline.options import PipelineOptions, pipeline_settings
 from imucal.pipeline.registry import is_full_protocol
@@ -25,7 +26,14 @@ REAL_CONFIGS = {
     path.stem: yaml.safe_load(path.read_text()) or {}
     for path in sorted(Path(workflow.basedir, "config", "real").glob("*.yaml"))
 }
-for _real in REAL_CONFIGS.values():
+for _name, _real in REAL_CONFIGS.items():
+    _problem = config_problem(
+        _real,
+        Path(workflow.basedir, "workflow", "schemas", "config.schema.yaml"),
+        [Path("config", "real", f"{_name}.yaml")],
+    )
+    if _problem:
+        raise WorkflowError(_problem)
     validate(_real, "../schemas/config.schema.yaml", set_default=False)
 #: The public recordings (data into ../shared/data/real), run by `real`.
 REAL_DATASETS = {

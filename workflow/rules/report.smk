@@ -52,6 +52,7 @@ rule validation_figures:
 rule report:
     input:
         unpack(report_inputs),
+        dataset_yaml=dataset_yaml,
     output:
         html=report(
             "reports/{dataset}.html",

@@ -1,5 +1,7 @@
 # What a run produces: each dataset's final targets, its report's inputs and the fleet's
-# calibrations. No rules here.
+# calibrations, and the line that names the reports a run wrote. No rules here.
+import atexit
+import sys
 from imucal.export.formats import FORMATS as EXPORT_FORMATS
 from imucal.pipeline.graph import FULL_PROTOCOL
 
@@ -88,6 +90,43 @@ def stage_report_files(d, info):
     return figures, [f"results/{d}/benchmarks/{node.name}.tsv" for node in nodes]
 
 
+def rule_log(rule_name, **wildcards):
+    """The log file of a rule for the given wildcards (its `log:` pattern filled in)."""
+    return getattr(rules, rule_name).log[0].format(**wildcards)
+
+
+def report_logs(d, info):
+    """The log of every rule behind a dataset's report (the report lists their warnings)."""
+    recordings = [r for r in info.recordings if r != "reference"]
+    logs = [rule_log("ingest", dataset=d, recording=r) for r in info.recordings]
+    logs += [rule_log(name, dataset=d) for name in ("ingest_summary", "segment", "stages")]
+    logs += [rule_log("plot_segments", dataset=d, recording=r) for r in recordings]
+    if has_noise_recording(d):
+        logs += [rule_log(name, dataset=d) for name in ("noise", "export")]
+    if not full_protocol(d):
+        logs += [rule_log(name, dataset=d) for name in ("partial", "gap_diagnose_partial")]
+        if has_orientation_reference(d):
+            logs += [
+                rule_log("ingest_orientation", dataset=d, recording=r)
+                for r in info.orientation_references
+            ]
+            logs.append(rule_log("validate_references", dataset=d))
+        if holdout_recording(d) is not None:
+            logs.append(rule_log("temperature_holdout", dataset=d))
+        return logs
+    stages = [n.name for n in FULL_PROTOCOL.values() if n.applies(frozenset(info.recordings))]
+    logs += [rule_log(name, dataset=d) for name in stages]
+    logs.append(rule_log("lowpass", dataset=d, recording="rotation3d"))
+    logs += [
+        rule_log(name, dataset=d)
+        for name in ("calibration", "phase_figures", "validate", "gap_diagnose", "model_terms")
+    ]
+    logs.append(rule_log("stages_full", dataset=d))
+    if "reference" in info.recordings:
+        logs.append(rule_log("validation_figures", dataset=d))
+    return logs
+
+
 def report_inputs(wildcards):
     """Artifacts, figures and run-time benchmarks of a dataset's report, by the path it took."""
     d = wildcards.dataset
@@ -114,7 +153,9 @@ def report_inputs(wildcards):
             ]
         gap = [f"results/{d}/gap/{n}" for n in ("diagnosis.json", "gap_map.png", "effects.png")]
         noise = noise_report_inputs(d) | holdout_report_inputs(d)
-        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
+        logs = report_logs(d, info)
+        return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise,
+                "logs": logs}  # fmt: skip
     inputs.update({k: f"results/{d}/{k}.json" for k in ("mag", "acc", "gyr", "validation")})
     inputs.update(tables=f"results/{d}/tables.csv")
     stage_figures, stage_benchmarks = stage_report_files(d, info)
@@ -137,7 +178,9 @@ def report_inputs(wildcards):
     gap = [f"results/{d}/gap/{name}" for name in ("diagnosis.json", "gap_map.png", "effects.png")]
     inputs.update(terms=f"results/{d}/terms.json", gap_after=f"results/{d}/gap/after.json")
     noise = noise_report_inputs(d)
-    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise}
+    logs = report_logs(d, info)
+    return {**inputs, "figures": figures, "benchmarks": benchmarks, "gap": gap, **noise,
+            "logs": logs}  # fmt: skip
 
 
 def fleet_calibrations(wildcards):
@@ -147,3 +190,27 @@ def fleet_calibrations(wildcards):
             "the fleet target needs a sample sheet: set config fleet.sessions (docs/fleet.md)"
         )
     return {name: calibration_path(name) for name in FLEET_SHEET["dataset"]}
+
+
+def reports_written(since):
+    """The lab reports written since a time (s since the epoch), by name."""
+    return sorted(str(p) for p in Path("reports").glob("*.html") if p.stat().st_mtime >= since)
+
+
+def print_reports(since):
+    """Name the lab reports a run wrote (the run's last line)."""
+    written = reports_written(since)
+    if written:
+        which = "Lab report" if len(written) == 1 else "Lab reports"
+        print(f"{which} written: {', '.join(written)} (open in a browser)", file=sys.stderr)
+    else:
+        print(
+            "No lab report was written in this run; a dataset's report is the target "
+            "reports/NAME.html",
+            file=sys.stderr,
+        )
+
+
+def announce_reports(since):
+    """At the end of a successful run, after Snakemake's own lines, name its reports."""
+    atexit.register(print_reports, since)

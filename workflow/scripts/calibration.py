@@ -2,10 +2,10 @@
 sensor whose stages did not run), or the closed loop's recalibration with its model terms; the
 standard deviations inflated where independent parts of the data disagree beyond them."""
 
-import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_json, write_json
+from imucal.io.logs import log_to
 from imucal.pipeline.stages import calibration_of_what_ran
 from imucal.terms import final_calibration
 from imucal.validation.consistency import ship
@@ -13,7 +13,7 @@ from imucal.validation.consistency import ship
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 
 artifacts = {sensor: read_json(snakemake.input[sensor]) for sensor in ("acc", "gyr", "mag")}
 paper = calibration_of_what_ran(artifacts)

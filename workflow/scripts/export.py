@@ -5,12 +5,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.export import FORMATS, export_files
+from imucal.io.logs import log_to
 from imucal.pipeline.outcome import read_artifact, stage_guard
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 logger = logging.getLogger("export")
 folder = Path(snakemake.output.ros).parent.parent  # results/{dataset}/export/{format}/
 

@@ -6,6 +6,8 @@ from typing import TYPE_CHECKING
 
 from imucal.fleet import read_sample_sheet, summarize_fleet
 from imucal.io import read_json, write_json
+from imucal.io.logs import log_to
+from imucal.plots.figurefile import save_figure
 from imucal.plots.fleet import plot_bias_over_time, plot_fleet_parameters
 from imucal.report import embed_figure
 from imucal.report.fleet import render_fleet_report
@@ -13,7 +15,7 @@ from imucal.report.fleet import render_fleet_report
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 out = snakemake.output
 sheet = read_sample_sheet(p.sheet)
@@ -29,8 +31,8 @@ summary = {"sheet": p.sheet, "store": out.store, "imucal_version": p.imucal_vers
 table.to_csv(out.parameters, index=False)
 write_json(summary["store_index"], out.store)
 write_json(summary, out.summary)
-plot_fleet_parameters(scores).savefig(out.parameters_figure, dpi=100)
-plot_bias_over_time(table).savefig(out.drift_figure, dpi=100)
+save_figure(plot_fleet_parameters(scores), out.parameters_figure)
+save_figure(plot_bias_over_time(table), out.drift_figure)
 figures = {
     "parameters": embed_figure(out.parameters_figure),
     "drift": embed_figure(out.drift_figure),

@@ -4,10 +4,11 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.gap.blind import render_blind_session
+from imucal.io.logs import log_to
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 render_blind_session(snakemake.params.spec, snakemake.output.folder, snakemake.output.key)
 logging.info("rendered %s", snakemake.wildcards.session)

@@ -7,11 +7,12 @@ from typing import TYPE_CHECKING
 from imucal.gap import DiagnosisSettings
 from imucal.gap.checks import diagnose_folder
 from imucal.io import write_json
+from imucal.io.logs import log_to
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 session = snakemake.wildcards.session
 result = diagnose_folder(

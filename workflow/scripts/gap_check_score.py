@@ -1,17 +1,17 @@
 """Rules blind_score, stress_score, detection_score: unseal the answer keys of a check, score
 its diagnoses and write the score and its page (imucal.gap.checks)."""
 
-import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.gap.checks import score_check
 from imucal.io import write_json
+from imucal.io.logs import log_to
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 score, page = score_check(
     snakemake.params.check,
     snakemake.input.diagnoses,

@@ -7,15 +7,17 @@ from typing import TYPE_CHECKING
 from imucal.constants import IMU_RECORDINGS
 from imucal.gap import DiagnosisSettings, diagnose
 from imucal.gap.blocks import read_decimated_static
-from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.io import read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.pipeline.full import PipelineOptions
+from imucal.plots.figurefile import save_figure
+from imucal.report.gapfigures import plot_effects, plot_gap_map
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 recordings = dict(snakemake.input.items())
 imu = {
@@ -37,6 +39,6 @@ result = diagnose(
     static_blocks=blocks,
 )
 write_json(result, snakemake.output.diagnosis)
-plot_gap_map(result).savefig(snakemake.output.gap_map, dpi=110)
-plot_effects(result).savefig(snakemake.output.effects, dpi=110)
+save_figure(plot_gap_map(result), snakemake.output.gap_map)
+save_figure(plot_effects(result), snakemake.output.effects)
 logging.info("explained %s, remaining %s", result["explained"], result["remaining"]["total"])

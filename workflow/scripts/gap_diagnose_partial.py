@@ -7,16 +7,18 @@ from typing import TYPE_CHECKING
 from imucal.gap import DiagnosisSettings
 from imucal.gap.clipping import ingest_clip_fractions, note_saturation
 from imucal.gap.composite import diagnose_partial_session, diagnose_rests_scope, partial_scope
-from imucal.gap.figures import plot_effects, plot_gap_map
 from imucal.gap.motion import reference_part
 from imucal.gap.poses import diagnose_poses
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
+from imucal.plots.figurefile import save_figure
+from imucal.report.gapfigures import plot_effects, plot_gap_map
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 info = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 inputs = dict(snakemake.input.items())
 scope = partial_scope(
@@ -65,6 +67,6 @@ else:
 # clipping is seen in the readings themselves, whatever the scope can replay
 note_saturation(result, ingest_clip_fractions(read_json(snakemake.input.summary)))
 write_json(result, snakemake.output.diagnosis)
-plot_gap_map(result).savefig(snakemake.output.gap_map, dpi=110)
-plot_effects(result).savefig(snakemake.output.effects, dpi=110)
+save_figure(plot_gap_map(result), snakemake.output.gap_map)
+save_figure(plot_effects(result), snakemake.output.effects)
 logging.info("scope %s, explained %s", result["scope"], result["explained"])

@@ -7,11 +7,12 @@ from typing import TYPE_CHECKING
 
 from imucal.ingest import ingest_to_parquet
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 log = logging.getLogger(__name__)
 try:
     dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)

@@ -5,11 +5,12 @@ from typing import TYPE_CHECKING
 
 from imucal.ingest import summarize_dataset
 from imucal.io import read_recording, write_json
+from imucal.io.logs import log_to
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 log = logging.getLogger(__name__)
 try:
     recordings = {name: read_recording(path) for name, path in snakemake.input.items()}

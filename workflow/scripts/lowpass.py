@@ -4,12 +4,13 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording, write_recording
+from imucal.io.logs import log_to
 from imucal.segments.filtering import lowpass_recording
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 try:
     table, metadata = read_recording(snakemake.input.table)
     filtered = lowpass_recording(

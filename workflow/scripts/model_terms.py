@@ -8,13 +8,14 @@ from imucal.constants import IMU_RECORDINGS
 from imucal.gap import DiagnosisSettings
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.pipeline.full import PipelineOptions
 from imucal.terms import TermSettings, close_loop, diagnosis_after, terms_summary
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 recordings = dict(snakemake.input.items())
 imu = {r: read_recording(recordings[r])[0] for r in IMU_RECORDINGS if r in recordings}

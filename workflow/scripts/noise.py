@@ -1,18 +1,19 @@
 """Rule noise: Allan deviation and IEEE 952 noise terms of the static recording."""
 
-import logging
 from functools import partial
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording_column, recording_column_names, write_json
+from imucal.io.logs import log_to
 from imucal.noise import characterise_noise
 from imucal.pipeline.outcome import stage_guard
+from imucal.plots.figurefile import save_figure
 from imucal.plots.noise import plot_allan
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 
 with stage_guard("noise", snakemake.output):
@@ -23,4 +24,4 @@ with stage_guard("noise", snakemake.output):
         level=p.level,
     )  # fmt: skip
     write_json(noise, snakemake.output.noise)
-    plot_allan(noise).savefig(snakemake.output.figure, dpi=110)
+    save_figure(plot_allan(noise), snakemake.output.figure)

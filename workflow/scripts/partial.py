@@ -7,13 +7,15 @@ from typing import TYPE_CHECKING
 from imucal.calibration import FORMAT_VERSION
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.pipeline import partial
+from imucal.plots.figurefile import save_figure
 from imucal.terms.thermalship import with_shipped_terms
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 names = [n for n in dataset.recordings if n != "reference"]
 ingested = {name: read_recording(snakemake.input[name]) for name in names}
@@ -51,4 +53,4 @@ for sensor, artifacts in partial.stage_results(outcomes).items():
 figure_dir = Path(snakemake.output.figures)
 figure_dir.mkdir(parents=True, exist_ok=True)
 for name, figure in partial.figures(outcomes, tables).items():
-    figure.savefig(figure_dir / f"{name}.png", dpi=110)
+    save_figure(figure, figure_dir / f"{name}.png")

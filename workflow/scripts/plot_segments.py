@@ -4,12 +4,14 @@ import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording
+from imucal.io.logs import log_to
+from imucal.plots.figurefile import save_figure
 from imucal.plots.segmentation import plot_segments
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 try:
     table, _ = read_recording(snakemake.input.table)
     segments, _ = read_recording(snakemake.input.segments)
@@ -17,7 +19,7 @@ try:
     fig = plot_segments(
         table, segments, recording=w.recording, title=f"{w.dataset} / {w.recording}"
     )
-    fig.savefig(snakemake.output.png, dpi=120)
+    save_figure(fig, snakemake.output.png)
 except Exception:
     logging.exception("segments plot of %s failed", snakemake.input.table)
     raise

@@ -1,16 +1,17 @@
 """Rule report: the self-contained HTML lab report of one dataset."""
 
-import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.report import build_report_context, render_report
 from imucal.report.provenance import workflow_commit
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 context = build_report_context(
     dataset=snakemake.wildcards.dataset,
     summary=snakemake.input.summary,
@@ -39,5 +40,8 @@ context = build_report_context(
     else None,
     temperature_holdout=snakemake.input.get("temperature_holdout"),
     consistency=snakemake.input.get("consistency"),
+    logs=list(snakemake.input.logs),
+    dataset_folder=Path(snakemake.input.dataset_yaml).parent,
+    simulated=read_dataset(Path(snakemake.input.dataset_yaml).parent).simulated,
 )
 Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")

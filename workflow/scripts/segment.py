@@ -6,12 +6,13 @@ from typing import TYPE_CHECKING
 
 from imucal.io import read_recording, write_recording
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.segments.segmentation import segment_dataset
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 try:
     dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
     names = [name for name in dataset.recordings if name != "reference"]

@@ -2,17 +2,17 @@
 (imucal.pipeline.graph), writes its artifact and figures, or their not-run forms when the data
 do not allow the stage."""
 
-import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import write_json
+from imucal.io.logs import log_to
 from imucal.pipeline.graph import FULL_PROTOCOL, node_inputs, read_source, write_output
 from imucal.pipeline.outcome import stage_guard
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 node = FULL_PROTOCOL[snakemake.rule]
 recordings = frozenset(snakemake.params.recordings)
 sources = node.reads(recordings)

@@ -1,19 +1,19 @@
 """Rule stages_full: the stage listing of a session run by the stage-per-rule workflow, from the
 artifacts of the stages (run, or the reason they did not)."""
 
-import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.io import read_json, read_recording, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.pipeline.partial import full_protocol_stages
 from imucal.pipeline.registry import full_protocol_artifacts
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 stage_names = full_protocol_artifacts()
 artifacts = {

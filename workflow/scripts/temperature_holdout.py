@@ -1,16 +1,16 @@
 """Rule temperature_holdout: the temperature terms held out across the declared static poses."""
 
-import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_recording, read_segments, write_json
+from imucal.io.logs import log_to
 from imucal.pipeline.outcome import stage_guard
 from imucal.terms.poseholdout import hold_out_recording
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 p = snakemake.params
 
 with stage_guard("temperature_holdout", snakemake.output):

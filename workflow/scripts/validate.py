@@ -1,16 +1,16 @@
 """Rule validate: the calibration checked against the reference (or reference-free checks)."""
 
-import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_calibration, read_recording, read_segments, write_json
+from imucal.io.logs import log_to
 from imucal.pipeline.outcome import stage_guard
 from imucal.pipeline.stages import validate_session
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 
 with stage_guard("validate", snakemake.output):
     rotation3d, metadata = read_recording(snakemake.input.rotation3d)

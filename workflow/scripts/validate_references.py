@@ -1,18 +1,19 @@
 """Rule validate_references: the calibration against the orientation references."""
 
-import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
+from imucal.io.logs import log_to
 from imucal.pipeline.reference import validate_references
+from imucal.plots.figurefile import save_figure
 from imucal.plots.reference import plot_orientation_errors
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 references = {}
 for path in snakemake.input.orientation:
@@ -29,4 +30,4 @@ result = validate_references(
     windows_s=snakemake.params.windows_s,
 )
 write_json(result, snakemake.output.validation)
-plot_orientation_errors(result).savefig(snakemake.output.figure, dpi=110)
+save_figure(plot_orientation_errors(result), snakemake.output.figure)

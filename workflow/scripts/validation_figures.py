@@ -1,16 +1,17 @@
 """Rule validation_figures: module vs reference magnitudes (Fig. 20) and the correlation."""
 
-import logging
 from typing import TYPE_CHECKING
 
 from imucal.io import read_calibration, read_recording
+from imucal.io.logs import log_to
 from imucal.pipeline.outcome import read_artifact, stage_guard
 from imucal.pipeline.stages import plot_validation
+from imucal.plots.figurefile import save_figure
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
-logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
+log_to(snakemake.log[0])
 
 with stage_guard("validation_figures", snakemake.output):
     rotation3d, metadata = read_recording(snakemake.input.rotation3d)
@@ -21,5 +22,5 @@ with stage_guard("validation_figures", snakemake.output):
         read_calibration(snakemake.input.calibration),
         read_artifact(snakemake.input.validation),
     )
-    figures["validation_magnitudes"].savefig(snakemake.output.magnitudes, dpi=110)
-    figures["validation_xcorr"].savefig(snakemake.output.xcorr, dpi=110)
+    save_figure(figures["validation_magnitudes"], snakemake.output.magnitudes)
+    save_figure(figures["validation_xcorr"], snakemake.output.xcorr)
