@@ -158,9 +158,8 @@ def render_blind_session(spec: Mapping, folder: str | Path, sealed: str | Path) 
         description=spec.get("description", "blind session (answer key sealed)"),
     )  # fmt: skip
     folder = Path(folder)
-    write_session(session, folder)
-    key = json.loads((folder / "truth.json").read_text())
-    (folder / "truth.json").unlink()
+    write_session(session, folder, sealed=True)
+    key = json.loads(json.dumps(session.truth_dict(), allow_nan=False))
     magnitudes = {}
     for effect in effects:
         m = effect.magnitude()

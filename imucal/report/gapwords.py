@@ -222,7 +222,15 @@ def _time_offset(p: Mapping) -> str:
     if offset is not None:
         when = "before" if offset > 0 else "after"
         head = f"the reference started {_ms(abs(offset))} {when} the module"
-    return _join([head, f"its clock drifts {number(drift)} ppm" if drift is not None else None])
+    return _join([head, f"its clock drifts {number(drift)} ppm" if drift else None])
+
+
+def _clock_drift(p: Mapping) -> str:
+    ppm = _get(p, "ppm")
+    if ppm is None:
+        return ""
+    faster = "faster" if ppm > 0 else "slower"
+    return f"the module's logger clock runs {number(abs(ppm))} ppm {faster} than the reference's"
 
 
 def _packet_loss(p: Mapping) -> str:
@@ -439,6 +447,9 @@ class EffectWords:
 #: Every effect of the simulator's library, in words.
 EFFECTS = {
     "time_offset": EffectWords("an offset of the reference's clock", _time_offset),
+    "clock_drift": EffectWords(
+        "a rate error between the logger's and the reference's clocks", _clock_drift
+    ),  # fmt: skip
     "packet_loss": EffectWords("packet loss", _packet_loss),
     "timing_jitter": EffectWords("jitter of the receive time stamps", _jitter("time stamps")),
     "lever_arm": EffectWords("a lever arm of the accelerometer", _lever_arm),

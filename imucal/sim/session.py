@@ -112,13 +112,18 @@ class Session:
         frame = self.frame(recording).astype({c: "float64" for c in MAG})
         return counts_to_si(frame, self.sensitivity)
 
-    def dataset_dict(self) -> dict:
-        """Content of ``dataset.yaml``."""
+    def dataset_dict(self, sealed: bool = False) -> dict:
+        """Content of ``dataset.yaml``; ``sealed`` declares the session simulated without naming
+        its effects, seed or truth (a blind session's answer key is kept apart)."""
         rates = [int(r) if float(r).is_integer() else float(r) for r in self.config.rates_dps]
         d = {
             "name": self.name,
             "description": self.description,
-            "simulated": {"by": self.rendered_by(), "truth": "truth.json"},
+            "simulated": (
+                {"by": "imucal.sim (blind session, answer key sealed)"}
+                if sealed
+                else {"by": self.rendered_by(), "truth": "truth.json"}
+            ),
             "gravity_m_s2": self.truth.world.gravity_m_s2,
             "sensitivity": dict(self.sensitivity),
             "recordings": {rec: FILES[rec] for rec in (*self.plans, "reference")},
@@ -361,8 +366,11 @@ def simulate_session(
     )  # fmt: skip
 
 
-def write_session(session: Session, folder: str | Path) -> Path:
+def write_session(session: Session, folder: str | Path, sealed: bool = False) -> Path:
     """Write a session as a dataset folder (created if needed; files are overwritten).
+
+    With ``sealed`` the folder holds no ``truth.json`` and its ``dataset.yaml`` does not name the
+    effects, seed or preset (:meth:`Session.dataset_dict`); the caller keeps the truth.
 
     Returns
     -------
@@ -372,16 +380,17 @@ def write_session(session: Session, folder: str | Path) -> Path:
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     (out / "dataset.yaml").write_text(
-        yaml.safe_dump(session.dataset_dict(), sort_keys=False, width=1000)
+        yaml.safe_dump(session.dataset_dict(sealed), sort_keys=False, width=1000)
     )
     for rec in session.logs:
         session.frame(rec).to_csv(
             out / FILES[rec], index=False, float_format="%.4f", lineterminator="\n"
         )
     (out / FILES["reference"]).write_text(format_mt_export(session.reference, REFERENCE_RATE_HZ))
-    (out / "truth.json").write_text(
-        json.dumps(session.truth_dict(), indent=2, allow_nan=False) + "\n"
-    )
+    if not sealed:
+        (out / "truth.json").write_text(
+            json.dumps(session.truth_dict(), indent=2, allow_nan=False) + "\n"
+        )
     return out
 
 

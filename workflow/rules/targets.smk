@@ -104,7 +104,11 @@ def report_logs(d, info):
     if has_noise_recording(d):
         logs += [rule_log(name, dataset=d) for name in ("noise", "export")]
     if not full_protocol(d):
-        logs += [rule_log(name, dataset=d) for name in ("partial", "gap_diagnose_partial")]
+        logs += [
+            rule_log(name, dataset=d)
+            for name in ("partial", "gap_diagnose_partial", "consistency_partial")
+        ]
+        logs.append(rule_log("calibration_partial", dataset=d))
         if has_orientation_reference(d):
             logs += [
                 rule_log("ingest_orientation", dataset=d, recording=r)
@@ -119,8 +123,11 @@ def report_logs(d, info):
     logs.append(rule_log("lowpass", dataset=d, recording="rotation3d"))
     logs += [
         rule_log(name, dataset=d)
-        for name in ("calibration", "phase_figures", "validate", "gap_diagnose", "model_terms")
-    ]
+        for name in (
+            "calibration", "phase_figures", "validate", "gap_diagnose", "model_terms",
+            "consistency_full",
+        )
+    ]  # fmt: skip
     logs.append(rule_log("stages_full", dataset=d))
     if "reference" in info.recordings:
         logs.append(rule_log("validation_figures", dataset=d))
