@@ -284,14 +284,14 @@ def test_corrected_session_with_no_terms_is_the_session(twin, drift):
 
 def test_report_section_lists_the_terms_and_the_gap_before_and_after(drift, tmp_path):
     from imucal.report.lab import _environment
-    from imucal.report.sections import _terms_section
+    from imucal.report.sections import terms_section
 
     (tmp_path / "terms.json").write_text(json.dumps(terms_summary(drift[3])))
     (tmp_path / "after.json").write_text(
         json.dumps({"gap": {"total": 1.5}, "remaining": {"total": 0.5}})
     )
     (tmp_path / "diagnosis.json").write_text(json.dumps({"gap": {"total": 40.0}}))
-    ctx = _terms_section(
+    ctx = terms_section(
         [tmp_path / "terms.json", tmp_path / "after.json"], [tmp_path / "diagnosis.json"]
     )
     html = _environment().get_template("_terms.html.j2").render(terms=ctx)
