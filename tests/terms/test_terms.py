@@ -73,8 +73,8 @@ def _resting_residuals(twin, imu, ref, calibration):
         if rec == "ratetable":
             continue
         table, _ = apply_calibration(imu[rec], {"units": SI_COLUMN_UNITS}, calibration, source=rec)
-        acc.append(st._means(table[list(ACC)].to_numpy(float), rows))
-        gyr.append(st._means(table[list(GYR)].to_numpy(float), rows))
+        acc.append(st.segment_means(table[list(ACC)].to_numpy(float), rows))
+        gyr.append(st.segment_means(table[list(GYR)].to_numpy(float), rows))
     acc, gyr = np.vstack(acc), np.vstack(gyr)
     return np.linalg.norm(acc, axis=1) - twin.options.gravity_m_s2, np.linalg.norm(gyr, axis=1)
 
