@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from imucal.validation.consistency import group_rms_z
 from imucal.validation.metrics import compare_vectors, summarise_dip
 from imucal.validation.mounting import estimate_mounting
 
@@ -69,3 +70,13 @@ def test_a_precise_sensor_beside_a_noisy_one_sets_the_mounting_within_its_std(z_
     # the gyroscope adds under 1 % of the information; the residual RMS that sets the weight
     # is itself estimated from 900 components (2.4 % standard error)
     assert m.angle_std_deg == pytest.approx(expected, rel=0.1)
+
+
+def test_the_whitened_difference_of_one_parameter_is_its_z():
+    """One parameter of variance 4 differing by 2: RMS z 1 of rank 1; by 6 of variance 4 and
+    9 for a pair (independent): sqrt((9 + 9) / 2) = 3; nothing estimated: no score."""
+    assert group_rms_z(np.array([2.0]), np.array([[4.0]])) == pytest.approx((1.0, 1))
+    rms, rank = group_rms_z(np.array([6.0, 9.0]), np.diag([4.0, 9.0]))
+    assert rank == 2 and rms == pytest.approx(np.sqrt((9.0 + 9.0) / 2))
+    rms, rank = group_rms_z(np.array([1.0]), np.zeros((1, 1)))
+    assert rank == 0 and np.isnan(rms)
