@@ -74,6 +74,7 @@ TARGETS = {
     "imucal/terms/selection.py": [
         "tests/terms/test_terms.py::test_decide_follows_the_switch_and_the_diagnosis",
         "tests/terms/test_terms.py::test_settings_defaults_are_the_schemas",
+        "tests/terms/test_settings_errors.py",
     ],
     "imucal/terms/heldout.py": ["tests/terms/test_order_rules.py", "tests/terms/test_terms.py"],
     "imucal/terms/blockspread.py": [
