@@ -152,8 +152,10 @@ def check_sentences(
     if z is not None:
         tops = [f"{c} {v:.3g}" for c, v in z["by_check"].items() if v is not None]
         text.append(
-            f"The largest |z| of any location: {', '.join(tops)}; above {Z_WITHOUT_SPREAD:g} "
-            f"(a null without spread): {', '.join(z['beyond']) or 'none'}."
+            f"The largest |z| of any location: {', '.join(tops)}; above {Z_WITHOUT_SPREAD:g} in "
+            f"{len(z['beyond'])} sessions ({', '.join(z['beyond']) or 'none'}: a departure far "
+            "beyond noise, or a null without spread, which the diagnosis should leave unscored; "
+            "this count does not tell them apart)."
         )
     return " ".join(text)
 
