@@ -63,11 +63,50 @@ def spread_false_names(
     return {"effects": sorted(spread), "by_check": by_check, "total": total, "sessions": wrong}
 
 
+#: Beyond this |z| a location's score is taken to come from a null without spread (a statistic
+#: its replicas give alike), which the diagnosis must leave unscored instead.
+Z_WITHOUT_SPREAD = 1e3
+
+
+def largest_z(diagnoses: Mapping[str, Mapping[str, Mapping]]) -> dict:
+    """The largest |z| of any location of any session, per check, and the sessions beyond
+    :data:`Z_WITHOUT_SPREAD`.
+
+    Parameters
+    ----------
+    diagnoses : dict
+        Check -> session -> its diagnosis (its ``all_locations``, each with ``z``).
+
+    Returns
+    -------
+    dict
+        ``by_check`` (check -> the largest finite |z|, None without a scored location) and
+        ``beyond`` (check/session names with a |z| above :data:`Z_WITHOUT_SPREAD`).
+    """
+    by_check, beyond = {}, []
+    for check in sorted(diagnoses):
+        top = None
+        for name, diag in sorted(diagnoses[check].items()):
+            z = [
+                abs(loc["z"]) for loc in diag.get("all_locations") or [] if loc.get("z") is not None
+            ]
+            z = [v for v in z if v == v]
+            if not z:
+                continue
+            top = max(z) if top is None else max(top, max(z))
+            if max(z) > Z_WITHOUT_SPREAD:
+                beyond.append(f"{check}/{name}")
+        by_check[check] = top
+    return {"by_check": by_check, "beyond": beyond}
+
+
 def _of(kn) -> str:
     return f"{kn[0]} of {kn[1]}"
 
 
-def check_sentences(scores: Mapping[str, Mapping], spread: Mapping) -> str:
+def check_sentences(
+    scores: Mapping[str, Mapping], spread: Mapping, z: Mapping | None = None
+) -> str:
     """The checks' results in sentences, every figure from a score.
 
     Parameters
@@ -78,6 +117,8 @@ def check_sentences(scores: Mapping[str, Mapping], spread: Mapping) -> str:
         a check that has not run is left out.
     spread : dict
         :func:`spread_false_names` over the same sessions.
+    z : dict, optional
+        :func:`largest_z` over the same sessions.
     """
     text = []
     if "blind" in scores:
@@ -108,6 +149,14 @@ def check_sentences(scores: Mapping[str, Mapping], spread: Mapping) -> str:
         f"{_of(spread['total'])} sessions of these sets"
         + (f" ({', '.join(sorted(spread['sessions']))})." if spread["sessions"] else ".")
     )
+    if z is not None:
+        tops = [f"{c} {v:.3g}" for c, v in z["by_check"].items() if v is not None]
+        text.append(
+            f"The largest |z| of any location: {', '.join(tops)}; above {Z_WITHOUT_SPREAD:g} in "
+            f"{len(z['beyond'])} sessions ({', '.join(z['beyond']) or 'none'}: a departure far "
+            "beyond noise, or a null without spread, which the diagnosis should leave unscored; "
+            "this count does not tell them apart)."
+        )
     return " ".join(text)
 
 
@@ -123,8 +172,8 @@ def summarize_checks(files: Mapping[str, Mapping[str, Sequence]]) -> tuple[dict,
     Returns
     -------
     summary : dict
-        ``scores`` (check -> its score without the per-session detail) and ``spread_false``
-        (:func:`spread_false_names`).
+        ``scores`` (check -> its score without the per-session detail), ``spread_false``
+        (:func:`spread_false_names`) and ``largest_z`` (:func:`largest_z`).
     text : str
         :func:`check_sentences` of it.
     """
@@ -134,5 +183,6 @@ def summarize_checks(files: Mapping[str, Mapping[str, Sequence]]) -> tuple[dict,
         keys[check] = {Path(p).stem: json.loads(Path(p).read_text()) for p in f["sealed"]}
         score = json.loads(Path(f["score"]).read_text())
         scores[check] = {k: v for k, v in score.items() if k not in ("sessions", "unknown")}
-    spread = spread_false_names(diagnoses, keys)
-    return {"scores": scores, "spread_false": spread}, check_sentences(scores, spread)
+    spread, z = spread_false_names(diagnoses, keys), largest_z(diagnoses)
+    summary = {"scores": scores, "spread_false": spread, "largest_z": z}
+    return summary, check_sentences(scores, spread, z)
