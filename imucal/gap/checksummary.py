@@ -81,23 +81,28 @@ def largest_z(diagnoses: Mapping[str, Mapping[str, Mapping]]) -> dict:
     -------
     dict
         ``by_check`` (check -> the largest finite |z|, None without a scored location) and
-        ``beyond`` (check/session names with a |z| above :data:`Z_WITHOUT_SPREAD`).
+        ``beyond`` (check/session names with a |z| above :data:`Z_WITHOUT_SPREAD`) and ``at``
+        (the statistic of each such session's largest |z| -> how many sessions).
     """
-    by_check, beyond = {}, []
+    by_check, beyond, at = {}, [], {}
     for check in sorted(diagnoses):
         top = None
         for name, diag in sorted(diagnoses[check].items()):
-            z = [
-                abs(loc["z"]) for loc in diag.get("all_locations") or [] if loc.get("z") is not None
+            scored = [
+                loc
+                for loc in diag.get("all_locations") or []
+                if loc.get("z") is not None and loc["z"] == loc["z"]
             ]
-            z = [v for v in z if v == v]
-            if not z:
+            if not scored:
                 continue
-            top = max(z) if top is None else max(top, max(z))
-            if max(z) > Z_WITHOUT_SPREAD:
+            largest = max(scored, key=lambda loc: abs(loc["z"]))
+            size = abs(largest["z"])
+            top = size if top is None else max(top, size)
+            if size > Z_WITHOUT_SPREAD:
                 beyond.append(f"{check}/{name}")
+                at[largest["statistic"]] = at.get(largest["statistic"], 0) + 1
         by_check[check] = top
-    return {"by_check": by_check, "beyond": beyond}
+    return {"by_check": by_check, "beyond": beyond, "at": dict(sorted(at.items()))}
 
 
 def _of(kn) -> str:
@@ -151,11 +156,13 @@ def check_sentences(
     )
     if z is not None:
         tops = [f"{c} {v:.3g}" for c, v in z["by_check"].items() if v is not None]
+        where = ", ".join(f"{k} in {n}" for k, n in z.get("at", {}).items())
         text.append(
             f"The largest |z| of any location: {', '.join(tops)}; above {Z_WITHOUT_SPREAD:g} in "
-            f"{len(z['beyond'])} sessions ({', '.join(z['beyond']) or 'none'}: a departure far "
-            "beyond noise, or a null without spread, which the diagnosis should leave unscored; "
-            "this count does not tell them apart)."
+            f"{len(z['beyond'])} sessions ({', '.join(z['beyond']) or 'none'}"
+            + (f"; each one's largest at {where}" if where else "")
+            + ": a departure far beyond noise, or a null without spread, which the diagnosis "
+            "should leave unscored; this count does not tell them apart)."
         )
     return " ".join(text)
 

@@ -72,17 +72,21 @@ def test_the_summary_reads_the_files_and_says_each_figure(tmp_path):
     assert "sessions" not in summary["scores"]["blind"]
     assert "Blind set (2 sessions): 2 of 2 fully right, 0 crashes" in text
     assert "0 of 2 sessions" in text
-    assert summary["largest_z"] == {"by_check": {"blind": None}, "beyond": []}
+    assert summary["largest_z"] == {"by_check": {"blind": None}, "beyond": [], "at": {}}
 
 
 def test_a_score_from_a_null_without_spread_is_found_in_any_set():
     from imucal.gap.checksummary import largest_z
 
-    loc = lambda z: {"stage": "s", "z": z}  # noqa: E731
-    out = largest_z({"stress": {"s1": {"all_locations": [loc(-1.7e15), loc(2.0)]},
+    loc = lambda z, stat="omega2": {"stage": "s", "statistic": stat, "z": z}  # noqa: E731
+    out = largest_z({"stress": {"s1": {"all_locations": [loc(2e3), loc(-1.7e15, "trend")]},
                                 "s2": {"all_locations": [loc(None), loc(float("nan"))]}},
                      "blind": {"b1": {"all_locations": [loc(52.0)]}}})  # fmt: skip
-    assert out == {"by_check": {"blind": 52.0, "stress": 1.7e15}, "beyond": ["stress/s1"]}
+    assert out == {
+        "by_check": {"blind": 52.0, "stress": 1.7e15},
+        "beyond": ["stress/s1"],
+        "at": {"trend": 1},
+    }
 
 
 def test_a_generated_block_is_replaced_between_its_markers_only(tmp_path):
