@@ -1,4 +1,5 @@
-# The paper's calibration stages (the nodes of imucal.pipeline.graph.FULL_PROTOCOL) in run order: magnetometer steps 1 and 2 (eqs. 17-27), the accelerometer's cube fit (eq. 32) and
+# The paper's calibration stages (the nodes of imucal.pipeline.graph.FULL_PROTOCOL) in run
+# order: magnetometer steps 1 and 2 (eqs. 17-27), the accelerometer's cube fit (eq. 32) and
 # alignment, the gyroscope's bias (eqs. 34-35), alignment (eqs. 28-31), scale without tools
 # (eq. 36), rate-table fit (eq. 33) and its alignment where the dataset has a rate table, and
 # `gyr`, which combines them with Tables I and II. What each reads, the settings it takes and
