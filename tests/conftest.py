@@ -98,3 +98,28 @@ def ingest_imu():
     """``ingest_imu(dataset) -> {name: table}``: the module recordings, as the workflow's
     ingest gives them."""
     return _ingest_imu
+
+
+def si_options(gravity_m_s2: float = 9.81, *, ranges: dict | None = None):
+    """The pipeline's options for SI recordings held in memory (no dataset.yaml: no sensitivity
+    nor raw counts; a sensor's range only where ``ranges`` gives it, else nothing is clipped);
+    every other setting the schema's default."""
+    from imucal.pipeline.options import PipelineOptions
+
+    return PipelineOptions(gravity_m_s2, {}, {}, None, ranges=dict(ranges or {}))
+
+
+def partial_session(
+    tables: dict,
+    segments,
+    gravity_m_s2: float = 9.81,
+    *,
+    ranges: dict | None = None,
+    **keywords,
+):
+    """A partial session of SI recordings held in memory with :func:`si_options`.
+    ``keywords``: ``notes``, ``references``, ``reference_where`` of
+    :class:`imucal.pipeline.partial.Session`."""
+    from imucal.pipeline.partial import Session
+
+    return Session(tables, segments, si_options(gravity_m_s2, ranges=ranges), **keywords)

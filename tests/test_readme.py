@@ -21,8 +21,11 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
+import yaml
+from snakemake.utils import validate
 
 from imucal.cli import build_parser
+from imucal.gap.checks import check_plan
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
@@ -62,6 +65,19 @@ _DATASET = _CALIBRATION + Counter(
     stages=1,
     report=1,
 )
+
+
+def _check_jobs(check: str, configfile: str | None = None) -> Counter:
+    """The jobs of a check's target: a render and a diagnosis per session of its plan (from the
+    config and its schema's defaults, as the workflow plans it), its score and the target."""
+    config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    if configfile is not None:
+        for key, value in yaml.safe_load((REPO / configfile).read_text()).items():
+            config.setdefault(key, {}).update(value)
+    validate(config, str(REPO / "workflow" / "schemas" / "config.schema.yaml"))
+    n = len(check_plan(check, config[check]))
+    return Counter({f"{check}_render": n, f"{check}_diagnose": n, f"{check}_score": 1, check: 1})
+
 
 #: `snakemake --report` reads the outputs of a finished run: in a fresh copy it must stop at the
 #: first missing annotated output, after parsing the command and the workflow.
@@ -103,16 +119,15 @@ PLANS: dict[str, Counter | str] = {
         temperature_holdout=1,
         real=1,
     ),
-    # 28 sessions with one hidden effect, 5 without, 2 with an effect outside the library
-    "snakemake --cores 2 blind": Counter(
-        blind_render=39, blind_diagnose=39, blind_score=1, blind=1
-    ),
-    "snakemake --cores 2 stress": Counter(
-        stress_render=90, stress_diagnose=90, stress_score=1, stress=1
-    ),
-    "snakemake --cores 2 detection": Counter(
-        detection_render=840, detection_diagnose=840, detection_score=1, detection=1
-    ),
+    "snakemake --cores 2 blind": _check_jobs("blind"),
+    "snakemake --cores 2 stress": _check_jobs("stress"),
+    "snakemake --cores 2 outside": _check_jobs("outside"),
+    "snakemake --cores 2 gap_checks": _check_jobs("blind")
+    + _check_jobs("stress")
+    + _check_jobs("outside")
+    - Counter(blind=1, stress=1, outside=1)
+    + Counter(gap_checks_summary=1, gap_checks=1),
+    "snakemake --cores 2 detection": _check_jobs("detection"),
     # 200 simulated sessions in chunks of 20, clean and with simulator effects
     "snakemake --cores 1 uncertainty_benchmark": Counter(
         uncertainty_chunk=20, uncertainty_table=2, uncertainty_benchmark=1
@@ -129,8 +144,8 @@ PLANS: dict[str, Counter | str] = {
 #: Commands the README gives in parts ("`snakemake --cores 2 detection` ... or a reduced grid
 #: with `--configfile config/detection_laptop.yaml`"), as a user puts them together.
 COMPOSED_PLANS: dict[str, Counter | str] = {
-    "snakemake --cores 2 detection --configfile config/detection_laptop.yaml": Counter(
-        detection_render=215, detection_diagnose=215, detection_score=1, detection=1
+    "snakemake --cores 2 detection --configfile config/detection_laptop.yaml": _check_jobs(
+        "detection", "config/detection_laptop.yaml"
     ),
 }
 

@@ -80,6 +80,7 @@ class Candidate:
     evident: bool = False
     judged: Callable[[tuple], bool] | None = None
     acts_on: Callable[[tuple], bool] | None = None
+    flags: tuple = ()
 
     def criterion(self) -> Callable[[tuple], bool] | None:
         """The locations its gaps are measured on: where it acts (:attr:`acts_on`) and, beside
@@ -320,6 +321,7 @@ def attribute(
         z = detection_z(est.detect, [e.detect for e in null_detect if e is not None])
         null_of[name] = [e.detect if e is not None else None for e in null_detect]
         cand = Candidate(name, est.params, est_a.params if est_a else None, est.detect, z)
+        cand.flags = tuple(est.flags)
         n_null[name] = sum(e is not None for e in null_detect)
         if not model.opens_gap:
             cand.blocked = "reported, not attributed: the pipeline's exact model absorbs it"

@@ -221,7 +221,11 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
         '(noted)', or 'none' -> count), ``top1`` (fraction of effect sessions whose first
         explained effect is the hidden one, or, with nothing explained, whose first noted
         one is), ``top1_explained_only`` (the first explained effect only),
-        ``null_explained_empty`` (k of n no-effect sessions), ``magnitude_rel_error`` (per
+        ``n`` and ``crashes`` (sessions, and those whose diagnosis failed), ``fully_right``
+        ([k, n]: a session with an effect explains it alone, or notes it with nothing explained
+        where it opens no gap; one without explains nothing; one with an effect the library
+        was denied flags a remaining gap and names nothing else), ``null_explained_empty`` (k
+        of n no-effect sessions), ``magnitude_rel_error`` (per
         effect, median |est - true| / true), ``heldout_shrink_true`` (median over effect
         sessions of the true effect's held-out shrink, 0 when not evaluated), ``unknown``
         (per unknown-effect session: flagged, locations, named), ``sessions`` (the detail).
@@ -244,11 +248,17 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
                "gap_significant": diag["gap"]["significant"],
                "remaining_significant": diag["remaining"]["significant"],
                "noted": noted, "failed": diag.get("failed")}  # fmt: skip
+        explained = set(diag["explained"])
+        row["fully_right"] = diag.get("failed") is None and (
+            explained == {truth_effect} or (not explained and truth_effect in (*noted, "none"))
+        )
         if spec["exclude"]:
             named_wrong = [e for e in diag["explained"] if e != truth_effect]
+            flagged = bool(diag["remaining"]["significant"]) and not named_wrong
+            row["fully_right"] = diag.get("failed") is None and flagged
             row.update(
                 unknown=True,
-                flagged=bool(diag["remaining"]["significant"]) and not named_wrong,
+                flagged=flagged,
                 remaining_locations=[
                     "/".join((d["stage"], d["sensor"], d["axis"], d["statistic"]))
                     for d in diag["remaining"]["locations"][:6]
@@ -275,6 +285,9 @@ def score_blind(diagnoses: Mapping[str, Mapping], keys: Mapping[str, Mapping]) -
             row.update(heldout_shrink=hs, magnitude_true=true, magnitude_est=est)
         sessions.append(row)
     return {
+        "n": len(sessions),
+        "crashes": sum(r["failed"] is not None for r in sessions),
+        "fully_right": [sum(r["fully_right"] for r in sessions), len(sessions)],
         "top1": hits / n_eff if n_eff else None,
         "top1_explained_only": hits_explained / n_eff if n_eff else None,
         "n_effect_sessions": n_eff,

@@ -14,13 +14,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from imucal.constants import IMU_RECORDINGS
-from imucal.gap.blind import failed_diagnosis, score_blind
-from imucal.gap.detection import score_detection
+from imucal.gap.blind import blind_plan, failed_diagnosis, score_blind
+from imucal.gap.detection import detection_plan, score_detection
 from imucal.gap.diagnosis import diagnose
 from imucal.gap.figures import render_blind_page, render_detection_page
-from imucal.gap.outside import render_outside_page, score_outside
+from imucal.gap.outside import outside_plan, render_outside_page, score_outside
 from imucal.gap.scoring import DiagnosisSettings
-from imucal.gap.stress import render_stress_page, score_stress
+from imucal.gap.stress import render_stress_page, score_stress, stress_plan
 from imucal.ingest import ingest_recording
 from imucal.io import read_benchmark_seconds, read_json
 from imucal.io.dataset import read_dataset
@@ -33,6 +33,37 @@ CHECKS = {
     "outside": (score_outside, render_outside_page),
     "detection": (score_detection, render_detection_page),
 }
+
+
+#: The diagnosis's simulated checks, each planned from its config section.
+CHECKS_PLANNED = ("blind", "stress", "outside", "detection")
+
+
+def check_plan(check: str, settings: Mapping) -> list[dict]:
+    """The sealed plan of a check: one spec per session (effects, truth preset, protocol).
+
+    Parameters
+    ----------
+    check : str
+        One of :data:`CHECKS_PLANNED`.
+    settings : mapping
+        The check's config section (schema defaults applied).
+    """
+    if check == "blind":
+        return blind_plan(
+            settings["seed"], settings["seeds_per_effect"], settings["n_null"],
+            settings["unknown"], shapes=settings["shapes"],
+        )  # fmt: skip
+    if check == "stress":
+        return stress_plan(settings["seed"], settings["seeds_alone"], settings["n_clean"])
+    if check == "outside":
+        return outside_plan(settings["seed"], settings["n_clean"])
+    if check == "detection":
+        return detection_plan(
+            settings["seed"], settings["factors"], settings["seeds_per_level"],
+            settings["effects"] or None, settings["n_clean"],
+        )  # fmt: skip
+    raise ValueError(f"unknown check {check!r}; expected one of {CHECKS_PLANNED}")
 
 
 def score_check(

@@ -34,11 +34,15 @@ class Estimate:
     evidence : dict
         Values the effect's physics gate reads beside the parameters (not simulator
         parameters), e.g. the magnetometer's lag in each phase.
+    flags : tuple of str
+        What the estimator refused to report as an estimate, with the reason (e.g. a warm-up
+        fit beyond the recording's length); written with the effect into diagnosis.json.
     """
 
     params: dict
     detect: float
     evidence: dict = field(default_factory=dict)
+    flags: tuple = ()
 
 
 @dataclass(frozen=True)

@@ -30,15 +30,15 @@ from imucal.columns import (
 from imucal.gap.blocks import long_series
 from imucal.gap.clipping import pile_up_rows
 from imucal.gap.session import (
-    _alternate,
-    _means,
-    _mid_times,
-    _rows,
-    _run_half,
+    alternate_half,
     integrate_orientation,
     magnetometer_lag_fit,
+    mid_times,
     phase_half,
     resting_means,
+    run_half,
+    segment_means,
+    segment_rows,
     table_residuals,
     time_half,
 )
@@ -221,11 +221,11 @@ def _noise(fit: SessionFit, half) -> dict:
 
 
 def _cube(fit: SessionFit, half) -> dict:
-    rows = _alternate(_rows(fit, "cube", "position"), half)
-    acc = _means(calibrated(fit, "cube", "acc"), rows)
+    rows = alternate_half(segment_rows(fit, "cube", "position"), half)
+    acc = segment_means(calibrated(fit, "cube", "acc"), rows)
     g = fit.extra["options"].gravity_m_s2
     r = np.linalg.norm(acc, axis=1) - g
-    tm = _mid_times(fit, "cube", rows)
+    tm = mid_times(fit, "cube", rows)
     out = {
         ("acc_cube", "acc", "norm", "position", "resid_rms"): float(np.sqrt(np.mean(r**2))),
         ("acc_cube", "acc", "norm", "position", "resid_time_slope"): float(
@@ -288,9 +288,9 @@ def _nominal_cube_positions(fit: SessionFit, half):
     """The cube positions whose calibrated gravity direction is within
     ``NOMINAL_TOLERANCE_DEG`` of a nominal one: their rows, unit directions ``u`` and nominal
     directions (each (p, 3)) and the white-noise variance of one component of ``u`` (p,)."""
-    rows = _alternate(_rows(fit, "cube", "position"), half)
+    rows = alternate_half(segment_rows(fit, "cube", "position"), half)
     acc = calibrated(fit, "cube", "acc")
-    means = _means(acc, rows)
+    means = segment_means(acc, rows)
     var = []
     for a, b in row_bounds(rows):
         x = acc[a:b]
@@ -343,7 +343,7 @@ def cube_joint_tilts(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.
         positions have a field.
     """
     rows, u, nominal, _ = _nominal_cube_positions(fit, None)
-    mag = _means(calibrated(fit, "cube", "mag"), rows)
+    mag = segment_means(calibrated(fit, "cube", "mag"), rows)
     norm = np.linalg.norm(mag, axis=1)
     ok = np.isfinite(norm) & (norm > 0)
     design = np.zeros((int(ok.sum()), 4))
@@ -358,7 +358,7 @@ def cube_joint_tilts(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.
     resid = np.eye(len(e)) - design @ np.linalg.pinv(design.T @ design) @ design.T
     acc = resid @ np.sum(np.cross(u0, u) * e, axis=1)
     field = resid @ np.arccos(np.clip(np.sum(u0 * m, axis=1), -1.0, 1.0))
-    mine = rows.index[ok].isin(_alternate(_rows(fit, "cube", "position"), half).index)
+    mine = rows.index[ok].isin(alternate_half(segment_rows(fit, "cube", "position"), half).index)
     return acc[mine], field[mine], np.diag(resid)[mine]
 
 
@@ -371,11 +371,11 @@ def table_mount_tilts(fit: SessionFit) -> np.ndarray:
     """
     if "ratetable" not in fit.imu:
         return np.zeros((0, 3))
-    rows = _rows(fit, "ratetable", "run")
+    rows = segment_rows(fit, "ratetable", "run")
     rows = rows[rows["rate_dps"] == 0]
     if rows.empty:
         return np.zeros((0, 3))
-    means = _means(calibrated(fit, "ratetable", "acc"), rows)
+    means = segment_means(calibrated(fit, "ratetable", "acc"), rows)
     u = means / np.linalg.norm(means, axis=1, keepdims=True)
     nominal, angle = nearest_nominal(u)
     keep = angle < np.radians(NOMINAL_TOLERANCE_DEG)
@@ -384,8 +384,8 @@ def table_mount_tilts(fit: SessionFit) -> np.ndarray:
 
 def resting_gyro(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray]:
     """Calibrated gyro and accelerometer means at the cube positions, each shape (p, 3)."""
-    rows = _alternate(_rows(fit, "cube", "position"), half)
-    return _means(calibrated(fit, "cube", "gyr"), rows), _means(
+    rows = alternate_half(segment_rows(fit, "cube", "position"), half)
+    return segment_means(calibrated(fit, "cube", "gyr"), rows), segment_means(
         calibrated(fit, "cube", "acc"), rows
     )
 
@@ -465,7 +465,7 @@ def _table(fit: SessionFit, half) -> dict:
             c, *_ = np.linalg.lstsq(design, y, rcond=None)
             out[("gyr_table", "gyr", a, "run", "rate2")] = float(c[2])
             out[("gyr_table", "gyr", a, "run", "rate3")] = float(c[3])
-    all_runs = _run_half(_rows(fit, "ratetable", "run"), half)
+    all_runs = run_half(segment_rows(fit, "ratetable", "run"), half)
     out[("gyr_table", "gyr", "-", "run", "left_out")] = float(
         (~all_runs["label"].isin(fit.artifacts["gyr_table"]["labels"])).sum()
     )
@@ -479,8 +479,8 @@ def centripetal_slopes(fit: SessionFit, half) -> np.ndarray:
     For each table axis the run means minus that axis's rest-run mean, regressed on rate^2
     over the runs whose axis is not the acc axis (the centripetal term ``-w^2 r_perp``).
     """
-    rows = _run_half(_rows(fit, "ratetable", "run"), half)
-    acc = _means(calibrated(fit, "ratetable", "acc"), rows)
+    rows = run_half(segment_rows(fit, "ratetable", "run"), half)
+    acc = segment_means(calibrated(fit, "ratetable", "acc"), rows)
     w2 = np.radians(rows["rate_dps"].to_numpy(float)) ** 2
     slopes = np.full(3, np.nan)
     for j, a in enumerate(AXES):
@@ -530,9 +530,9 @@ def dip_angles(fit: SessionFit, half) -> np.ndarray:
     """Dip (rad) in every static rotation3d pause and cube position with field samples."""
     out = []
     for rec, kind in (("rotation3d", "static"), ("cube", "position")):
-        rows = _alternate(_rows(fit, rec, kind), half)
-        acc = _means(calibrated(fit, rec, "acc"), rows)
-        mag = _means(calibrated(fit, rec, "mag"), rows)
+        rows = alternate_half(segment_rows(fit, rec, kind), half)
+        acc = segment_means(calibrated(fit, rec, "acc"), rows)
+        mag = segment_means(calibrated(fit, rec, "mag"), rows)
         ok = np.all(np.isfinite(mag), axis=1)
         a, m = acc[ok], mag[ok]
         s = -np.sum(a * m, axis=1) / (np.linalg.norm(a, axis=1) * np.linalg.norm(m, axis=1))
@@ -559,8 +559,8 @@ def platform_motion(fit: SessionFit) -> tuple[Rotation, np.ndarray]:
         table = fit.imu["rotation3d"]
         t = table[TIME].to_numpy(dtype=float)
         gyr = calibrated(fit, "rotation3d", "gyr")
-        first = _rows(fit, "rotation3d", "static").iloc[:1]
-        up = _means(calibrated(fit, "rotation3d", "acc"), first)[0]
+        first = segment_rows(fit, "rotation3d", "static").iloc[:1]
+        up = segment_means(calibrated(fit, "rotation3d", "acc"), first)[0]
         r0, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up / np.linalg.norm(up)])
         rot = Rotation.from_quat(integrate_orientation(t, gyr, r0.as_quat()))
         w_up = rot.apply(np.nan_to_num(gyr))[:, 2]
@@ -581,8 +581,8 @@ def resting_field(fit: SessionFit, half) -> tuple[np.ndarray, np.ndarray, np.nda
     psi_rad : ndarray, shape (p,)
         Platform outer-axis angle at the pose.
     """
-    rows = _alternate(_rows(fit, "rotation3d", "static"), half)
-    m_b = _means(calibrated(fit, "rotation3d", "mag"), rows)
+    rows = alternate_half(segment_rows(fit, "rotation3d", "static"), half)
+    m_b = segment_means(calibrated(fit, "rotation3d", "mag"), rows)
     rot, psi = platform_motion(fit)
     mid = ((rows["start_index"].to_numpy(int) + rows["end_index"].to_numpy(int)) // 2).clip(
         0, len(psi) - 1
@@ -667,7 +667,7 @@ def mean_temperature(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.
     col = temperature_column(fit.imu[recording])
     if col is None:
         return None
-    return _means(column_values(fit.imu[recording], [col]), rows)[:, 0]
+    return segment_means(column_values(fit.imu[recording], [col]), rows)[:, 0]
 
 
 def _temperature(fit: SessionFit, half) -> dict:

@@ -153,6 +153,8 @@ def _effect_record(c: Candidate, model: EffectModel, keys, reject) -> dict:
             if r and model.matches(k)
         ],
         "note": c.note,
+        # what the estimator refused to report as an estimate, with the reason
+        "flags": list(c.flags),
     }
 
 

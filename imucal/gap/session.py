@@ -32,7 +32,7 @@ from imucal.pipeline.full import SessionFit, calibrated
 from imucal.segments.table import row_bounds
 
 
-def _rows(fit: SessionFit, recording: str, kinds) -> pd.DataFrame:
+def segment_rows(fit: SessionFit, recording: str, kinds) -> pd.DataFrame:
     """The segments of ``recording`` of the given kind(s) in time order (cached per fit: the
     statistics ask for the same rows many times; callers select, they never write)."""
     kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
@@ -44,7 +44,7 @@ def _rows(fit: SessionFit, recording: str, kinds) -> pd.DataFrame:
     return cache[(recording, kinds)]
 
 
-def _alternate(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
+def alternate_half(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
     """Every other row (A: 1st, 3rd, ...; B: 2nd, 4th, ...)."""
     if half is None:
         return rows
@@ -58,7 +58,7 @@ def time_half(n: int, half: str | None) -> slice:
     return slice(0, n // 2) if half == "A" else slice(n // 2, n)
 
 
-def _run_half(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
+def run_half(rows: pd.DataFrame, half: str | None) -> pd.DataFrame:
     """Runs at alternate |rate| levels (A: 100, 300 deg/s; B: 200, 400; rest runs in both)."""
     if half is None:
         return rows
@@ -75,7 +75,7 @@ def phase_half(labels, half: str | None) -> list:
     return [p for p in labels if (p in ("x", "z")) == (half == "A")]
 
 
-def _means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
+def segment_means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
     out = []
     for a, b in row_bounds(rows):
         x = table[a:b]
@@ -84,20 +84,20 @@ def _means(table: np.ndarray, rows: pd.DataFrame) -> np.ndarray:
     return np.array(out).reshape(-1, table.shape[1])
 
 
-def _mid_times(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.ndarray:
+def mid_times(fit: SessionFit, recording: str, rows: pd.DataFrame) -> np.ndarray:
     return 0.5 * (rows["start_s"].to_numpy(float) + rows["end_s"].to_numpy(float))
 
 
 def table_residuals(fit: SessionFit, half) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
     """Rate-table runs kept by the fit: rows, run-mean residuals (rad/s, (r, 3)), true rates."""
     table = fit.artifacts["gyr_table"]
-    rows = _rows(fit, "ratetable", "run")
+    rows = segment_rows(fit, "ratetable", "run")
     rows = rows[rows["label"].isin(table["labels"])]
-    rows = _run_half(rows, half)
+    rows = run_half(rows, half)
     k = np.asarray(table["matrix"], dtype=float)
     b = np.asarray(table["bias"], dtype=float)
     raw = column_values(fit.imu["ratetable"], GYR)
-    means = _means(raw, rows)
+    means = segment_means(raw, rows)
     unit = {a: np.eye(3)[i] for i, a in enumerate(AXES)}
     true = np.array([np.radians(r.rate_dps) * unit[r.axis] for r in rows.itertuples(index=False)])
     return rows, errormodel.apply(k, b, means) - true, true
@@ -113,7 +113,7 @@ def magnetometer_lag_fit(fit: SessionFit, phase: str) -> tuple[float, float]:
     the rate is the lag (positive: the magnetometer reports late). The standard deviation is
     that of least squares with the residual variance of the phase's field samples.
     """
-    rows = _rows(fit, "rotation3d", "phase")
+    rows = segment_rows(fit, "rotation3d", "phase")
     r = rows[rows["label"] == phase]
     if r.empty:
         return float("nan"), float("nan")
@@ -195,10 +195,10 @@ def resting_rows(fit: SessionFit, half) -> list[tuple[str, pd.DataFrame]]:
                       ("static", "static")):  # fmt: skip
         if rec not in fit.imu or rec in held:
             continue
-        rows = _rows(fit, rec, kind)
+        rows = segment_rows(fit, rec, kind)
         if rec == "ratetable":
             rows = rows[rows["rate_dps"] == 0]
-        rows = _alternate(rows, half)
+        rows = alternate_half(rows, half)
         if rec == "static":
             t = _resting_source(fit, rec)[0][TIME].to_numpy(dtype=float)
             edges = np.linspace(0, len(t), 9).astype(int)

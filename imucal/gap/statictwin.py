@@ -62,6 +62,9 @@ class StaticTwin:
         (time since the first sample (s), temperature (deg C)) of the acc/gyro stream, carried
         over to the replicas by time.
     notes : list of str
+    temperature_streams : tuple of str
+        The streams whose rows carry the temperature channel in the recording (the replicas'
+        carry it too).
     """
 
     truth: Truth
@@ -71,6 +74,7 @@ class StaticTwin:
     notes: list = field(default_factory=list)
     noise: dict = field(default_factory=dict)
     level: dict = field(default_factory=dict)
+    temperature_streams: tuple = ("imu",)
 
     @property
     def duration_s(self) -> float:
@@ -199,7 +203,8 @@ def build_static_twin(
         temp = (imu.t_s - imu.t_s[0], imu.temperature_c)
         notes.append("temperature channel carried over by time")
     spec = {name: (len(st.t_s), st.rate_hz) for name, st in streams.items()}
-    return StaticTwin(truth, sens, spec, temp, notes, processes, level)
+    carried = tuple(name for name, st in streams.items() if st.temperature_c is not None)
+    return StaticTwin(truth, sens, spec, temp, notes, processes, level, carried)
 
 
 def _untempered(x: np.ndarray, temperature_c: np.ndarray | None) -> np.ndarray:
@@ -305,7 +310,7 @@ def render_static(twin: StaticTwin, seed: int, effects: tuple = ()) -> dict[str,
             log = effect.on_packets(log, ctx)
         values = {s: log.counts[s] * twin.sensitivity[s] for s in STREAMS[name]}
         temp = None
-        if name == "imu":
+        if name in twin.temperature_streams:
             if "temp_c" in log.extra:
                 temp = np.asarray(log.extra["temp_c"], dtype=float)
             elif twin.temperature is not None:

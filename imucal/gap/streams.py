@@ -13,8 +13,10 @@ twin (:class:`imucal.gap.statictwin.StaticTwin`):
 * noise per sensor axis: Allan deviation at 10 s and at a fifth of the recording as log-ratio to
   the white-noise line, and the linear trend, all on the stream's sample index (the receive
   times are not the sample times);
-* temperature channel: slope of block means on the block-mean temperature per acc and gyro
-  axis.
+* temperature channel: slope of block means on the block-mean temperature per sensor axis
+  (acc and gyro on the acc/gyro stream; the magnetometer on its own stream, with the channel
+  at its rows: its own readings where every row has one, else interpolated by receive time
+  from the rows that have one).
 
 Halves A/B are the first and second half of the recording in time.
 """
@@ -101,14 +103,28 @@ def split_streams(table: pd.DataFrame) -> dict[str, Stream]:
         rows = np.all(np.column_stack([np.isfinite(v) for v in x.values()]), axis=1)
         if rows.sum() < 100:
             continue
-        temp = None
-        if name == "imu" and col is not None:
-            temp_all = table[col].to_numpy(dtype=float)
-            ok = rows & np.isfinite(temp_all)
-            if ok.sum() == rows.sum():
-                temp = temp_all[rows]
+        temp = None if col is None else _stream_temperature(t, table[col], rows, name)
         out[name] = Stream(t[rows], {s: v[rows] for s, v in x.items()}, temp)
     return out
+
+
+def _stream_temperature(
+    t: np.ndarray, column: pd.Series, rows: np.ndarray, name: str
+) -> np.ndarray | None:
+    """The temperature channel at a stream's rows: its own readings where every row has one;
+    for the magnetometer's stream (a sensor read beside the acc/gyro packets, whose rows may
+    carry no reading) interpolated by receive time from the rows with a reading, within their
+    time range. None where neither holds."""
+    temp_all = column.to_numpy(dtype=float)
+    ok = np.isfinite(temp_all)
+    if np.all(ok[rows]):
+        return temp_all[rows]
+    if name == "imu" or ok.sum() < 2:
+        return None
+    t_ok = t[ok]
+    if t[rows].min() < t_ok.min() or t[rows].max() > t_ok.max():
+        return None
+    return np.interp(t[rows], t_ok, temp_all[ok])
 
 
 def receive_latency(t_s: np.ndarray, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -181,20 +197,66 @@ def temperature_slopes(stream: Stream) -> dict[str, np.ndarray]:
 
     Empty when the stream has no temperature channel or it does not change.
     """
+    return {s: slope for s, (slope, _) in temperature_slope_fits(stream).items()}
+
+
+def temperature_blocks(stream: Stream) -> tuple[np.ndarray, dict] | None:
+    """Block means of a stream and their mean temperature.
+
+    The stream is cut into :data:`TEMPERATURE_BLOCKS` blocks of equal sample count.
+
+    Returns
+    -------
+    tuple or None
+        ``temp`` (shape (B,), deg C) and sensor -> block means (shape (B, 3), SI); None when
+        the stream has no temperature channel or it does not change.
+    """
     if stream.temperature_c is None:
-        return {}
+        return None
     edges = np.linspace(0, len(stream.t_s), TEMPERATURE_BLOCKS + 1).astype(int)
-    temp = np.array([stream.temperature_c[a:b].mean() for a, b in zip(edges[:-1], edges[1:])])
-    x = temp - temp.mean()
-    if not x @ x > 0:
+    blocks = list(zip(edges[:-1], edges[1:]))
+    temp = np.array([stream.temperature_c[a:b].mean() for a, b in blocks])
+    if not np.ptp(temp) > 0:
+        return None
+    means = {
+        s: np.array([v[a:b].mean(axis=0) for a, b in blocks])
+        for s, v in stream.values.items()
+        if s in ("acc", "gyr", "mag")
+    }
+    return temp, means
+
+
+def temperature_slope_fits(stream: Stream) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Slope of block means on block-mean temperature per sensor, with its standard deviation.
+
+    Per sensor axis, the block means (:func:`temperature_blocks`) are fitted as a line in the
+    block-mean temperature by least squares, and the slope's std is that of least squares
+    with the residual variance of the fit (``TEMPERATURE_BLOCKS - 2`` degrees of freedom): it
+    holds whatever scatters the block means about the line (white noise, a wandering bias, a
+    drift the temperature does not explain).
+
+    Parameters
+    ----------
+    stream : Stream
+
+    Returns
+    -------
+    dict
+        Sensor -> (slope, std), each shape (3,) (SI/K); empty when the stream has no
+        temperature channel or it does not change.
+    """
+    blocks = temperature_blocks(stream)
+    if blocks is None:
         return {}
+    temp, means = blocks
+    x = temp - temp.mean()
     out = {}
-    for s in ("acc", "gyr"):
-        if s not in stream.values:
-            continue
-        v = stream.values[s]
-        means = np.array([v[a:b].mean(axis=0) for a, b in zip(edges[:-1], edges[1:])])
-        out[s] = x @ (means - means.mean(axis=0)) / (x @ x)
+    for s, m in means.items():
+        centred = m - m.mean(axis=0)
+        slope = x @ centred / (x @ x)
+        resid = centred - np.outer(x, slope)
+        var = np.sum(resid**2, axis=0) / (len(x) - 2)
+        out[s] = (slope, np.sqrt(var / (x @ x)))
     return out
 
 

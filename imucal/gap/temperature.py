@@ -91,15 +91,15 @@ def _segment_means(fit: SessionFit, segments: list) -> Means:
         col = temperature_column(table)
         if col is None or rows.empty:
             continue
-        t = st._means(table[[col]].to_numpy(dtype=float), rows)[:, 0]
+        t = st.segment_means(table[[col]].to_numpy(dtype=float), rows)[:, 0]
         readings = {s: column_values(table, SENSOR_COLUMNS[s]) for s in raw}
         for s in raw:
-            raw[s].append(st._means(readings[s], rows))
-        acc_b.append(st._means(np.asarray(calibrated(fit, rec, "acc")), rows))
+            raw[s].append(st.segment_means(readings[s], rows))
+        acc_b.append(st.segment_means(np.asarray(calibrated(fit, rec, "acc")), rows))
         gyr = readings["gyr"]
         white.append([_white_variance(gyr[a:b], quantum) for a, b in row_bounds(rows)])
         start = float(table[TIME].iloc[0])
-        mid.append(clock[rec] + st._mid_times(fit, rec, rows) - start)
+        mid.append(clock[rec] + st.mid_times(fit, rec, rows) - start)
         temp.append(t)
     if not temp:
         empty = np.zeros((0, 3))
@@ -138,7 +138,7 @@ def sample_span(fit: SessionFit, *, table: bool) -> tuple[float, float]:
     rate-table runs at every rate when ``table`` (else without the rate table at all)."""
     segments = [(r, rows) for r, rows in st.resting_rows(fit, None) if r != "ratetable"]
     if table and "ratetable" in fit.imu:
-        segments.append(("ratetable", st._rows(fit, "ratetable", "run")))
+        segments.append(("ratetable", st.segment_rows(fit, "ratetable", "run")))
     found = []
     for rec, rows in segments:
         col = temperature_column(fit.imu[rec])
@@ -285,8 +285,8 @@ def _gyro_scale(
     col = temperature_column(fit.imu["ratetable"])
     if col is None or len(rows) < 8:
         return None
-    means = st._means(fit.imu["ratetable"][list(GYR)].to_numpy(dtype=float), rows)
-    temp = st._means(fit.imu["ratetable"][[col]].to_numpy(dtype=float), rows)[:, 0]
+    means = st.segment_means(fit.imu["ratetable"][list(GYR)].to_numpy(dtype=float), rows)
+    temp = st.segment_means(fit.imu["ratetable"][[col]].to_numpy(dtype=float), rows)[:, 0]
     k = np.asarray(table["matrix"], dtype=float)
     u = np.linalg.solve(k, true.T).T
     d_t = temp - reference_c

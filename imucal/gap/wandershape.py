@@ -204,7 +204,9 @@ SHAPE_P = 0.01
 
 
 def wander_gate(estimate, null: Sequence, z: float) -> str:
-    """The physics gate of a wandering bias: the reason its estimate is not a wander, or ''.
+    """A wandering bias has a wander's shape: the resting means' innovations under the fitted
+    wander are standard normal, and a static recording's excess over white noise is absent at
+    short cluster times. Returns the reason the estimate is not a wander, or ''.
 
     Reads the estimate's ``evidence``: ``columns`` (:class:`WanderColumn` of the means it was
     fitted on, and ``tau_s``) for the innovations' shape (:func:`wander_shape`, refused below

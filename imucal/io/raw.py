@@ -176,7 +176,7 @@ class ImuCsvStream:
     """
 
     def __init__(self, path: str | Path, batch_bytes: int = BATCH_BYTES) -> None:
-        self.path = _existing(path, "raw IMU recording (CSV)")
+        self.path = existing_file(path, "raw IMU recording (CSV)")
         self.batch_bytes = int(batch_bytes)
         self.names = _header_names(
             self.path, line=1, delimiter=",", expected=f"the header {_RAW_HEADER_TEXT}"
@@ -251,7 +251,7 @@ def read_mt_manager_export(path: str | Path) -> MtManagerExport:
         As :func:`read_imu_csv`, and when neither ``SampleTimeFine`` nor the update rate is
         given (no way to know the time of a sample).
     """
-    path = _existing(path, "reference recording (MT Manager export)")
+    path = existing_file(path, "reference recording (MT Manager export)")
     header: dict[str, str] = {}
     header_line = 0
     with path.open(encoding="utf-8-sig", errors="replace", newline=None) as f:
@@ -316,7 +316,7 @@ def _parse_update_rate(path: Path, header: Mapping[str, str]) -> float | None:
 # Shared reading machinery
 
 
-def _existing(path: str | Path, what: str) -> Path:
+def existing_file(path: str | Path, what: str) -> Path:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: {what} not found; expected an existing file")

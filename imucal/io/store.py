@@ -21,7 +21,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from imucal.columns import SEGMENT_COLUMNS, TIME
-from imucal.io.raw import _existing
+from imucal.io.raw import existing_file
 
 if TYPE_CHECKING:  # the calibration (and its rotations: scipy.spatial) only where one is read
     from imucal.calibration import ImuCalibration
@@ -37,7 +37,7 @@ METADATA_KEY = b"imucal"
 def sha256_file(path: str | Path) -> str:
     """Return the hex SHA-256 of a file's bytes (records which raw file a result came from)."""
     digest = hashlib.sha256()
-    with _existing(path, "file").open("rb") as f:
+    with existing_file(path, "file").open("rb") as f:
         for block in iter(lambda: f.read(1 << 22), b""):
             digest.update(block)
     return digest.hexdigest()
@@ -185,7 +185,7 @@ def read_recording(path: str | Path) -> tuple[pd.DataFrame, dict]:
     ValueError
         If the file carries no ``imucal`` metadata (not written by :func:`write_recording`).
     """
-    path = _existing(path, "ingested recording (parquet)")
+    path = existing_file(path, "ingested recording (parquet)")
     arrow = pq.read_table(path)
     blob = (arrow.schema.metadata or {}).get(METADATA_KEY)
     if blob is None:
@@ -198,7 +198,7 @@ def read_recording(path: str | Path) -> tuple[pd.DataFrame, dict]:
 
 def recording_column_names(path: str | Path) -> list[str]:
     """Column names of an ingested recording, read from the parquet schema alone."""
-    return list(pq.read_schema(_existing(path, "ingested recording (parquet)")).names)
+    return list(pq.read_schema(existing_file(path, "ingested recording (parquet)")).names)
 
 
 def read_recording_batches(
@@ -219,7 +219,7 @@ def read_recording_batches(
     batches : iterator of DataFrame
         The rows in file order, every column.
     """
-    path = _existing(path, "ingested recording (parquet)")
+    path = existing_file(path, "ingested recording (parquet)")
     file = pq.ParquetFile(path)
     batches = (b.to_pandas() for b in file.iter_batches(batch_size=batch_rows))
     return file.metadata.num_rows, batches
@@ -233,7 +233,7 @@ def read_recording_column(path: str | Path, column: str) -> np.ndarray:
     ValueError
         If the recording has no column ``column``.
     """
-    path = _existing(path, "ingested recording (parquet)")
+    path = existing_file(path, "ingested recording (parquet)")
     names = pq.read_schema(path).names
     if column not in names:
         raise ValueError(f"{path}: no column {column!r}; it has {names}")
@@ -302,7 +302,9 @@ def read_benchmark_seconds(paths: list[str | Path]) -> dict:
     """
     if not paths:
         raise ValueError("no benchmark files; expected at least one")
-    seconds = [float(pd.read_csv(_existing(p, "benchmark"), sep="\t")["s"].iloc[0]) for p in paths]
+    seconds = [
+        float(pd.read_csv(existing_file(p, "benchmark"), sep="\t")["s"].iloc[0]) for p in paths
+    ]
     return {"median": float(np.median(seconds)), "max": max(seconds)}
 
 
@@ -326,7 +328,7 @@ def read_json(path: str | Path) -> Any:
     ValueError
         If it is not valid JSON; the message names the line.
     """
-    path = _existing(path, "JSON file")
+    path = existing_file(path, "JSON file")
     try:
         return json.loads(path.read_text())
     except json.JSONDecodeError as err:

@@ -7,7 +7,6 @@ settings of the whole session, and what the stages left out one pose at a time t
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -17,7 +16,7 @@ from imucal.calibration import SensorCalibration
 from imucal.pipeline.full import calibrate_session
 from imucal.pipeline.graph import usable
 from imucal.pipeline.options import PipelineOptions
-from imucal.pipeline.partial import final_calibration, run_stages
+from imucal.pipeline.partial import Session, final_calibration, run_stages
 from imucal.pipeline.registry import FINAL
 from imucal.validation.consistency import PartFit, check_parts
 
@@ -112,9 +111,7 @@ def fitted_recordings(artifacts: Mapping[str, Mapping | None]) -> dict[str, list
 
 
 def check_partial_session(
-    tables: Mapping[str, pd.DataFrame],
-    segments: pd.DataFrame,
-    keywords: Mapping[str, Any],
+    session: Session,
     listing: Sequence[Mapping],
     calibration: Mapping,
     artifacts: Mapping[str, Mapping],
@@ -123,10 +120,9 @@ def check_partial_session(
 
     Parameters
     ----------
-    tables, segments
-        The session's ingested recordings and segments table.
-    keywords : mapping
-        :func:`imucal.pipeline.partial.session_keywords` (the settings the session ran with).
+    session : Session
+        The session's recordings, segments, options and references, as its calibration ran
+        (:func:`imucal.pipeline.partial.session_of`); each part runs with the same.
     listing : sequence of mapping
         ``partial/stages.json``'s ``stages``.
     calibration : mapping
@@ -141,11 +137,10 @@ def check_partial_session(
         :func:`imucal.validation.consistency.check_parts`'s artifact.
     """
     ran = [row["stage"] for row in listing if row["status"] == "run"]
-    methods, exact = keywords["methods"], keywords["exact_rotation"]
 
     def calibrate(part_tables, part_segments) -> dict[str, PartFit]:
-        outcomes = run_stages(part_tables, part_segments, **keywords, stages=ran)
-        final = final_calibration(outcomes, methods, exact)
+        outcomes = run_stages(session.on(part_tables, part_segments), stages=ran)
+        final = final_calibration(outcomes, session.options)
         return {
             sensor: PartFit(e["stage"], SensorCalibration.from_dict(sensor, e["calibration"]))
             for sensor, e in final["sensors"].items()
@@ -159,11 +154,11 @@ def check_partial_session(
     own = {"acc": left_out(acc.stage, artifacts.get(acc.stage))} if acc else {}
     return check_parts(
         calibrate,
-        tables,
-        segments,
+        session.recordings,
+        session.segments,
         shipped,
-        gravity_m_s2=keywords["gravity_m_s2"],
-        field_norm=keywords["field_norm"],
+        gravity_m_s2=session.options.gravity_m_s2,
+        field_norm=session.options.field_norm,
         own=own,
         sources=fitted_recordings(artifacts),
     )

@@ -1,8 +1,9 @@
 """The HTML lab report (``lab``, jinja2 templates in ``templates/``).
 
-``lab`` assembles the report's context and renders it; ``sections`` builds the sections' contents,
-``figures`` embeds and captions the figures, ``artifacts`` reads the artifacts and benchmarks and
-``fields`` renders nested JSON.
+``inputs`` holds what the report is built from and loads what its sections share; ``lab`` lays
+it out with one builder per section and renders it; ``sections`` builds further sections'
+contents, ``figures`` embeds and captions the figures, ``artifacts`` reads the artifacts and
+benchmarks and ``fields`` renders nested JSON.
 """
 
 from imucal.report.artifacts import read_benchmarks
@@ -13,7 +14,8 @@ from imucal.report.figures import (
     embed_figure,
     figure_section,
 )
-from imucal.report.lab import SECTION_TITLES, SENSOR_SECTIONS, build_report_context, render_report
+from imucal.report.inputs import SECTION_TITLES, SENSOR_SECTIONS, ReportInputs, load_report
+from imucal.report.lab import build_report_context, render_report
 from imucal.report.numbers import DIGITS, MAX_LISTED_VALUES, format_number, format_value
 from imucal.report.sections import PARAMETER_NAMES, PARAMETER_UNITS, RATE_TABLE, TABLE_TITLES
 
@@ -25,6 +27,7 @@ __all__ = [
     "PARAMETER_NAMES",
     "PARAMETER_UNITS",
     "RATE_TABLE",
+    "ReportInputs",
     "SECTION_TITLES",
     "SENSOR_SECTIONS",
     "TABLE_TITLES",
@@ -35,6 +38,7 @@ __all__ = [
     "flatten_fields",
     "format_number",
     "format_value",
+    "load_report",
     "read_benchmarks",
     "render_report",
 ]

@@ -87,7 +87,7 @@ def figure_section(path: str | Path) -> str:
     return FIGURE_SECTION_BY_PREFIX.get(prefix, "other")
 
 
-def _caption(path: Path, captions: Mapping[str, str]) -> str:
+def figure_caption(path: Path, captions: Mapping[str, str]) -> str:
     stem = path.stem
     if stem in captions:
         return captions[stem]

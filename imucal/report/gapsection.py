@@ -267,7 +267,8 @@ def _effect_row(e: Mapping, rank: int | None) -> dict:
         "z": "" if e.get("detect_z") is None else number(e["detect_z"]),
         "shrink": pct(e.get("shrink")),
         "heldout": pct(e.get("heldout_shrink")),
-        "note": e.get("note") or "",
+        # the estimator's flags: what it refused to report as an estimate, and why
+        "note": "; ".join(n for n in (e.get("note"), *(e.get("flags") or ())) if n),
     }
 
 

@@ -298,8 +298,28 @@ def _temperature_drift(p: Mapping) -> str:
         bias = bias.replace("rad/s per K", f"rad/s per K ({number(gyro * DEG)} °/s per K)")
     scale = _per_sensor(p, "_scale_per_k", lambda s: "% per K", 100.0)
     return _join(
-        [f"bias drift: {bias}" if bias else None, f"scale drift: {scale}" if scale else None]
+        [
+            f"bias drift: {bias}" if bias else None,
+            f"scale drift: {scale}" if scale else None,
+            _temperature_path(p),
+        ]
     )
+
+
+def _temperature_path(p: Mapping) -> str | None:
+    """The temperature the drift follows in the twin: the recorded path (no warm-up curve was
+    an estimate: the estimator's flag says why), a warm-up whose rise and time constant are
+    estimates, or nothing where the parameters name neither."""
+    path = p.get("path_c")
+    if path:
+        lo, hi = float(np.min(path)), float(np.max(path))
+        return (
+            f"on the recorded temperature, {number(lo)}-{number(hi)} °C (no warm-up curve fits it)"
+        )
+    rise, tau = _get(p, "rise_c"), _get(p, "tau_s")
+    if rise is None or tau is None:
+        return None
+    return f"over a warm-up of {number(rise)} K with a time constant of {number(tau)} s"
 
 
 def _bias_instability(p: Mapping) -> str:

@@ -46,7 +46,7 @@ RATE_TABLE = "ratetable"
 
 
 # Sentence shown when the ingest summary has no such recording.
-_RECORDING_ABSENT = {
+RECORDING_ABSENT = {
     REFERENCE: "The dataset has no reference recording, so the calibrated module is not "
     "compared with a reference (no paper Fig. 20).",
     RATE_TABLE: "The dataset has no rate-table recording, so there are no rate-table "
@@ -81,7 +81,7 @@ def _name_parts(name: str) -> list[str]:
     return [part for part in re.split(r"(?<=[_\-.])", name) if part]
 
 
-def _session(
+def session_section(
     summary: Mapping, declared_reference: bool = False, folder: str | Path | None = None
 ) -> dict:
     recordings = summary.get("recordings", {})
@@ -138,10 +138,10 @@ def _session(
     durations = [
         rec.get("duration_s") or 0.0 for name, rec in recordings.items() if name != REFERENCE
     ]
-    absent = {name for name in _RECORDING_ABSENT if name not in recordings}
+    absent = {name for name in RECORDING_ABSENT if name not in recordings}
     if declared_reference:
         absent.discard(REFERENCE)  # a reference declared with a recording (dataset.yaml)
-    notes = [text for name, text in _RECORDING_ABSENT.items() if name in absent]
+    notes = [text for name, text in RECORDING_ABSENT.items() if name in absent]
     return {
         "recordings": rows,
         "gaps": gaps,
@@ -165,7 +165,7 @@ def _folder_shown(folder: str | Path) -> str:
         return str(folder)
 
 
-def _sensor_parameters(sensor: str, cal: Mapping) -> dict:
+def sensor_parameters(sensor: str, cal: Mapping) -> dict:
     """Parameter rows (x, y, z with ± std) and the matrix of one sensor of calibration.json."""
     std = cal.get("std") or {}
     unit = cal.get("unit_in", "")
@@ -264,7 +264,7 @@ def _quality_rows(quality: Mapping) -> list[dict]:
     return rows
 
 
-def _paper_tables(tables: pd.DataFrame | None) -> list[dict]:
+def paper_tables(tables: pd.DataFrame | None) -> list[dict]:
     if tables is None:
         return []
     missing = {"table", "row", *AXES} - set(tables.columns)
@@ -311,7 +311,7 @@ def _heldout_row(term: str, h: Mapping) -> dict:
     }
 
 
-def _terms_section(
+def terms_section(
     paths: Sequence[str | Path] | None, gap: Sequence[str | Path] | None
 ) -> dict | None:
     """Context of the model-terms partial (``_terms.html.j2``) from terms.json and
@@ -378,7 +378,7 @@ def _pretty_unit(unit: str) -> str:
     return unit.replace("^2", "²").replace("sqrt(Hz)", "√Hz").replace("sqrt(s)", "√s")
 
 
-def _noise_section(paths: Sequence[str | Path] | None) -> dict | None:
+def noise_section(paths: Sequence[str | Path] | None) -> dict | None:
     """Context of the noise partial (``_noise.html.j2``): noise.json, then its figure."""
     if not paths:
         return None

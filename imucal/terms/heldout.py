@@ -55,9 +55,9 @@ def pose_to_pose_angles(fit: SessionFit, calibration: ImuCalibration) -> np.ndar
     )
     gyr, acc = values[list(GYR)].to_numpy(float), values[list(ACC)].to_numpy(float)
     t = table[TIME].to_numpy(float)
-    rows = st._rows(fit, "rotation3d", "static")
+    rows = st.segment_rows(fit, "rotation3d", "static")
     rests = list(row_bounds(rows))
-    up = st._means(acc, rows)
+    up = st.segment_means(acc, rows)
     up /= np.linalg.norm(up, axis=1, keepdims=True)
     angles = []
     for (_, end), (start, _), u0, u1 in zip(rests[:-1], rests[1:], up[:-1], up[1:], strict=True):

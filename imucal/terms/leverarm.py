@@ -27,19 +27,19 @@ METHOD = (
 
 def table_runs(fit: SessionFit, half: str | None = None) -> pd.DataFrame | None:
     """The rate-table runs the gyroscope fit kept (rest runs included), of one half of the
-    rate levels (:func:`imucal.gap.session._run_half`) or all; None without a table."""
+    rate levels (:func:`imucal.gap.session.run_half`) or all; None without a table."""
     table = fit.artifacts["gyr_table"]
     if table is None or "ratetable" not in fit.imu:
         return None
-    rows = st._rows(fit, "ratetable", "run")
+    rows = st.segment_rows(fit, "ratetable", "run")
     keep = rows["label"].isin(table["labels"]) | (rows["rate_dps"] == 0)
-    return st._run_half(rows[keep], half)
+    return st.run_half(rows[keep], half)
 
 
 def _design(fit: SessionFit, rows: pd.DataFrame, lever: bool) -> tuple[np.ndarray, np.ndarray]:
     """Stacked design (3 r, 9 + 3) and observations (3 r,) of the run means (m/s^2)."""
-    acc = st._means(calibrated(fit, "ratetable", "acc"), rows)
-    w = st._means(calibrated(fit, "ratetable", "gyr"), rows)
+    acc = st.segment_means(calibrated(fit, "ratetable", "acc"), rows)
+    w = st.segment_means(calibrated(fit, "ratetable", "gyr"), rows)
     axis = [AXES.index(a) for a in rows["axis"]]
     blocks = []
     for i in range(len(rows)):

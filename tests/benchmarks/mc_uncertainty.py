@@ -259,15 +259,13 @@ def run_partial(seed: int, protocol: str, effects: tuple[str, ...]) -> list[dict
     options = _options(session)
     segments = segment_dataset(imu, ratetable=dict(options.ratetable), fallback=True)
     tables, segments = partial_session(chosen, imu, segments)
-    outcomes = partial.run_stages(
-        tables,
-        segments,
-        gravity_m_s2=options.gravity_m_s2,
-        ratetable=options.ratetable,
-        saturation_m_s2=options.limit("acc"),
-        saturation_rad_s=options.limit("gyr"),
-    )
-    final = partial.final_calibration(outcomes)
+    # the partial path's options: the session's gravity, rate table and ranges, every other
+    # setting the schema's default
+    ranges = {"acc": options.limit("acc"), "gyr": options.limit("gyr")}
+    ranges = {sensor: value for sensor, value in ranges.items() if value is not None}
+    options = PipelineOptions(options.gravity_m_s2, {}, {}, options.ratetable, ranges=ranges)
+    outcomes = partial.run_stages(partial.Session(tables, segments, options))
+    final = partial.final_calibration(outcomes, options)
     reasons = {o.name: o.reason for o in outcomes}
     records = []
     for sensor, stage in chosen.final.items():

@@ -245,3 +245,18 @@ def test_conformance_cube_fit_matches_truth():
     assert fit.warnings == ()
     # the residual norms scatter like the noise (chi2 with 3 dof: P(> 25) ~ 2e-5)
     assert fit.chi2 < 25
+
+
+def test_a_given_sample_noise_weights_the_fit_as_the_pooled_one_does():
+    """The noise per axis, given (known from a static recording) instead of pooled from the
+    positions' scatter: the fit uses it as given, and at the pooled value it is the same fit."""
+    matrix, bias = make_truth()
+    positions = make_positions(matrix, bias, np.random.default_rng(4))
+    pooled = fit_cube(positions, G)
+    given = fit_cube(positions, G, noise_std_m_s2=pooled.noise_std_m_s2)
+    np.testing.assert_allclose(given.noise_std_m_s2, pooled.noise_std_m_s2)
+    np.testing.assert_allclose(given.upper, pooled.upper, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(given.std_bias, pooled.std_bias, rtol=1e-9)
+    # a tenfold noise gives tenfold stds (the weights' scale is not refitted)
+    tenfold = fit_cube(positions, G, noise_std_m_s2=10 * pooled.noise_std_m_s2)
+    np.testing.assert_allclose(tenfold.std_bias, 10 * pooled.std_bias, rtol=1e-6)

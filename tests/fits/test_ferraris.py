@@ -233,3 +233,19 @@ def test_known_rotations_covariance_with_the_bias_is_honest():
         total += float(err @ np.linalg.solve(cal.covariance[:12, :12], err))
     low, high = stats.chi2.ppf([0.0005, 0.9995], 240)
     assert low < total < high, (total, low, high)
+
+
+def test_equal_weights_report_the_least_squares_std_of_every_entry():
+    """Equal weights on the six faces: each row (A[i, :], o[i]) of ``reading = A g d + o`` is
+    an ordinary least-squares fit whose design has +-g on two faces per column, so every entry
+    of A has variance s^2 / (2 g^2), independent of the others, and each bias s^2 / 6 (s the
+    pooled residual std). The calibration matrix M = A^-1 moves by dM = -M dA M, so to first
+    order var(M_ij) = sum_kl (M_ik M_lj)^2 s^2 / (2 g^2): the reported stds, entry by entry."""
+    rng = np.random.default_rng(24)
+    directions = np.array(list(FACE_DIRECTIONS.values()))
+    fit = fit_known_orientations(face_positions(rng, directions), directions, G, weighting="equal")
+    s = fit.residual_std_m_s2
+    m = fit.calibration.matrix
+    var_m = (m**2) @ np.full((3, 3), s**2 / (2 * G**2)) @ (m**2)
+    np.testing.assert_allclose(fit.calibration.std["bias"], np.full(3, s / np.sqrt(6)), rtol=1e-6)
+    np.testing.assert_allclose(fit.calibration.std["matrix"], np.sqrt(var_m), rtol=1e-3)

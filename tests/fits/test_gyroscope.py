@@ -314,6 +314,10 @@ def test_scale_refuses_bad_timestamps_and_no_rotation():
         estimate_scale(np.arange(4) * 0.01, np.full((4, 3), 0.1), "y", 1.0)
     with pytest.raises(ValueError, match=r"axis must be one of"):
         estimate_scale(np.arange(4) * 0.01, np.ones((4, 3)), "w", 1.0)
+    with pytest.raises(ValueError, match=r"expected t_s \(n,\) and rate_rad_s \(n, 3\)"):
+        estimate_scale((np.arange(4) * 0.01)[:, None], np.ones((4, 3)), "x", 1.0)
+    with pytest.raises(ValueError, match=r"expected t_s \(n,\) and rate_rad_s \(n, 3\)"):
+        estimate_scale(np.arange(4) * 0.01, np.ones((4, 2)), "x", 1.0)
 
 
 def test_make_calibration():

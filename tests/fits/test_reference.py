@@ -94,12 +94,6 @@ def test_weakly_excited_axis_keeps_nominal_scale_within_its_std():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="the larger of the formal and the jackknife std overstates the errors: RMS z "
-    "0.13 of the cross terms u_xz, u_yz (their axis barely turns), 0.75-0.95 of the others "
-    "(40 sessions); a std that becomes honest turns this into a failure to update",
-)
 def test_weakly_excited_axis_reports_the_std_of_its_errors(rms_z_band):
     """The RMS z of each determined entry (s_x, u_xy, s_y and the bias) within the two-sided
     band of 200 draws, 1e-4 over the six."""

@@ -69,3 +69,14 @@ def test_refuses_too_few_means_and_nonpositive_noise():
     x = np.column_stack([np.ones(5), np.arange(5.0)])
     with pytest.raises(ValueError, match="must be positive"):
         fit_with_wander(x, np.zeros(5), np.zeros(5), np.arange(5.0))
+
+
+def test_the_fit_does_not_depend_on_the_clocks_origin():
+    """The walk starts at the first mean: the same means stamped 1000 s later (a clock started
+    earlier) give the same coefficients and the same covariance, the intercept's too (the
+    level at the first mean, whose walk variance is zero there)."""
+    x, y = next(_draws(1))
+    f = fit_with_wander(x, y, WHITE, T_S)
+    g = fit_with_wander(x, y, WHITE, T_S + 1000.0)
+    np.testing.assert_allclose(g.coef, f.coef, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(g.cov, f.cov, rtol=1e-4, atol=1e-18)

@@ -89,3 +89,14 @@ def test_every_model_term_answers_an_effect_the_protocol_estimates(term):
     effect = term_class(term).effect
     entry = catalogue.catalogue()[effect]
     assert entry.term == term and "protocol" in entry.estimated
+
+
+def test_the_docs_show_which_rules_bind_each_effect_as_the_specs_say():
+    from pathlib import Path
+
+    from imucal.gap.library.rules import rules_table
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "gap.md").read_text()
+    begin, end = "<!-- generated: effect-rules -->\n", "<!-- end: effect-rules -->"
+    shown = text[text.index(begin) + len(begin) : text.index(end)]
+    assert shown == rules_table(), "rerun: python -m imucal.gap.library.rules"

@@ -49,6 +49,8 @@ def test_scores_hits_noted_nulls_and_unknowns():
     }  # fmt: skip
     score = score_blind(diagnoses, keys)
     assert score["n_effect_sessions"] == 4
+    # fully right: b0 (named alone), b2 (noted, opens no gap), b3 (nothing), b5 (flagged)
+    assert score["fully_right"] == [4, 7] and score["n"] == 7 and score["crashes"] == 1
     assert score["top1"] == pytest.approx(2 / 4)
     assert score["top1_explained_only"] == pytest.approx(1 / 4)
     assert score["null_explained_empty"] == [1, 2]

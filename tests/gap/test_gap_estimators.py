@@ -107,6 +107,11 @@ def test_temperature_drift_follows_the_channel(base, null_fits):
     fit = _fit(base, 13, (eff,))
     est = PROTOCOL["temperature_drift"].estimate(fit, None)
     p = est.params
+    # the warm-up (8 K, 300 s) lies within the session: an estimate, not flagged (the channel
+    # is rounded to 0.01 K, far below the rise)
+    assert est.flags == ()
+    assert p["tau_s"] == pytest.approx(eff.tau_s, rel=0.05)
+    assert p["rise_c"] == pytest.approx(eff.rise_c, rel=0.05)
     k_gyr, _ = eff.coefficients("gyr")
     np.testing.assert_allclose(p["gyr_per_k"], k_gyr, atol=0.1 * np.abs(k_gyr).max())
     g = 9.81

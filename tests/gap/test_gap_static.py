@@ -29,7 +29,9 @@ DURATION_S = 300.0
 REPLICAS = 12
 
 
-def _session(seed: int, effects: tuple = (), noise_counts: float | None = None) -> pd.DataFrame:
+def static_session(
+    seed: int, effects: tuple = (), noise_counts: float | None = None
+) -> pd.DataFrame:
     """An ingested static recording rendered by the simulator, rows in receive order (white
     noise of ``noise_counts`` quantisation steps when given, else the paper's)."""
     truth = make_truth("paper", stream_rng(0, "truth"))
@@ -52,7 +54,7 @@ def _session(seed: int, effects: tuple = (), noise_counts: float | None = None) 
     return pd.concat(frames, ignore_index=True).sort_values(TIME, kind="stable", ignore_index=True)
 
 
-def _diagnose(table: pd.DataFrame) -> dict:
+def diagnose_sim(table: pd.DataFrame) -> dict:
     return diagnose_static(
         table, dataset="sim", calibration=None, sensitivity=SENSITIVITY, gravity_m_s2=9.81,
         settings=DiagnosisSettings(replicas=REPLICAS, seed=500),
@@ -60,16 +62,22 @@ def _diagnose(table: pd.DataFrame) -> dict:
 
 
 def test_streams_are_split_at_their_own_rates():
-    streams = split_streams(_session(1))
+    streams = split_streams(static_session(1))
     assert set(streams) == {"imu", "mag"}
     assert streams["imu"].rate_hz == pytest.approx(100.0, rel=1e-9)
     assert streams["mag"].rate_hz == pytest.approx(75.0, rel=1e-9)
-    assert streams["imu"].temperature_c is not None and streams["mag"].temperature_c is None
+    # the magnetometer's rows carry no reading of the channel: it is interpolated to them by
+    # receive time from the acc/gyro rows
+    imu, mag = streams["imu"], streams["mag"]
+    assert imu.temperature_c is not None and mag.temperature_c is not None
+    np.testing.assert_allclose(
+        mag.temperature_c, np.interp(mag.t_s, imu.t_s, imu.temperature_c), rtol=0, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("seed", [3, 4])
 def test_no_effect_explains_nothing(seed):
-    d = _diagnose(_session(seed))
+    d = diagnose_sim(static_session(seed))
     assert d["explained"] == []
     # the total gap of a clean session is a draw from the null: well below 3x its 95th percentile
     assert d["gap"]["total"] < 3 * d["gap"]["null_p95"]
@@ -81,7 +89,7 @@ def test_a_recording_with_noise_below_one_count_gets_a_null_with_spread():
     """White noise of 0.15 counts rounded: the readings flip between counts now and then. The
     twin measures that noise under the rounding (subtracting step^2 / 12 called it 0, every
     replica read the same counts and the null's 95th percentile was 0)."""
-    d = _diagnose(_session(8, noise_counts=0.15))
+    d = diagnose_sim(static_session(8, noise_counts=0.15))
     assert d["gap"]["null_p95"] > 0
     white = d["twin"]["noise_process"]["gyr"]["white"]
     # an axis whose reading never flips has no noise to find; the others do
@@ -91,7 +99,7 @@ def test_a_recording_with_noise_below_one_count_gets_a_null_with_spread():
 
 def test_timing_jitter_is_found_estimated_and_explained():
     true_std = 0.004
-    d = _diagnose(_session(5, (make_effect("timing_jitter", std_s=true_std),)))
+    d = diagnose_sim(static_session(5, (make_effect("timing_jitter", std_s=true_std),)))
     assert d["gap"]["significant"]
     assert {loc["statistic"] for loc in d["locations"]} >= {"stamp_scatter_s", "burst_fraction"}
     assert d["explained"][:1] == ["timing_jitter"]
@@ -112,7 +120,7 @@ def test_temperature_drift_is_found_on_the_temperature_channel():
         "temperature_drift", start_c=25.0, rise_c=4.0, tau_s=100.0, acc_per_k=0.0,
         gyr_per_k=k, acc_scale_per_k=0.0, gyr_scale_per_k=0.0,
     )  # fmt: skip
-    d = _diagnose(_session(6, (effect,)))
+    d = diagnose_sim(static_session(6, (effect,)))
     assert d["gap"]["significant"]
     assert any(
         loc["statistic"] == "temp_slope" and loc["sensor"] == "gyr" for loc in d["locations"]
@@ -132,7 +140,7 @@ def test_a_full_protocol_session_keeps_a_wandering_bias_an_effect():
     named; the static recording of a full-protocol session whose chain stopped is diagnosed
     with the full protocol's twin, white noise only, and the wander is bias_instability."""
     effect = make_effect("bias_instability", gyr_rw=1.2e-4, gyr_gm=1e-4, acc_rw=0.0, acc_gm=0.0)
-    table = _session(8, (effect,))
+    table = static_session(8, (effect,))
     common = dict(
         dataset="sim", calibration=None, sensitivity=SENSITIVITY, gravity_m_s2=9.81,
         settings=DiagnosisSettings(replicas=REPLICAS, seed=500),
@@ -140,7 +148,7 @@ def test_a_full_protocol_session_keeps_a_wandering_bias_an_effect():
     d = diagnose_static(table, wander=False, **common)
     assert d["explained"] == ["bias_instability"]
     assert any("white noise per axis" in n for n in d["twin"]["notes"])
-    clean = diagnose_static(_session(9), wander=False, **common)
+    clean = diagnose_static(static_session(9), wander=False, **common)
     assert clean["explained"] == []
 
 
@@ -154,7 +162,7 @@ def test_a_drift_is_rendered_about_the_recordings_level():
         "temperature_drift", start_c=25.0, rise_c=4.0, tau_s=100.0, acc_per_k=0.0,
         gyr_per_k=k, acc_scale_per_k=0.0, gyr_scale_per_k=0.0,
     )  # fmt: skip
-    streams = split_streams(_session(6, (effect,)))
+    streams = split_streams(static_session(6, (effect,)))
     twin = build_static_twin(streams, None, {}, 9.81)  # the step estimated from the readings
     model = scope_library("static")["temperature_drift"]
     drift = model.simulator_effect(model.estimate(streams, None).params)
@@ -193,7 +201,7 @@ def test_too_few_replicas_are_refused():
 def test_the_longest_rest_stands_in_for_a_missing_static_recording():
     """Two recordings with rests of 30 s and 45 s: the 45 s one is cut out as the static
     recording; with a 60 s minimum none is, and the reason gives the longest."""
-    rest = _session(9).iloc[: int(50 * 175)]  # the first 50 s (100 + 75 rows a second)
+    rest = static_session(9).iloc[: int(50 * 175)]  # the first 50 s (100 + 75 rows a second)
     tables = {"a": rest, "b": rest}
     rows = [
         {"recording": r, "label": label, "kind": "static", "start_s": 1.0, "end_s": 1.0 + d,

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import partial_session
 
 from imucal.columns import ACC, MAG
 from imucal.io.dataset import read_dataset
@@ -63,7 +64,9 @@ def test_the_cube_fit_refuses_poses_that_do_not_determine_it_on_either_path() ->
     table, segments = _one_sided_poses()
     with pytest.raises(NotApplicable, match="distinct orientations"):
         fit_acc_cube({"cube": table}, segments, gravity_m_s2=G, saturation_limit_m_s2=None)
-    outcomes = {o.name: o for o in partial.run_stages({"cube": table}, segments, gravity_m_s2=G)}
+    outcomes = {
+        o.name: o for o in partial.run_stages(partial_session({"cube": table}, segments, G))
+    }
     assert outcomes["acc_cube"].status == "skipped"
     assert "distinct orientations" in outcomes["acc_cube"].reason
 

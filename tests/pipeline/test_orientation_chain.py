@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import z_limit
+from conftest import partial_session, si_options, z_limit
 from scipy.spatial.transform import Rotation
 
 from imucal import errormodel
@@ -58,8 +58,10 @@ def chain():
     references = {"tumble": (r_fit, {"held_out": False, "up": "+z"}),
                   "poses": (r_held, {"held_out": True, "up": "+z"})}  # fmt: skip
     segments = pd.concat([s_fit, s_held], ignore_index=True)
-    outcomes = partial.run_stages(tables, segments, gravity_m_s2=9.81, references=references,
-                                  reference_where={n: f"recordings.{n}.reference" for n in tables})  # fmt: skip
+    where = {n: f"recordings.{n}.reference" for n in tables}
+    outcomes = partial.run_stages(
+        partial_session(tables, segments, references=references, reference_where=where)
+    )
     return tables, references, segments, outcomes
 
 
@@ -73,7 +75,7 @@ def test_gyr_reference_calibrates_the_gyroscope_of_a_partial_session(chain):
     assert "fallback" not in artifact and "warnings" not in artifact
     checks = artifact["checks"]
     assert checks["own data"]["worse"] is False and checks["held-out data"]["worse"] is False
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, si_options())
     assert final["sensors"]["gyr"]["stage"] == "gyr_reference"
     matrix = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
     assert np.abs(matrix - MATRIX).max() < 2e-3
@@ -84,7 +86,7 @@ def test_gyr_reference_calibrates_the_gyroscope_of_a_partial_session(chain):
 
 def test_held_out_validation_raw_bias_calibrated(chain):
     tables, references, segments, outcomes = chain
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, si_options())
     calibration = {s: e["calibration"] for s, e in final["sensors"].items()}
     bias = next(o for o in outcomes if o.name == "gyr_bias").artifact["bias_ls_rad_s"]
     result = validate_references(tables, references, segments, calibration, bias,
@@ -113,7 +115,7 @@ def test_mag_reference_aligns_the_magnetometer_to_the_gyroscope(chain):
     done = {o.name: o for o in outcomes}
     assert done["mag_step2"].status == "skipped"  # no rotation3d phases
     assert done["mag_reference"].status == "run", done["mag_reference"].reason
-    final = partial.final_calibration(outcomes)["sensors"]["mag"]
+    final = partial.final_calibration(outcomes, si_options())["sensors"]["mag"]
     assert final["stage"] == "mag_reference"
     cal = SensorCalibration.from_dict("mag", final["calibration"])
     np.testing.assert_allclose(cal.bias, MAG_BIAS, atol=2e-3)
@@ -126,7 +128,7 @@ def test_mag_reference_aligns_the_magnetometer_to_the_gyroscope(chain):
 
 def test_field_direction_as_read_and_calibrated(chain):
     tables, references, segments, outcomes = chain
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, si_options())
     calibration = {s: e["calibration"] for s, e in final["sensors"].items()}
     result = validate_references(tables, references, segments, calibration, None,
                                  {n: n for n in tables}, windows_s=(10.0,))  # fmt: skip
@@ -145,11 +147,11 @@ def test_field_direction_as_read_and_calibrated(chain):
 def test_every_reference_held_out_skips_the_stage(chain):
     tables, references, segments, _ = chain
     held = {n: (r, {**m, "held_out": True}) for n, (r, m) in references.items()}
-    outcomes = partial.run_stages(tables, segments, gravity_m_s2=9.81, references=held)
+    outcomes = partial.run_stages(partial_session(tables, segments, references=held))
     stage = next(o for o in outcomes if o.name == "gyr_reference")
     assert stage.status == "skipped" and "is held_out; expected one to fit on" in stage.reason
     # nor do they feed any other fit: no gyroscope bias from their rests either
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, si_options())
     assert final["sensors"] == {} and set(final["missing"]) == {"acc", "gyr", "mag"}
 
 
@@ -165,7 +167,7 @@ def test_a_held_out_recording_enters_no_fit(chain):
     # the same session with 'poses' fitted too: the gyroscope bias changes (more rests)
     both = {n: (r, {**m, "held_out": False}) for n, (r, m) in references.items()}
     bias_held = done["gyr_bias"].artifact["bias_ls_rad_s"]
-    again = partial.run_stages(tables, segments, gravity_m_s2=9.81, references=both)
+    again = partial.run_stages(partial_session(tables, segments, references=both))
     bias_both = next(o for o in again if o.name == "gyr_bias").artifact["bias_ls_rad_s"]
     assert bias_held != bias_both
 
@@ -174,7 +176,7 @@ def test_acc_reference_in_the_gyroscope_frame(chain):
     _, _, _, outcomes = chain
     done = {o.name: o for o in outcomes}
     assert done["acc_reference"].status == "run", done["acc_reference"].reason
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, si_options())
     assert final["sensors"]["acc"]["stage"] == "acc_reference"
     cal = final["sensors"]["acc"]["calibration"]
     matrix, bias = np.array(cal["matrix"]), np.array(cal["bias"])

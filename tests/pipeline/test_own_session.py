@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import partial_session
 
 from imucal.constants import STANDARD_GRAVITY_M_S2
 from imucal.io.dataset import read_dataset
@@ -78,7 +79,7 @@ def write_user_session(folder: Path, seed: int = 1) -> Path:
 
 def _acc_cube_reason(tables, **segmentation) -> str:
     segments = segment_dataset(tables, fallback=True, **segmentation)
-    outcomes = partial.run_stages(tables, segments, gravity_m_s2=9.81)
+    outcomes = partial.run_stages(partial_session(tables, segments))
     return next(o for o in outcomes if o.name == "acc_cube").reason, outcomes
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import partial_session
 
 from imucal import errormodel
 from imucal.calibration import SensorCalibration
@@ -52,16 +53,15 @@ def statuses(outcomes):
 
 def test_platform_without_tools_runs_the_tool_free_path(session):
     dataset, tables, segments, truth = session
-    outcomes = partial.run_stages(
-        {k: tables[k] for k in ("rotation3d", "static")},
-        segments,
-        gravity_m_s2=dataset.gravity_m_s2,
+    inputs = partial_session(
+        {k: tables[k] for k in ("rotation3d", "static")}, segments, dataset.gravity_m_s2
     )
+    outcomes = partial.run_stages(inputs)
     ran = {name for name, status in statuses(outcomes).items() if status == "run"}
     assert ran == {"mag_step1", "mag_step2", "gyr_bias", "gyr_align", "gyr_scale"}
     reasons = {o.name: o.reason for o in outcomes}
     assert "static poses" in reasons["acc_cube"] and "ratetable" in reasons["gyr_table"]
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, inputs.options)
     assert set(final["sensors"]) == {"mag", "gyr"}
     assert "acc_cube" in final["missing"]["acc"]
     mag = np.array(final["sensors"]["mag"]["calibration"]["matrix"])
@@ -86,15 +86,14 @@ def test_hand_placed_poses_give_cube_fit_and_pose_to_pose_gyro(session):
     dataset, tables, segments, truth = session
     poses = segments.copy()
     poses.loc[poses["recording"] == "cube", "recording"] = "poses"
-    outcomes = partial.run_stages(
-        {"poses": tables["cube"], "static": tables["static"]},
-        poses,
-        gravity_m_s2=dataset.gravity_m_s2,
+    inputs = partial_session(
+        {"poses": tables["cube"], "static": tables["static"]}, poses, dataset.gravity_m_s2
     )
+    outcomes = partial.run_stages(inputs)
     status = statuses(outcomes)
     assert status["acc_cube"] == "run" and status["gyr_pose_to_pose"] == "run"
     assert status["acc_align"] == "skipped" and status["gyr_align"] == "skipped"
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, inputs.options)
     # without T_R the accelerometer is in the frame F of its upper-triangular factor:
     # truth matrix = Q U, so the cube fit recovers U and the pose-to-pose gyro Q^T M_gyr
     q, upper = errormodel.upper_triangular_factor(np.array(truth["acc"]["matrix"]))
@@ -130,10 +129,12 @@ def test_turns_through_clipped_gyro_readings_are_left_out_of_pose_to_pose(sessio
         clipped = tables["cube"].copy()
         clipped[list(GYR)] = np.clip(w, -limit, limit)
         outcomes = partial.run_stages(
-            {"poses": clipped, "static": tables["static"]},
-            poses,
-            gravity_m_s2=dataset.gravity_m_s2,
-            saturation_rad_s=limit,
+            partial_session(
+                {"poses": clipped, "static": tables["static"]},
+                poses,
+                dataset.gravity_m_s2,
+                ranges={"gyr": limit},
+            )
         )
         return {o.name: o for o in outcomes}["gyr_pose_to_pose"]
 
@@ -161,7 +162,9 @@ def test_a_fit_that_fails_on_the_data_is_skipped_with_its_message(session):
     # only the first 4 cube positions: too few for the 9 parameters of eq. 32
     rows = segments[(segments["recording"] == "cube") & (segments["kind"] == "position")]
     few = segments.drop(rows.index[4:])
-    outcomes = partial.run_stages({"cube": tables["cube"]}, few, gravity_m_s2=dataset.gravity_m_s2)
+    outcomes = partial.run_stages(
+        partial_session({"cube": tables["cube"]}, few, dataset.gravity_m_s2)
+    )
     reason = {o.name: o.reason for o in outcomes}["acc_cube"]
     assert reason.startswith("not applicable: needs >= 9 static poses")
     assert all(o.status == "skipped" for o in outcomes if o.name.startswith("acc"))
@@ -191,12 +194,13 @@ def test_known_angle_hand_turns_on_rotation3d_phases(session):
     phases = (seg["recording"] == "rotation3d") & (seg["kind"] == "phase")
     # the simulated phases turn (2, -2, 2) turns about x, y, z of B (ProtocolConfig)
     seg.loc[phases, "angle_deg"] = seg.loc[phases, "label"].map({"x": 720, "y": -720, "z": 720})
-    outcomes = partial.run_stages(
-        {k: tables[k] for k in ("rotation3d", "static")}, seg, gravity_m_s2=dataset.gravity_m_s2
+    inputs = partial_session(
+        {k: tables[k] for k in ("rotation3d", "static")}, seg, dataset.gravity_m_s2
     )
+    outcomes = partial.run_stages(inputs)
     known = next(o for o in outcomes if o.name == "gyr_known_rotation")
     assert known.status == "run", known.reason
-    final = partial.final_calibration(outcomes)
+    final = partial.final_calibration(outcomes, inputs.options)
     assert final["sensors"]["gyr"]["stage"] == "gyr_known_rotation"
     gyr = np.array(final["sensors"]["gyr"]["calibration"]["matrix"])
     # three 720-degree sections, noise-limited angles (~1e-4 rad) -> matrix error ~1e-5; the
@@ -208,10 +212,12 @@ def test_known_angle_hand_turns_on_rotation3d_phases(session):
     )
     # a gyroscope range below the turns' rates clips every section: none is fitted on
     clipped = partial.run_stages(
-        {k: tables[k] for k in ("rotation3d", "static")},
-        seg,
-        gravity_m_s2=dataset.gravity_m_s2,
-        saturation_rad_s=0.05,
+        partial_session(
+            {k: tables[k] for k in ("rotation3d", "static")},
+            seg,
+            dataset.gravity_m_s2,
+            ranges={"gyr": 0.05},
+        )
     )
     refused = next(o for o in clipped if o.name == "gyr_known_rotation")
     assert refused.status == "skipped"
@@ -255,14 +261,14 @@ def test_rotation_sections_run_from_rest_to_rest():
 
 def test_a_fit_worse_than_nominal_on_left_out_positions_is_not_shipped():
     from imucal.calibration import SensorCalibration
-    from imucal.pipeline.partial.driver import _review
+    from imucal.pipeline.partial import review
 
     cal = SensorCalibration("acc", np.zeros(3), np.eye(3), "m/s^2").to_dict()
     good = {"calibration": cal, "heldout_error_before_m_s2": [0.3] * 10,
             "heldout_error_after_m_s2": [0.02] * 10}  # fmt: skip
-    assert _review("acc_cube", {"acc_cube": good}) == {"refuse": [], "warn": []}
+    assert review("acc_cube", {"acc_cube": good}) == {"refuse": [], "warn": []}
     bad = {**good, "heldout_error_after_m_s2": [0.5] * 10}
-    (reason,) = _review("acc_cube", {"acc_cube": bad})["refuse"]
+    (reason,) = review("acc_cube", {"acc_cube": bad})["refuse"]
     assert "worse than the nominal calibration (RMS 0.5 against 0.3 over 10 left-out" in reason
 
 
@@ -278,7 +284,7 @@ def test_a_review_that_fails_is_a_bug_and_stops_the_run(session, monkeypatch):
     dataset, tables, segments, _ = session
     with pytest.raises(RuntimeError, match="the review of .* failed: shapes"):
         partial.run_stages(
-            {k: tables[k] for k in ("rotation3d", "static")},
-            segments,
-            gravity_m_s2=dataset.gravity_m_s2,
+            partial_session(
+                {k: tables[k] for k in ("rotation3d", "static")}, segments, dataset.gravity_m_s2
+            )
         )

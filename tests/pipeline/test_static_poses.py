@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import z_limit
+from conftest import partial_session, z_limit
 
 from imucal.columns import ACC, GYR, TIME
 from imucal.fits import gyroscope, orientations
@@ -63,7 +63,9 @@ def test_three_one_sided_poses_refuse_the_cube_fit_and_say_what_it_needs():
     rng = np.random.default_rng(31)
     table, segments, short = three_pose_session(rng)
     assert len(segments) == 33 and short > 0  # more segments than the 9 unknowns
-    outcomes = {o.name: o for o in partial.run_stages({"poses": table}, segments, gravity_m_s2=G)}
+    outcomes = {
+        o.name: o for o in partial.run_stages(partial_session({"poses": table}, segments, G))
+    }
     cube = outcomes["acc_cube"]
     assert cube.status == "skipped"
     assert "3 distinct orientation(s) (-z, -x, -y;" in cube.reason
@@ -88,7 +90,9 @@ def test_only_short_pauses_skip_the_gyro_bias_with_the_count_instead_of_stopping
     rng = np.random.default_rng(5)
     table, segments, _ = three_pose_session(rng)
     segments = segments[segments["end_index"] - segments["start_index"] < 10]
-    outcomes = {o.name: o for o in partial.run_stages({"poses": table}, segments, gravity_m_s2=G)}
+    outcomes = {
+        o.name: o for o in partial.run_stages(partial_session({"poses": table}, segments, G))
+    }
     assert outcomes["gyr_bias"].status == "skipped"
     assert outcomes["gyr_bias"].reason == (
         f"not applicable: no static segment with at least 10 gyroscope samples "
@@ -147,9 +151,7 @@ def test_cats_poses_found_automatically_refuse_the_cube_fit_and_keep_the_long_re
     dataset, table = cats
     segments = segment_dataset({"poses": table}, fallback=True)
     assert len(segments) > 30
-    outcomes = {
-        o.name: o for o in partial.run_stages({"poses": table}, segments, gravity_m_s2=9.81)
-    }
+    outcomes = {o.name: o for o in partial.run_stages(partial_session({"poses": table}, segments))}
     assert outcomes["acc_cube"].status == "skipped"
     assert "one-sided axes: x (only -), y (only -)" in outcomes["acc_cube"].reason
     bias = outcomes["gyr_bias"].artifact
@@ -162,9 +164,7 @@ def test_cats_poses_found_automatically_refuse_the_cube_fit_and_keep_the_long_re
 def test_cats_declared_poses_give_the_gyro_bias_only(cats):
     dataset, table = cats
     segments = segment_dataset({"poses": table}, manual=dataset.segments)
-    outcomes = {
-        o.name: o for o in partial.run_stages({"poses": table}, segments, gravity_m_s2=9.81)
-    }
+    outcomes = {o.name: o for o in partial.run_stages(partial_session({"poses": table}, segments))}
     run = sorted(name for name, o in outcomes.items() if o.status == "run")
     assert run == ["gyr_bias"]
     assert "3 distinct orientation(s) (-z, -x, -y;" in outcomes["acc_cube"].reason

@@ -53,7 +53,7 @@ def test_bias_and_matrix_errors_follow_the_reported_covariance():
 
 def test_a_static_of_one_block_has_a_bias_std_and_no_goodness_of_fit():
     from imucal.fits.gyroscope import estimate_bias
-    from imucal.pipeline.partial.driver import _calibration_of
+    from imucal.pipeline.partial import calibration_of
     from imucal.pipeline.stages import gyr_bias_quality, gyr_bias_value, plain
 
     rng = np.random.default_rng(3)
@@ -61,12 +61,12 @@ def test_a_static_of_one_block_has_a_bias_std_and_no_goodness_of_fit():
     assert gyr_bias_quality(short) == {}
     _, std = gyr_bias_value(short, "ls")
     assert np.all(std > 0)
-    cal = _calibration_of("gyr_bias", {"gyr_bias": short})
+    cal = calibration_of("gyr_bias", {"gyr_bias": short})
     assert "quality" not in cal and np.all(np.asarray(cal["std"]["bias"]) > 0)
     # a long static whose bias wanders: the wander's variance is in the reported std
     walk = np.cumsum(2e-5 * rng.standard_normal((60000, 3)), axis=0)
     wandering = plain(estimate_bias(walk + 0.003 * rng.standard_normal((60000, 3))))
-    cal = _calibration_of("gyr_bias", {"gyr_bias": wandering})
+    cal = calibration_of("gyr_bias", {"gyr_bias": wandering})
     assert set(cal["quality"]) == {"bias_x", "bias_y", "bias_z"}
     assert np.all(np.asarray(cal["std"]["bias"]) > 3 * np.asarray(wandering["std_ls_rad_s"]))
 

@@ -78,6 +78,17 @@ def test_a_matrix_and_a_vector_size_by_their_largest_entry():
         "temperature_drift", {"gyr_per_k": [0.0, -1e-4, 5e-5], "acc_per_k": [0.0, 0.0, 0.0]}
     )
     assert drift == "bias drift: gyroscope up to 1 × 10⁻⁴ rad/s per K (0.00573 °/s per K)"
+    # the temperature it follows: a warm-up that is an estimate, or the recorded path (a
+    # refused warm-up fit leaves no rise or time constant to print)
+    warm = gapwords.effect_size(
+        "temperature_drift", {"gyr_per_k": [0.0, 1e-4, 0.0], "rise_c": 4.0, "tau_s": 300.0}
+    )
+    assert warm.endswith("over a warm-up of 4 K with a time constant of 300 s")
+    path = gapwords.effect_size(
+        "temperature_drift", {"gyr_per_k": [0.0, 1e-4, 0.0], "path_c": [4.9, 5.2, 16.2, 15.9]}
+    )
+    assert path.endswith("on the recorded temperature, 4.9-16.2 °C (no warm-up curve fits it)")
+    assert "time constant" not in path
 
 
 def test_locations_in_words():

@@ -17,6 +17,7 @@ from imucal.ingest import ingest_recording, summarize_dataset
 from imucal.io import write_json
 from imucal.io.dataset import read_dataset
 from imucal.report import (
+    ReportInputs,
     build_report_context,
     collect_warnings,
     embed_figure,
@@ -197,7 +198,7 @@ def full_context(a: dict) -> dict:
         "snakemake_version": "9.9.9",
         "generated": "2024-01-02T03:04:05+00:00",
     }
-    return build_report_context(**kwargs)
+    return build_report_context(ReportInputs(**kwargs))
 
 
 @pytest.fixture(scope="module")
@@ -325,11 +326,13 @@ def test_missing_artifacts_give_sentences(artifacts):
     tables = pd.read_csv(artifacts["results"] / "tables.csv")
     html = render_report(
         build_report_context(
-            dataset="demo",
-            summary=summary,
-            calibration=artifacts["calibration"],
-            tables=tables[tables["row"] != "truth"],
-            git_commit="unknown",
+            ReportInputs(
+                dataset="demo",
+                summary=summary,
+                calibration=artifacts["calibration"],
+                tables=tables[tables["row"] != "truth"],
+                git_commit="unknown",
+            )
         )
     )
     doc = parse(html)
@@ -350,7 +353,9 @@ def test_missing_artifacts_give_sentences(artifacts):
     assert "<strong>Warnings of the run:</strong> none in any stage result or rule log." in html
 
     no_tables = render_report(
-        build_report_context(dataset="demo", summary=summary, calibration=artifacts["calibration"])
+        build_report_context(
+            ReportInputs(dataset="demo", summary=summary, calibration=artifacts["calibration"])
+        )
     )
     assert "No tables.csv was given" in no_tables
 
@@ -377,7 +382,9 @@ def test_partial_session_lists_stages_and_uncalibrated_sensors(artifacts):
     }
     html = render_report(
         build_report_context(
-            dataset="demo", summary=artifacts["summary"], calibration=calibration, stages=stages
+            ReportInputs(
+                dataset="demo", summary=artifacts["summary"], calibration=calibration, stages=stages
+            )
         )
     )
     doc = parse(html)
@@ -388,13 +395,17 @@ def test_partial_session_lists_stages_and_uncalibrated_sensors(artifacts):
     assert "not calibrated: no stage of this sensor could run" in html  # methods table
     with pytest.raises(ValueError, match="gives no reason"):
         del calibration["missing"]
-        build_report_context(dataset="demo", summary=artifacts["summary"], calibration=calibration)
+        build_report_context(
+            ReportInputs(dataset="demo", summary=artifacts["summary"], calibration=calibration)
+        )
 
 
 def test_reference_without_validation_says_so(artifacts):
     html = render_report(
         build_report_context(
-            dataset="demo", summary=artifacts["summary"], calibration=artifacts["calibration"]
+            ReportInputs(
+                dataset="demo", summary=artifacts["summary"], calibration=artifacts["calibration"]
+            )
         )
     )
     assert "although the dataset has a reference recording" in html
@@ -403,10 +414,12 @@ def test_reference_without_validation_says_so(artifacts):
 def test_text_is_escaped(artifacts):
     html = render_report(
         build_report_context(
-            dataset="demo",
-            summary=artifacts["summary"],
-            calibration=artifacts["calibration"],
-            mag_result={"warnings": ["<script>alert(1)</script> & more"]},
+            ReportInputs(
+                dataset="demo",
+                summary=artifacts["summary"],
+                calibration=artifacts["calibration"],
+                mag_result={"warnings": ["<script>alert(1)</script> & more"]},
+            )
         )
     )
     assert "<script>" not in html
@@ -509,13 +522,17 @@ def test_bad_inputs_are_refused(tmp_path, artifacts):
     calibration = dict(artifacts["calibration"])
     del calibration["gyr"]
     with pytest.raises(ValueError, match=r"calibration lacks the sensors \['gyr'\]"):
-        build_report_context(dataset="demo", summary=artifacts["summary"], calibration=calibration)
+        build_report_context(
+            ReportInputs(dataset="demo", summary=artifacts["summary"], calibration=calibration)
+        )
     with pytest.raises(ValueError, match=r"missing \['z'\]"):
         build_report_context(
-            dataset="demo",
-            summary=artifacts["summary"],
-            calibration=artifacts["calibration"],
-            tables=pd.DataFrame({"table": ["I"], "row": ["r"], "x": [1.0], "y": [2.0]}),
+            ReportInputs(
+                dataset="demo",
+                summary=artifacts["summary"],
+                calibration=artifacts["calibration"],
+                tables=pd.DataFrame({"table": ["I"], "row": ["r"], "x": [1.0], "y": [2.0]}),
+            )
         )
 
 
@@ -523,7 +540,7 @@ def test_unknown_std_entries_print_the_value_alone(artifacts):
     calibration = json.loads(json.dumps(artifacts["calibration"]))
     calibration["acc"]["std"]["bias"] = [1e-4, None, 2e-4]  # NaN is written as null
     context = build_report_context(
-        dataset="demo", summary=artifacts["summary"], calibration=calibration
+        ReportInputs(dataset="demo", summary=artifacts["summary"], calibration=calibration)
     )
     acc = next(s for s in context["sensors"] if s["id"] == "accelerometer")
     bias = calibration["acc"]["bias"]
@@ -552,10 +569,10 @@ def test_gap_section_of_an_unscored_and_of_a_fallback_diagnosis(artifacts, tmp_p
         (unscored, ["No location could be scored: the session has no static recording"]),
         (fallback, ["The full diagnosis could not run:", "gyr 12 %", "Held by hand"]),
     ):
-        context = build_report_context(
+        context = build_report_context(ReportInputs(
             dataset="demo", summary=artifacts["summary"], calibration=artifacts["calibration"],
             gap=[path],
-        )  # fmt: skip
+        ))  # fmt: skip
         html = render_report(context)
         assert parse(html).errors == []
         for text in texts:
@@ -634,7 +651,9 @@ def test_the_simulated_banner_only_for_simulated_data(artifacts):
               "tables": artifacts["results"] / "tables.csv"}  # fmt: skip
     simulated = render_report(
         build_report_context(
-            **kwargs, simulated={"by": "imucal.sim, preset demo", "truth": "/x/truth.json"}
+            ReportInputs(
+                **kwargs, simulated={"by": "imucal.sim, preset demo", "truth": "/x/truth.json"}
+            )
         )
     )
     assert parse(simulated).errors == []
@@ -642,7 +661,7 @@ def test_the_simulated_banner_only_for_simulated_data(artifacts):
     assert "rendered by a simulator (imucal.sim, preset demo), not measured" in simulated
     assert "<code>truth.json</code> in the dataset's folder" in simulated
     assert "the value the simulator rendered the data from" in simulated
-    recorded = render_report(build_report_context(**kwargs))
+    recorded = render_report(build_report_context(ReportInputs(**kwargs)))
     assert 'class="simulated"' not in recorded and "Simulated data" not in recorded
     assert "the value in the dataset's truth.json" in recorded
 
@@ -670,11 +689,11 @@ def test_the_summary_lists_undetermined_parameters_and_every_logged_warning(arti
     summary = json.loads(json.dumps(artifacts["summary"]))
     del summary["recordings"]["ratetable"]
     html = render_report(
-        build_report_context(
+        build_report_context(ReportInputs(
             dataset="demo", summary=summary, calibration=calibration,
             logs=[logs / "gap_diagnose.log", logs / "segment.log",
                   logs / "lowpass" / "rotation3d.log"],
-        )
+        ))
     )  # fmt: skip
     assert parse(html).errors == []
     summary = html[html.index('id="summary"') : html.index('<nav class="toc"')]
@@ -697,10 +716,10 @@ def test_the_summary_lists_undetermined_parameters_and_every_logged_warning(arti
 
 
 def test_files_are_named_relative_to_the_dataset_and_broken_at_separators(artifacts):
-    context = build_report_context(
+    context = build_report_context(ReportInputs(
         dataset="demo", summary=artifacts["summary"], calibration=artifacts["calibration"],
         dataset_folder=artifacts["root"] / "raw",
-    )  # fmt: skip
+    ))  # fmt: skip
     html = render_report(context)
     # the folder once, as the config gives it; each file relative to it
     assert html.count(str(artifacts["root"])) == 1
@@ -723,7 +742,7 @@ def test_the_angle_between_force_and_field_gives_the_dip():
 
 
 def test_noise_tables_carry_the_units_in_their_headers(tmp_path):
-    from imucal.report.sections import _noise_section
+    from imucal.report.sections import noise_section
 
     term = {"resolved": True, "value": 2e-4, "std": 1e-5, "unit": "(m/s^2)/sqrt(Hz)"}
     noise = {"recording": "static", "duration_s": 120.0, "rate_hz": 100.0, "level": 0.683,
@@ -731,9 +750,33 @@ def test_noise_tables_carry_the_units_in_their_headers(tmp_path):
                                                               "reduced_chi2": 1.1}}}}}  # fmt: skip
     path = tmp_path / "noise.json"
     path.write_text(json.dumps(noise))
-    table = _noise_section([path])["tables"][0]
+    table = noise_section([path])["tables"][0]
     assert table["title"] == "Accelerometer"
     assert table["headers"] == [
         {"term": "N", "name": "N, white noise (density)", "unit": "(m/s²)/√Hz"}
     ]
     assert table["rows"][0]["cells"]["N"] == "0.0002 ± 1e-05"
+
+
+def test_the_consistency_check_given_as_its_file_is_the_section_of_the_check_given_as_a_dict(
+    artifacts, tmp_path
+):
+    from imucal.report.consistency import consistency_rows
+
+    check = {"sensors": {"gyr": {"stage": "gyr_bias", "reason": "halves: part 1 shipped no "
+                                 "gyroscope", "inflation": {"bias": 1.5, "matrix": 1.0}}}}  # fmt: skip
+    path = tmp_path / "consistency.json"
+    path.write_text(json.dumps(check))
+    sections = [
+        build_report_context(
+            ReportInputs(
+                dataset="demo",
+                summary=artifacts["summary"],
+                calibration=artifacts["calibration"],
+                consistency=given,
+            )
+        )["consistency"]
+        for given in (check, path)
+    ]
+    assert sections[1] == sections[0]
+    assert sections[0]["rows"] == consistency_rows(check)

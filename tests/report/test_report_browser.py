@@ -28,7 +28,7 @@ from imucal import ImuCalibration, SensorCalibration
 from imucal.io.dataset import read_dataset
 from imucal.io.logs import read_log_warnings
 from imucal.plots.figurefile import legibility_problems, read_text_record
-from imucal.report import PARAMETER_NAMES, build_report_context, render_report
+from imucal.report import PARAMETER_NAMES, ReportInputs, build_report_context, render_report
 
 CHROMIUM = Path("/usr/bin/chromium")
 FLAGS = (
@@ -266,25 +266,27 @@ def test_report_loads_in_chromium_without_errors(tmp_path):
         _figure(tmp_path / "figures" / "validation.png", 5),
     ]
     context = build_report_context(
-        dataset="demo",
-        summary=summary,
-        calibration=calibration,
-        mag_result={
-            "warnings": ["a warning"],
-            "rms": 0.01,
-            # the designed tables and the collapsed listing of every field, with long values
-            "step1": {
-                "used": "svd+lm",
-                "n_samples": 1993,
-                "coverage_pct": 62.0,
-                "lm": {"residual_rms": 0.004, "upper": np.eye(3).tolist()},
-                "convention": "step1 = upper @ (reading - bias); |step1| = field_norm " * 4,
-                "used_points": list(range(40)),
-            },
-        },  # fmt: skip
-        figures=figures,
-        config={"datasets": {"demo": "data/demo"}},
-        consistency=_consistency(),
+        ReportInputs(
+            dataset="demo",
+            summary=summary,
+            calibration=calibration,
+            mag_result={
+                "warnings": ["a warning"],
+                "rms": 0.01,
+                # the designed tables and the collapsed listing of every field, with long values
+                "step1": {
+                    "used": "svd+lm",
+                    "n_samples": 1993,
+                    "coverage_pct": 62.0,
+                    "lm": {"residual_rms": 0.004, "upper": np.eye(3).tolist()},
+                    "convention": "step1 = upper @ (reading - bias); |step1| = field_norm " * 4,
+                    "used_points": list(range(40)),
+                },
+            },  # fmt: skip
+            figures=figures,
+            config={"datasets": {"demo": "data/demo"}},
+            consistency=_consistency(),
+        )
     )
     page = tmp_path / "report.html"
     page.write_text(render_report(context), encoding="utf-8")

@@ -125,7 +125,7 @@ def test_an_unregistered_term_is_refused_by_name():
 
 
 def test_a_registered_term_is_in_the_reports_coefficients(toy, tmp_path):
-    from imucal.report.sections import _terms_section
+    from imucal.report.sections import terms_section
 
     cal = _calibration(ModelTerms(field_offset=toy))
     summary = {"format_version": 1, "in_model": ["field_offset"],
@@ -134,7 +134,7 @@ def test_a_registered_term_is_in_the_reports_coefficients(toy, tmp_path):
                "calibration": cal.to_dict()}  # fmt: skip
     (tmp_path / "terms.json").write_text(json.dumps(summary))
     (tmp_path / "after.json").write_text(json.dumps({"note": "toy"}))
-    ctx = _terms_section([tmp_path / "terms.json", tmp_path / "after.json"], None)
+    ctx = terms_section([tmp_path / "terms.json", tmp_path / "after.json"], None)
     assert ctx["coefficients"] == [{"term": "field offset", "unit": "normalised",
                                     "value": "[0.03, -0.01, 0.02] ± [0.001, 0.002, 0.003]"}]  # fmt: skip
 

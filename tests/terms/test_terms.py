@@ -73,8 +73,8 @@ def _resting_residuals(twin, imu, ref, calibration):
         if rec == "ratetable":
             continue
         table, _ = apply_calibration(imu[rec], {"units": SI_COLUMN_UNITS}, calibration, source=rec)
-        acc.append(st._means(table[list(ACC)].to_numpy(float), rows))
-        gyr.append(st._means(table[list(GYR)].to_numpy(float), rows))
+        acc.append(st.segment_means(table[list(ACC)].to_numpy(float), rows))
+        gyr.append(st.segment_means(table[list(GYR)].to_numpy(float), rows))
     acc, gyr = np.vstack(acc), np.vstack(gyr)
     return np.linalg.norm(acc, axis=1) - twin.options.gravity_m_s2, np.linalg.norm(gyr, axis=1)
 
@@ -284,14 +284,14 @@ def test_corrected_session_with_no_terms_is_the_session(twin, drift):
 
 def test_report_section_lists_the_terms_and_the_gap_before_and_after(drift, tmp_path):
     from imucal.report.lab import _environment
-    from imucal.report.sections import _terms_section
+    from imucal.report.sections import terms_section
 
     (tmp_path / "terms.json").write_text(json.dumps(terms_summary(drift[3])))
     (tmp_path / "after.json").write_text(
         json.dumps({"gap": {"total": 1.5}, "remaining": {"total": 0.5}})
     )
     (tmp_path / "diagnosis.json").write_text(json.dumps({"gap": {"total": 40.0}}))
-    ctx = _terms_section(
+    ctx = terms_section(
         [tmp_path / "terms.json", tmp_path / "after.json"], [tmp_path / "diagnosis.json"]
     )
     html = _environment().get_template("_terms.html.j2").render(terms=ctx)

@@ -9,10 +9,10 @@ import re
 
 import numpy as np
 import pytest
+from conftest import partial_session
 
 from imucal.calibration import SensorCalibration
 from imucal.pipeline import partial
-from imucal.pipeline.options import FitMethods
 from imucal.pipeline.parts import check_partial_session
 from imucal.segments.segmentation import segment_dataset
 from imucal.sim import ProtocolConfig, make_effect, make_truth, simulate_session
@@ -24,34 +24,17 @@ from imucal.validation.consistency import RMS_Z_LIMIT, ship
 pytestmark = pytest.mark.slow
 
 
-def _keywords(notes: dict) -> dict:
-    """The partial path's settings of a simulated session (SI tables, ranges unknown)."""
-    return {
-        "gravity_m_s2": 9.81,
-        "field_norm": 1.0,
-        "ratetable": None,
-        "saturation_m_s2": None,
-        "saturation_rad_s": None,
-        "notes": notes,
-        "lowpass_order": 4,
-        "lowpass_cutoff_hz": 5.0,
-        "references": {},
-        "reference_where": {},
-        "methods": FitMethods(),
-        "exact_rotation": True,
-    }
-
-
 def run_and_check(tables: dict, **segmentation) -> tuple[dict, dict]:
     """The partial path on a simulated session, and the check of what it ships."""
     segments = segment_dataset(tables, fallback=True, **segmentation)
-    keywords = _keywords(segments.attrs["notes"])
-    outcomes = partial.run_stages(tables, segments, **keywords)
-    final = partial.final_calibration(outcomes)
+    # the partial path's settings of a simulated session (SI tables, ranges unknown)
+    session = partial_session(tables, segments, notes=segments.attrs["notes"])
+    outcomes = partial.run_stages(session)
+    final = partial.final_calibration(outcomes, session.options)
     calibration = {s: e["calibration"] for s, e in final["sensors"].items()}
     listing = [o.summary() for o in outcomes]
     artifacts = {o.name: o.artifact for o in outcomes if o.status == "run"}
-    check = check_partial_session(tables, segments, keywords, listing, calibration, artifacts)
+    check = check_partial_session(session, listing, calibration, artifacts)
     return calibration, check
 
 

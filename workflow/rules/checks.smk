@@ -9,34 +9,9 @@ from functools import lru_cache
 @lru_cache(maxsize=None)
 def check_plan(check):
     """The sealed plan of a check: one spec per session (effects, truth preset, protocol)."""
-    settings = config[check]
-    if check == "blind":
-        from imucal.gap.blind import blind_plan
+    from imucal.gap.checks import check_plan as plan_of
 
-        return blind_plan(
-            settings["seed"],
-            settings["seeds_per_effect"],
-            settings["n_null"],
-            settings["unknown"],
-            shapes=settings["shapes"],
-        )
-    if check == "stress":
-        from imucal.gap.stress import stress_plan
-
-        return stress_plan(settings["seed"], settings["seeds_alone"], settings["n_clean"])
-    if check == "outside":
-        from imucal.gap.outside import outside_plan
-
-        return outside_plan(settings["seed"], settings["n_clean"])
-    from imucal.gap.detection import detection_plan
-
-    return detection_plan(
-        settings["seed"],
-        settings["factors"],
-        settings["seeds_per_level"],
-        settings["effects"] or None,
-        settings["n_clean"],
-    )
+    return plan_of(check, config[check])
 
 
 def check_spec(check):

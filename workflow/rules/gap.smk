@@ -352,3 +352,37 @@ rule detection:
     input:
         "results/detection/score.json",
         "reports/detection.html",
+
+
+# The blind, stress and outside-library checks summed up (imucal.gap.checksummary): their
+# scores and the spread effects named where they were not injected over all their sessions;
+# results/checks/summary.md holds the sentences the README and docs/gap.md show.
+rule gap_checks_summary:
+    input:
+        **{
+            f"{check}_{kind}": check_files(check, f"results/{check}/{kind}/{{session}}.json")
+            for check in ("blind", "stress", "outside")
+            for kind in ("diagnoses", "sealed")
+        },
+        blind_score="results/blind/score.json",
+        stress_score="results/stress/score.json",
+        outside_score="results/outside/score.json",
+    output:
+        summary="results/checks/summary.json",
+        text="results/checks/summary.md",
+    log:
+        "results/checks/logs/summary.log",
+    localrule: True
+    conda:
+        "../envs/imucal.yaml"
+    params:
+        checks=["blind", "stress", "outside"],
+        imucal_version=IMUCAL_VERSION,
+    script:
+        "../scripts/gap_checks_summary.py"
+
+
+rule gap_checks:
+    input:
+        "results/checks/summary.json",
+        "results/checks/summary.md",

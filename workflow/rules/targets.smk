@@ -93,7 +93,7 @@ def stage_report_files(d, info):
 
 
 def rule_log(rule_name, **wildcards):
-    """The log file of a rule for the given wildcards (its `log:` pattern filled in)."""
+    """The log file of a rule for the given wildcards (its log pattern filled in)."""
     return getattr(rules, rule_name).log[0].format(**wildcards)
 
 

@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
-from imucal.pipeline.partial import session_keywords
+from imucal.pipeline.partial import session_of
 from imucal.pipeline.parts import check_partial_session
 
 if TYPE_CHECKING:
@@ -15,23 +15,21 @@ if TYPE_CHECKING:
 logging.basicConfig(filename=snakemake.log[0], filemode="w", level=logging.INFO)
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 names = [n for n in dataset.recordings if n != "reference"]
-ingested = {name: read_recording(snakemake.input[name]) for name in names}
 _, segment_meta = read_recording(snakemake.input.segments)
 references = {}
 for path in snakemake.input.orientation:
     reference, metadata = read_recording(path)
     references[metadata["recording"]] = (reference, metadata)
-keywords = session_keywords(
+session = session_of(
     dataset,
-    (meta for _, meta in ingested.values()),
+    {name: read_recording(snakemake.input[name]) for name in names},
+    read_segments(snakemake.input.segments),
     segment_meta.get("notes", {}),
     references,
     snakemake.params.pipeline,
 )
 check = check_partial_session(
-    {name: table for name, (table, _) in ingested.items()},
-    read_segments(snakemake.input.segments),
-    keywords,
+    session,
     read_json(snakemake.input.listing)["stages"],
     read_json(snakemake.input.calibration),
     {k: v for s in ("mag", "acc", "gyr") for k, v in read_json(snakemake.input[s]).items()},

@@ -4,7 +4,6 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imucal.calibration import FORMAT_VERSION
 from imucal.io import read_json, read_recording, read_segments, write_json
 from imucal.io.dataset import read_dataset
 from imucal.io.logs import log_to
@@ -18,39 +17,30 @@ if TYPE_CHECKING:
 log_to(snakemake.log[0])
 dataset = read_dataset(Path(snakemake.input.dataset_yaml).parent)
 names = [n for n in dataset.recordings if n != "reference"]
-ingested = {name: read_recording(snakemake.input[name]) for name in names}
-tables = {name: table for name, (table, _) in ingested.items()}
 _, segment_meta = read_recording(snakemake.input.segments)
 references = {}
 for path in snakemake.input.orientation:
     reference, metadata = read_recording(path)
     references[metadata["recording"]] = (reference, metadata)
-keywords = partial.session_keywords(
+session = partial.session_of(
     dataset,
-    (meta for _, meta in ingested.values()),
+    {name: read_recording(snakemake.input[name]) for name in names},
+    read_segments(snakemake.input.segments),
     segment_meta.get("notes", {}),
     references,
     snakemake.params.pipeline,
 )
-outcomes = partial.run_stages(tables, read_segments(snakemake.input.segments), **keywords)
-for o in outcomes:
+files = partial.calibrate_partial(session, dataset.name)
+for o in files.outcomes:
     logging.info("%-22s %-8s %s", o.name, o.status, o.reason)
-final = partial.final_calibration(outcomes, keywords["methods"], keywords["exact_rotation"])
-calibration = {
-    "format_version": FORMAT_VERSION,
-    **{sensor: entry["calibration"] for sensor, entry in final["sensors"].items()},
-    "missing": final["missing"],
-    "frame": "B of the session's own protocol (see each sensor's method)",
-}
+calibration = files.calibration
 if "temperature_holdout" in snakemake.input.keys():
     calibration = with_shipped_terms(calibration, read_json(snakemake.input.temperature_holdout))
 write_json(calibration, snakemake.output.calibration)
-write_json(
-    {"dataset": dataset.name, "stages": [o.summary() for o in outcomes]}, snakemake.output.stages
-)
-for sensor, artifacts in partial.stage_results(outcomes).items():
+write_json(files.stages, snakemake.output.stages)
+for sensor, artifacts in files.artifacts.items():
     write_json(artifacts, snakemake.output[sensor])
 figure_dir = Path(snakemake.output.figures)
 figure_dir.mkdir(parents=True, exist_ok=True)
-for name, figure in partial.figures(outcomes, tables).items():
+for name, figure in partial.figures(files.outcomes, session.recordings).items():
     save_figure(figure, figure_dir / f"{name}.png")

@@ -5,14 +5,14 @@ from typing import TYPE_CHECKING
 
 from imucal.io.dataset import read_dataset
 from imucal.io.logs import log_to
-from imucal.report import build_report_context, render_report
+from imucal.report import ReportInputs, build_report_context, render_report
 from imucal.report.provenance import workflow_commit
 
 if TYPE_CHECKING:
     from snakemake.iocontainers import snakemake  # noqa: TC004 (Snakemake injects it)
 
 log_to(snakemake.log[0])
-context = build_report_context(
+inputs = ReportInputs(
     dataset=snakemake.wildcards.dataset,
     summary=snakemake.input.summary,
     calibration=snakemake.input.calibration,
@@ -44,4 +44,6 @@ context = build_report_context(
     dataset_folder=Path(snakemake.input.dataset_yaml).parent,
     simulated=read_dataset(Path(snakemake.input.dataset_yaml).parent).simulated,
 )
-Path(snakemake.output.html).write_text(render_report(context), encoding="utf-8")
+Path(snakemake.output.html).write_text(
+    render_report(build_report_context(inputs)), encoding="utf-8"
+)

@@ -14,14 +14,14 @@ import numpy as np
 from imucal import io
 from imucal.columns import TIME
 from imucal.io.readers.declaration import (
-    _SENSOR_TARGETS,
+    SENSOR_TARGETS,
     DeclarationError,
-    _is_array_column,
-    _is_index,
+    is_array_column,
+    is_index,
 )
 
 
-def _read_arrays(
+def read_arrays(
     entry: Mapping[str, Any],
     path: Path,
     columns: Mapping[str, Any],
@@ -64,7 +64,7 @@ def _read_arrays(
             )
         raw[target] = np.asarray(vector, dtype=float)
     for target, source in columns.items():
-        if not _is_index(source):
+        if not is_index(source):
             continue
         if array is None:
             raise DeclarationError(
@@ -83,7 +83,7 @@ def _read_arrays(
     n_samples = len(next(iter(raw.values()))) if raw else None
     arrays: dict[str, np.ndarray] = {}
     for target, source in columns.items():
-        if not _is_array_column(source):
+        if not is_array_column(source):
             continue
         array_name, index = source
         key_path = f"{where}.columns.{target}"
@@ -241,7 +241,7 @@ CF_SENSOR_UNITS = {
 }  # fmt: skip
 
 
-def _netcdf_time_and_units(
+def netcdf_time_and_units(
     entry: Mapping[str, Any],
     path: Path,
     columns: Mapping[str, Any],
@@ -285,8 +285,8 @@ def _netcdf_time_and_units(
             info["time_units"] = found
     file_units = {}
     for target, src in columns.items():
-        sensor = target.split("_", 1)[0] if target in _SENSOR_TARGETS else None
-        name = src[0] if _is_array_column(src) else src if isinstance(src, str) else None
+        sensor = target.split("_", 1)[0] if target in SENSOR_TARGETS else None
+        name = src[0] if is_array_column(src) else src if isinstance(src, str) else None
         if name is None:
             continue
         found = store.attribute(name, "units")

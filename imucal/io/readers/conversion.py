@@ -35,7 +35,7 @@ PHYSICAL_MAG_UNITS = ("T", "uT", "gauss", "counts")
 SENSITIVITY_UNITS = {"acc": "m/s^2", "gyr": "rad/s", "mag": "T"}
 
 
-def _time(
+def time_values(
     entry: Mapping[str, Any],
     raw: Mapping[str, np.ndarray],
     path: Path,
@@ -84,7 +84,7 @@ def _line(first_line: int | None, row: int) -> int | None:
     return None if first_line is None else first_line + int(row)
 
 
-def _integers(values: np.ndarray, path: Path, name: str, first_line: int | None) -> np.ndarray:
+def integer_values(values: np.ndarray, path: Path, name: str, first_line: int | None) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(values) | (values != np.round(values)))
     if bad.size:
         raise io.RawDataError(
@@ -93,7 +93,7 @@ def _integers(values: np.ndarray, path: Path, name: str, first_line: int | None)
     return values.astype(np.int64)
 
 
-def _sensor(
+def sensor_values(
     entry: Mapping[str, Any],
     raw: Mapping[str, np.ndarray],
     sensor: str,

@@ -80,19 +80,19 @@ def declared_files(declaration: Mapping[str, Any]) -> list[Path]:
     return [Path(entry["file"]) for entry in declared_entries(declaration)]
 
 
-_SENSOR_TARGETS = {c for cols in SENSOR_COLUMNS.values() for c in cols}
+SENSOR_TARGETS = {c for cols in SENSOR_COLUMNS.values() for c in cols}
 
 
-def _check_targets(columns: Mapping[str, Any], where: str) -> None:
+def check_targets(columns: Mapping[str, Any], where: str) -> None:
     for target, source in columns.items():
-        known = target in (TIME, SEQ) or target in _SENSOR_TARGETS or EXTRA_NAME.match(target)
+        known = target in (TIME, SEQ) or target in SENSOR_TARGETS or EXTRA_NAME.match(target)
         if not known:
             raise DeclarationError(
                 f"{where}.columns.{target}",
                 f"target {target!r}",
                 "t_s, seq, acc_x..mag_z or an extra name of lower-case letters, digits and _",
             )
-        if not (_is_index(source) or isinstance(source, str) or _is_array_column(source)):
+        if not (is_index(source) or isinstance(source, str) or is_array_column(source)):
             raise DeclarationError(
                 f"{where}.columns.{target}",
                 f"source {source!r}",
@@ -100,15 +100,15 @@ def _check_targets(columns: Mapping[str, Any], where: str) -> None:
             )
 
 
-def _is_index(source: Any) -> bool:
+def is_index(source: Any) -> bool:
     return isinstance(source, int) and not isinstance(source, bool) and source >= 0
 
 
-def _is_array_column(source: Any) -> bool:
+def is_array_column(source: Any) -> bool:
     """``[array, index]``: a column of a named 2-D array (MATLAB variable, HDF5 dataset)."""
     return (
         isinstance(source, (list, tuple))
         and len(source) == 2
         and isinstance(source[0], str)
-        and _is_index(source[1])
+        and is_index(source[1])
     )

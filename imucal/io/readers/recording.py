@@ -13,16 +13,16 @@ import pandas as pd
 
 from imucal import io
 from imucal.columns import SENSOR_COLUMNS, SENSORS, SEQ, TIME
-from imucal.io.readers.arrays import _netcdf_time_and_units, _read_arrays
-from imucal.io.readers.conversion import _integers, _sensor, _time
+from imucal.io.readers.arrays import netcdf_time_and_units, read_arrays
+from imucal.io.readers.conversion import integer_values, sensor_values, time_values
 from imucal.io.readers.declaration import (
-    _SENSOR_TARGETS,
     READERS,
+    SENSOR_TARGETS,
     DeclarationError,
     DeclaredRecording,
-    _check_targets,
+    check_targets,
 )
-from imucal.io.readers.table import _read_table
+from imucal.io.readers.table import read_table
 
 #: Parts are separated by at least this much time (s) and by ten times their longest time step,
 #: both far above the block-gap threshold of :mod:`imucal.segments.filtering`.
@@ -115,16 +115,16 @@ def read_entry(
     columns = dict(entry.get("columns") or {})
     if not columns:
         raise DeclarationError(f"{where}.columns", "no column map", "target: source pairs")
-    _check_targets(columns, where)
+    check_targets(columns, where)
     reader = entry["reader"]
     if reader == "table":
-        raw, labels, first_line = _read_table(entry, path, columns, where, label_column)
+        raw, labels, first_line = read_table(entry, path, columns, where, label_column)
     elif reader in ("matlab", "hdf5", "netcdf"):
-        raw, labels = _read_arrays(entry, path, columns, where, label_column)
+        raw, labels = read_arrays(entry, path, columns, where, label_column)
         first_line = None
     else:
         raise DeclarationError(f"{where}.reader", f"{reader!r}", f"one of {READERS}")
-    netcdf = _netcdf_time_and_units(entry, path, columns, raw, where) if reader == "netcdf" else {}
+    netcdf = netcdf_time_and_units(entry, path, columns, raw, where) if reader == "netcdf" else {}
     n = len(next(iter(raw.values())))
     if n < 2:
         raise io.RawDataError(path, None, f"{n} sample(s)", "at least two samples")
@@ -141,21 +141,21 @@ def read_entry(
             raw = {k: v[order] for k, v in raw.items()}
             labels = None if labels is None else labels[order]
             first_line = None  # rows no longer follow the file's lines
-    t_s = _time(entry, raw, path, where, first_line)
+    t_s = time_values(entry, raw, path, where, first_line)
     data: dict[str, np.ndarray] = {TIME: t_s}
     if SEQ in raw:
-        data[SEQ] = _integers(raw[SEQ], path, SEQ, first_line)
+        data[SEQ] = integer_values(raw[SEQ], path, SEQ, first_line)
     units: dict[str, str] = {}
     sensors = []
     for sensor in SENSORS:
-        values = _sensor(entry, raw, sensor, path, where, first_line, field_norm_t)
+        values = sensor_values(entry, raw, sensor, path, where, first_line, field_norm_t)
         if values is None:
             continue
         sensors.append(sensor)
         units[sensor] = entry["units"][sensor]
         for k, name in enumerate(SENSOR_COLUMNS[sensor]):
             data[name] = values[:, k]
-    extras = [c for c in columns if c not in data and c != TIME and c not in _SENSOR_TARGETS]
+    extras = [c for c in columns if c not in data and c != TIME and c not in SENSOR_TARGETS]
     for name in extras:
         data[name] = raw[name]
     frame = pd.DataFrame(data, copy=False)

@@ -12,13 +12,13 @@ import numpy as np
 import pandas as pd
 
 from imucal import io
-from imucal.io.readers.declaration import DeclarationError, _is_array_column
+from imucal.io.readers.declaration import DeclarationError, is_array_column
 
 #: Delimiters of the table reader; ``whitespace`` is any run of blanks and tabs.
 DELIMITERS = {",": ",", ";": ";", "\t": "\t", "whitespace": r"\s+"}
 
 
-def _read_table(
+def read_table(
     entry: Mapping[str, Any],
     path: Path,
     columns: Mapping[str, Any],
@@ -61,7 +61,7 @@ def _read_table(
         raise io.RawDataError(path, first_line + row, "an empty line", "one row per line")
 
     def position(target: str, source: Any, key: str) -> int:
-        if _is_array_column(source):
+        if is_array_column(source):
             raise DeclarationError(
                 key,
                 f"source {list(source)!r} (a column of a named array) in the table {path}",

@@ -23,18 +23,24 @@ Methods per sensor, best first (the first that runs gives the final calibration)
   the bias alone.
 
 The runners of each sensor live in :mod:`.magnetometer`, :mod:`.accelerometer` and
-:mod:`.gyroscope`, each with its condition and reason when it does not apply; they share the
-session's state (:mod:`.session`). :mod:`.driver` makes them nodes of the stage graph, runs them
-with the graph's runner and chooses the final calibration; :mod:`.listing` gives the stage
-listing, the artifacts per sensor and the figures. The public names are re-exported here.
+:mod:`.gyroscope`, each with its condition and reason when it does not apply; each reads the
+session (:mod:`.session`: its recordings, segments, references and the
+:class:`~imucal.pipeline.options.PipelineOptions` built as the other chains build theirs) and
+the artifacts of the earlier stages it needs, passed as its node's inputs. :mod:`.driver` makes
+them nodes of the stage graph, runs them with the graph's runner and chooses the final
+calibration; :mod:`.listing` gives the stage listing, ``calibration.json``, the artifacts per
+sensor and the figures. The public names are re-exported here.
 """
 
 from imucal.pipeline.outcome import NotApplicable
 from imucal.pipeline.partial.driver import (
+    READS,
     RUNNERS,
+    calibrate_partial,
+    calibration_of,
     final_calibration,
+    review,
     run_stages,
-    session_keywords,
 )
 from imucal.pipeline.partial.gyroscope import (
     ADJACENT_SAMPLES,
@@ -42,8 +48,14 @@ from imucal.pipeline.partial.gyroscope import (
     pose_intervals,
     rest_to_rest,
 )
-from imucal.pipeline.partial.listing import figures, full_protocol_stages, stage_results
-from imucal.pipeline.partial.session import Outcome
+from imucal.pipeline.partial.listing import (
+    PartialFiles,
+    calibration_file,
+    figures,
+    full_protocol_stages,
+    stage_results,
+)
+from imucal.pipeline.partial.session import Outcome, Session, session_of, session_options
 from imucal.pipeline.stages.accelerometer import MIN_CUBE_POSITIONS
 from imucal.pipeline.stages.common import sensors_of
 from imucal.pipeline.stages.magnetometer import MAG_RECORDINGS, ONE_ORIENTATION
@@ -55,15 +67,23 @@ __all__ = [
     "NotApplicable",
     "ONE_ORIENTATION",
     "Outcome",
+    "PartialFiles",
+    "READS",
     "RUNNERS",
+    "Session",
+    "calibrate_partial",
+    "calibration_file",
+    "calibration_of",
     "figures",
     "final_calibration",
     "full_protocol_stages",
     "pose_direction_covariance",
     "pose_intervals",
     "rest_to_rest",
+    "review",
     "run_stages",
     "sensors_of",
-    "session_keywords",
+    "session_of",
+    "session_options",
     "stage_results",
 ]

@@ -5,11 +5,10 @@ fit, and the choice of each sensor's final calibration among the stages that ran
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Iterable, Mapping
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Collection, Mapping
+from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from imucal import uncertainty
 from imucal.calibration import SensorCalibration
@@ -19,56 +18,65 @@ from imucal.pipeline import stages
 from imucal.pipeline.graph import Node, run_graph, usable
 from imucal.pipeline.options import FitMethods, PipelineOptions
 from imucal.pipeline.outcome import NOT_RUN, NOT_SHIPPED, NotShipped
-from imucal.pipeline.partial.accelerometer import (
-    _acc_align,
-    _acc_cube,
-    _acc_known_orientation,
-    _acc_reference,
-)
-from imucal.pipeline.partial.gyroscope import (
-    _gyr_align,
-    _gyr_bias,
-    _gyr_known_rotation,
-    _gyr_pose_to_pose,
-    _gyr_reference,
-    _gyr_scale,
-    _gyr_table,
-)
-from imucal.pipeline.partial.magnetometer import _mag_reference, _mag_step1, _mag_step2
-from imucal.pipeline.partial.session import NotApplicable, Outcome, _Session
+from imucal.pipeline.partial import accelerometer as acc
+from imucal.pipeline.partial import gyroscope as gyr
+from imucal.pipeline.partial import magnetometer as mag
+from imucal.pipeline.partial.listing import PartialFiles, calibration_file, stage_results
+from imucal.pipeline.partial.session import NotApplicable, Outcome, Session
 from imucal.pipeline.registry import FINAL, STAGES
 
-if TYPE_CHECKING:
-    from imucal.io.dataset import Dataset
+#: A runner: ``runner(session, done) -> artifact``, ``done`` holding the artifacts of the stages
+#: it reads that ran (:data:`READS`); it raises :class:`NotApplicable` with the reason when the
+#: session does not allow the stage.
+Runner = Callable[[Session, Mapping[str, dict]], dict]
 
-RUNNERS: dict[str, Callable[[_Session], dict]] = {
-    "mag_step1": _mag_step1,
-    "mag_step2": _mag_step2,
-    "acc_known_orientation": _acc_known_orientation,
-    "acc_cube": _acc_cube,
-    "acc_align": _acc_align,
-    "gyr_bias": _gyr_bias,
-    "gyr_table": _gyr_table,
-    "gyr_align": _gyr_align,
-    "gyr_known_rotation": _gyr_known_rotation,
-    "gyr_reference": _gyr_reference,
-    "acc_reference": _acc_reference,
-    "mag_reference": _mag_reference,
-    "gyr_pose_to_pose": _gyr_pose_to_pose,
-    "gyr_scale": _gyr_scale,
+#: The partial path's stages in run order (the registry's), each with its runner.
+RUNNERS: dict[str, Runner] = {
+    "mag_step1": mag.mag_step1,
+    "mag_step2": mag.mag_step2,
+    "acc_known_orientation": acc.acc_known_orientation,
+    "acc_cube": acc.acc_cube,
+    "acc_align": acc.acc_align,
+    "gyr_bias": gyr.gyr_bias,
+    "gyr_table": gyr.gyr_table,
+    "gyr_align": gyr.gyr_align,
+    "gyr_known_rotation": gyr.gyr_known_rotation,
+    "gyr_reference": gyr.gyr_reference,
+    "acc_reference": acc.acc_reference,
+    "mag_reference": mag.mag_reference,
+    "gyr_pose_to_pose": gyr.gyr_pose_to_pose,
+    "gyr_scale": gyr.gyr_scale,
+}
+
+#: The earlier stages whose artifacts each stage reads (its node's inputs besides the session);
+#: one that did not run is left out of ``done`` and the runner decides without it.
+READS: dict[str, tuple[str, ...]] = {
+    "mag_step1": (),
+    "mag_step2": ("mag_step1",),
+    "acc_known_orientation": (),
+    "acc_cube": (),
+    "acc_align": ("acc_cube",),
+    "gyr_bias": (),
+    "gyr_table": (),
+    "gyr_align": ("gyr_bias",),
+    "gyr_known_rotation": ("gyr_bias",),
+    "gyr_reference": ("gyr_bias",),
+    "acc_reference": ("gyr_reference",),
+    "mag_reference": ("mag_step1", "gyr_reference"),
+    "gyr_pose_to_pose": ("gyr_bias", *FINAL["acc"]),
+    "gyr_scale": ("gyr_bias", "gyr_align", "acc_align", "mag_step2"),
 }
 
 
-def _node(name: str, runner: Callable[[_Session], dict], earlier: tuple[str, ...]) -> Node:
+def _node(name: str, runner: Runner, reads: tuple[str, ...]) -> Node:
     """A stage of the partial path as a node of the stage graph: it reads the session and the
-    stages before it, and decides from them whether the session allows it (its runner raises
-    :class:`NotApplicable` with the reason when it does not)."""
-    sources = ("session", *earlier)
+    artifacts of the stages ``reads``, and decides from them whether the session allows it (its
+    runner raises :class:`NotApplicable` with the reason when it does not)."""
+    sources = ("session", *reads)
 
     def run(inputs: Mapping, settings: Mapping, draw: bool) -> tuple:
-        session = inputs["session"]
-        session.done = {k: v for k, v in inputs.items() if k != "session" and usable(v) is not None}
-        return runner(session), {}
+        done = {k: v for k, v in inputs.items() if k != "session" and usable(v) is not None}
+        return runner(inputs["session"], done), {}
 
     return Node(
         name,
@@ -81,58 +89,17 @@ def _node(name: str, runner: Callable[[_Session], dict], earlier: tuple[str, ...
 
 #: The partial path's stages in run order (the registry's), as nodes of the stage graph.
 PARTIAL_PROTOCOL: dict[str, Node] = {
-    name: _node(name, runner, tuple(RUNNERS)[:i])
-    for i, (name, runner) in enumerate(RUNNERS.items())
+    name: _node(name, runner, READS[name]) for name, runner in RUNNERS.items()
 }
 
 
-def run_stages(
-    tables: Mapping[str, pd.DataFrame],
-    segments: pd.DataFrame,
-    *,
-    gravity_m_s2: float,
-    field_norm: float = 1.0,
-    ratetable: Mapping | None = None,
-    saturation_m_s2: float | None = None,
-    saturation_rad_s: float | None = None,
-    notes: Mapping[str, str] | None = None,
-    lowpass_order: int = 4,
-    lowpass_cutoff_hz: float = 5.0,
-    references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
-    reference_where: Mapping[str, str] | None = None,
-    methods: FitMethods | None = None,
-    exact_rotation: bool = True,
-    stages: Collection[str] | None = None,
-) -> list[Outcome]:
+def run_stages(session: Session, stages: Collection[str] | None = None) -> list[Outcome]:
     """Run every stage the session allows, in :data:`STAGES` order.
 
     Parameters
     ----------
-    tables : mapping of str to DataFrame
-        Ingested recordings by name (SI units; absent sensors have no columns).
-    segments : DataFrame
-        Segments table of the session (automatic or from a section list).
-    gravity_m_s2, field_norm : float
-    ratetable : mapping, optional
-        ``dataset.ratetable``.
-    saturation_m_s2, saturation_rad_s : float, optional
-        Sensor ranges; samples at them are left out of the fits that check it. None: the
-        recordings' ranges are unknown (readers of SI data), nothing is left out.
-    notes : mapping of str to str, optional
-        Segmentation notes per recording (why its protocol was not found); they join the
-        reasons of the stages that needed it.
-    lowpass_order, lowpass_cutoff_hz : int, float
-        Zero-phase Butterworth low-pass of rotation3d before the alignment stages (the
-        workflow's ``lowpass`` config), cutoff in Hz.
-    references : mapping, optional
-        Recording -> (ingested orientation reference, its metadata) for the stage
-        ``gyr_reference`` (:mod:`imucal.pipeline.reference`).
-    reference_where : mapping, optional
-        Recording -> key path of its reference in dataset.yaml (error messages).
-    methods : FitMethods, optional
-        The method of each fit (the workflow's config; defaults when None).
-    exact_rotation : bool
-        Exact rotation in the alignments (else the paper's small-angle form, eq. 5).
+    session : Session
+        The session's recordings, segments, options and references.
     stages : collection of str, optional
         Run only these stages (those that ran on the whole session, when the chain is run
         again on part of its data); default all.
@@ -142,27 +109,12 @@ def run_stages(
     list of Outcome
         One per stage of :data:`STAGES` (of ``stages`` when given).
     """
-    # one options object for the stages' settings, as the in-process chain's
-    ranges = {"acc": saturation_m_s2, "gyr": saturation_rad_s}
-    options = PipelineOptions(
-        gravity_m_s2,
-        {},
-        {},
-        ratetable,
-        field_norm,
-        exact_rotation,
-        lowpass_order,
-        lowpass_cutoff_hz,
-        methods or FitMethods(),
-        ranges={sensor: value for sensor, value in ranges.items() if value is not None},
-    )
-    session = _Session(tables, segments, options, notes or {}, references, reference_where)
     nodes = {k: v for k, v in PARTIAL_PROTOCOL.items() if stages is None or k in stages}
     store = run_graph(
         {"session": session},
         lambda node: {},
         nodes,
-        review=lambda name, artifact, store: _reviewed(name, artifact, store, session),
+        review=lambda name, artifact, store: _reviewed(name, artifact, store, session.options),
         reason=_reason,
     )
     outcomes = []
@@ -188,8 +140,8 @@ def _reason(err: Exception) -> str:
     return f"could not be fitted: {err}"  # the fit's own message: too little or degenerate data
 
 
-def _reviewed(name: str, artifact: dict, store: Mapping, session: _Session) -> dict:
-    """A stage's artifact after the review of its calibration (:func:`_review`).
+def _reviewed(name: str, artifact: dict, store: Mapping, options: PipelineOptions) -> dict:
+    """A stage's artifact after the review of its calibration (:func:`review`).
 
     A calibration that does worse than nominal on left-out data, or lies outside its sensor's
     physical bounds on weak data, is not shipped (the sensor's next, simpler stage is); one
@@ -202,24 +154,25 @@ def _reviewed(name: str, artifact: dict, store: Mapping, session: _Session) -> d
     """
     done = {k: v for k, v in store.items() if k in PARTIAL_PROTOCOL and usable(v) is not None}
     try:
-        review = _review(name, {**done, name: artifact}, session.methods, session.exact)
+        found = review(name, {**done, name: artifact}, options.methods, options.exact_rotation)
     except ValueError as err:  # the review is not the data's verdict: a failure is a bug
         raise RuntimeError(f"the review of {name}'s calibration failed: {err}") from err
-    if review["refuse"]:
-        raise NotShipped(f"{NOT_SHIPPED}: " + "; ".join(review["refuse"]))
+    if found["refuse"]:
+        raise NotShipped(f"{NOT_SHIPPED}: " + "; ".join(found["refuse"]))
     # (a stage shared with the full protocol may have warned of the same value already)
     known = " ".join(artifact.get("warnings", []))
-    warn = [f"{name}: {w}" for w in review["warn"]]
+    warn = [f"{name}: {w}" for w in found["warn"]]
     warn = [w for w in warn if w.split(" against ")[0] not in known]
     if warn:
         artifact["warnings"] = [*artifact.get("warnings", []), *warn]
     return artifact
 
 
-def _review(
+def review(
     name: str, done: Mapping[str, dict], methods: FitMethods | None = None, exact: bool = True
 ) -> dict[str, list[str]]:
-    """Refusals and warnings of a stage's calibration
+    """Refusals and warnings of a stage's calibration with the session's fit methods (the
+    defaults when None) and rotation form
     (:func:`imucal.validation.plausibility.review_fit`); none for stages that do not calibrate
     a sensor."""
     from imucal.validation.plausibility import review_fit
@@ -227,23 +180,20 @@ def _review(
     sensor = STAGES[name].sensor
     if name not in FINAL.get(sensor, ()):
         return {"refuse": [], "warn": []}
-    calibration = _calibration_of(name, done, methods or FitMethods(), exact)
+    calibration = calibration_of(name, done, methods or FitMethods(), exact)
     return review_fit(sensor, calibration, done[name])
 
 
-def final_calibration(
-    outcomes: list[Outcome], methods: FitMethods | None = None, exact_rotation: bool = True
-) -> dict[str, Any]:
+def final_calibration(outcomes: list[Outcome], options: PipelineOptions) -> dict[str, Any]:
     """The best calibration per sensor from the stages that ran, and why a sensor has none.
 
     Parameters
     ----------
     outcomes : list of Outcome
         :func:`run_stages`'s.
-    methods : FitMethods, optional
-        The methods the stages ran with (the gyro bias estimator picks the bias).
-    exact_rotation : bool
-        As the stages ran (the tool-free gyroscope's combination).
+    options : PipelineOptions
+        The options the stages ran with (the gyro bias estimator picks the bias; the rotation
+        form gives the tool-free gyroscope's combination).
 
     Returns
     -------
@@ -260,12 +210,12 @@ def final_calibration(
                 f"{o.name}: {o.reason}" for o in outcomes if o.name in FINAL[sensor]
             )
             continue
-        calibration = _calibration_of(stage, done, methods or FitMethods(), exact_rotation)
+        calibration = calibration_of(stage, done, options.methods, options.exact_rotation)
         sensors[sensor] = {"stage": stage, "calibration": calibration}
     return {"sensors": sensors, "missing": missing}
 
 
-def _calibration_of(
+def calibration_of(
     stage: str,
     done: Mapping[str, dict],
     methods: FitMethods | None = None,
@@ -323,48 +273,26 @@ def _calibration_of(
     return dict(artifact["calibration"])
 
 
-def session_keywords(
-    dataset: Dataset,
-    metadata: Iterable[Mapping],
-    notes: Mapping[str, str],
-    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
-    settings: Mapping,
-) -> dict[str, Any]:
-    """The keywords of :func:`run_stages` for a session as the workflow reads it.
+def calibrate_partial(session: Session, dataset: str) -> PartialFiles:
+    """Run the stages a partial session allows and gather what its files hold.
 
     Parameters
     ----------
-    dataset : Dataset
-        The session's ``dataset.yaml``.
-    metadata : iterable of mapping
-        The ingested recordings' metadata (their sensors' ranges, :func:`imucal.ingest.sensor_limits`).
-    notes : mapping of str to str
-        The segmentation's notes (the segments' metadata ``notes``).
-    references : mapping
-        Recording -> (ingested orientation reference, its metadata).
-    settings : mapping
-        The pipeline's settings (:func:`imucal.pipeline.options.pipeline_settings`).
+    session : Session
+    dataset : str
+        The dataset's name (``stages.json``).
 
     Returns
     -------
-    dict
-        Every keyword of :func:`run_stages` but the tables, the segments and ``stages``.
+    PartialFiles
+        The outcomes, ``calibration.json`` (before any temperature terms), ``stages.json`` and
+        the artifacts per sensor.
     """
-    from imucal.ingest import sensor_limits
-
-    # readings at a sensor's range are clipped: the fits leave them out where the range is known
-    limits = sensor_limits(metadata, dataset.range_counts)
-    return {
-        "gravity_m_s2": dataset.gravity_m_s2,
-        "field_norm": dataset.field_norm,
-        "ratetable": dataset.ratetable,
-        "saturation_m_s2": limits.get("acc"),
-        "saturation_rad_s": limits.get("gyr"),
-        "notes": dict(notes),
-        "lowpass_order": settings["lowpass_order"],
-        "lowpass_cutoff_hz": settings["lowpass_cutoff_hz"],
-        "references": dict(references),
-        "reference_where": {name: dataset.reference_where(name) for name in references},
-        "methods": FitMethods.of(settings["methods"]),
-        "exact_rotation": settings["exact_rotation"],
-    }
+    outcomes = run_stages(session)
+    final = final_calibration(outcomes, session.options)
+    return PartialFiles(
+        outcomes,
+        calibration_file(final),
+        {"dataset": dataset, "stages": [o.summary() for o in outcomes]},
+        stage_results(outcomes),
+    )

@@ -7,6 +7,8 @@ not allow it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pandas as pd
 
@@ -14,31 +16,31 @@ from imucal import errormodel, uncertainty
 from imucal.calibration import SensorCalibration
 from imucal.columns import ACC, GYR, TIME
 from imucal.pipeline import stages
-from imucal.pipeline.partial.accelerometer import _acc_final
-from imucal.pipeline.partial.session import _axis_vector, _need, _Session
+from imucal.pipeline.partial.accelerometer import acc_final
+from imucal.pipeline.partial.session import Session, axis_vector, need
 from imucal.segments.table import cut_finite, rows_of
 
 
-def _gyr_bias(s: _Session) -> dict:
+def gyr_bias(s: Session, done: Mapping[str, dict]) -> dict:
     return s.run_node("gyr_bias", **s.tables, segments=s.segments)
 
 
-def _bias(s: _Session) -> np.ndarray:
-    return stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)[0]
+def _bias(s: Session, done: Mapping[str, dict]) -> np.ndarray:
+    return stages.gyr_bias_value(done["gyr_bias"], s.methods.gyr_bias_estimator)[0]
 
 
-def _gyr_table(s: _Session) -> dict:
-    _need(
+def gyr_table(s: Session, done: Mapping[str, dict]) -> dict:
+    need(
         s.with_sensor("ratetable", "gyr") and s.ratetable is not None, "needs a ratetable recording"
     )
     return s.run_node("gyr_table", ratetable=s.tables["ratetable"], segments=s.segments)
 
 
-def _gyr_align(s: _Session) -> dict:
-    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+def gyr_align(s: Session, done: Mapping[str, dict]) -> dict:
+    need("gyr_bias" in done, "needs the gyroscope bias")
     s.need_phases("gyr")
     return s.run_node(
-        "gyr_align", lowpass=s.rotation3d_lowpass, segments=s.segments, gyr_bias=s.done["gyr_bias"]
+        "gyr_align", lowpass=s.rotation3d_lowpass, segments=s.segments, gyr_bias=done["gyr_bias"]
     )
 
 
@@ -93,10 +95,10 @@ def rest_to_rest(segments: pd.DataFrame, recording: str, rows: pd.DataFrame) -> 
     return out
 
 
-def _gyr_known_rotation(s: _Session) -> dict:
+def gyr_known_rotation(s: Session, done: Mapping[str, dict]) -> dict:
     from imucal.fits import ferraris
 
-    _need("gyr_bias" in s.done, "needs the gyroscope bias")
+    need("gyr_bias" in done, "needs the gyroscope bias")
     recording, rows = None, None
     for name in ("ferraris", "rotation3d"):
         if s.with_sensor(name, "gyr"):
@@ -106,7 +108,7 @@ def _gyr_known_rotation(s: _Session) -> dict:
             if "angle_deg" in rows.columns and len(rows):
                 recording = name
                 break
-    _need(
+    need(
         recording is not None,
         "needs rotation sections of known angle (a ferraris recording, "
         "or rotation3d phases with angle_deg) with gyroscope data",
@@ -115,23 +117,23 @@ def _gyr_known_rotation(s: _Session) -> dict:
     hit = _clipped_turns([w for _, w in sections], s.saturation_rad_s)
     clipped = [str(label) for label, h in zip(rows["label"], hit) if h]
     rows, sections = rows[~hit], [c for c, h in zip(sections, hit) if not h]
-    _need(
+    need(
         len(rows) >= 3,
         f"{len(rows)} rotation sections with a known angle"
         + (f" without clipped readings ({len(clipped)} left out)" if clipped else "")
         + ", expected >= 3",
     )
     known = np.array(
-        [np.radians(float(r.angle_deg)) * _axis_vector(str(r.axis)) for r in rows.itertuples()]
+        [np.radians(float(r.angle_deg)) * axis_vector(str(r.axis)) for r in rows.itertuples()]
     )
     # the integrals' white noise is the static recording's sample noise; the bias's std (its
     # wander added where the blocks show it) enters every integral times its duration
-    bias, bias_std = stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)
+    bias, bias_std = stages.gyr_bias_value(done["gyr_bias"], s.methods.gyr_bias_estimator)
     fit = ferraris.fit_known_rotations(
         sections,
         known,
         bias,
-        noise_std_rad_s=np.asarray(s.done["gyr_bias"]["noise_std_rad_s"], dtype=float),
+        noise_std_rad_s=np.asarray(done["gyr_bias"]["noise_std_rad_s"], dtype=float),
         bias_std_rad_s=bias_std,
         labels=[str(x) for x in rows["label"]],
     )
@@ -164,13 +166,13 @@ def _with_clipped(artifact: dict, clipped: list[str], what: str) -> dict:
     return artifact
 
 
-def _gyr_reference(s: _Session) -> dict:
+def gyr_reference(s: Session, done: Mapping[str, dict]) -> dict:
     from imucal.pipeline.reference import fit_gyr_reference
 
-    _need(bool(s.references), "needs a recording declared with an orientation reference")
+    need(bool(s.references), "needs a recording declared with an orientation reference")
     where = {r: s.reference_where.get(r, f"recordings.{r}.reference") for r in s.references}
     # without rests the fit finds its own bias; with them, the bias alone is its fallback
-    rests = stages.gyr_bias_value(s.done["gyr_bias"], "ls") if "gyr_bias" in s.done else None
+    rests = stages.gyr_bias_value(done["gyr_bias"], "ls") if "gyr_bias" in done else None
     return fit_gyr_reference({**s.tables, **s.held_out_tables}, s.references, rests, where)
 
 
@@ -238,12 +240,12 @@ def pose_direction_covariance(
     )
 
 
-def _gyr_pose_to_pose(s: _Session) -> dict:
+def gyr_pose_to_pose(s: Session, done: Mapping[str, dict]) -> dict:
     from imucal.fits import posetopose
 
-    _need("gyr_bias" in s.done, "needs the gyroscope bias")
-    acc = _acc_final(s)
-    _need(acc is not None, "needs an accelerometer calibration for the gravity directions")
+    need("gyr_bias" in done, "needs the gyroscope bias")
+    acc = acc_final(done)
+    need(acc is not None, "needs an accelerometer calibration for the gravity directions")
     recording = next(
         (
             r
@@ -252,7 +254,7 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
         ),
         None,
     )
-    _need(
+    need(
         recording is not None,
         "needs >= 6 static poses in a poses or cube recording with "
         "accelerometer and gyroscope data",
@@ -264,7 +266,7 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
     names = [f"{a}-{b}" for a, b in zip(labels[:-1], labels[1:])]
     keep = ~_clipped_turns([w for _, w in intervals], s.saturation_rad_s)
     clipped = [name for name, k in zip(names, keep) if not k]
-    _need(
+    need(
         keep.sum() >= posetopose.MIN_INTERVALS,
         f"{keep.sum()} of {len(names)} turns between poses without clipped gyroscope readings, "
         f"expected >= {posetopose.MIN_INTERVALS} (a clipped turn's integrated angle is too "
@@ -277,8 +279,8 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
         directions[:-1][keep],
         directions[1:][keep],
         [interval for interval, k in zip(intervals, keep) if k],
-        _bias(s),
-        bias_std_rad_s=stages.gyr_bias_value(s.done["gyr_bias"], s.methods.gyr_bias_estimator)[1],
+        _bias(s, done),
+        bias_std_rad_s=stages.gyr_bias_value(done["gyr_bias"], s.methods.gyr_bias_estimator)[1],
         direction_covariance=covariance,
     )
     artifact = stages.plain(fit)
@@ -286,15 +288,15 @@ def _gyr_pose_to_pose(s: _Session) -> dict:
     return _with_clipped(artifact, clipped, "turns between poses")
 
 
-def _gyr_scale(s: _Session) -> dict:
-    _need("gyr_align" in s.done, "needs the gyroscope alignment (gyr_align)")
+def gyr_scale(s: Session, done: Mapping[str, dict]) -> dict:
+    need("gyr_align" in done, "needs the gyroscope alignment (gyr_align)")
     return s.run_node(
         "gyr_scale",
         rotation3d=s.tables["rotation3d"],
         lowpass=s.rotation3d_lowpass,
         segments=s.segments,
-        gyr_bias=s.done["gyr_bias"],
-        gyr_align=s.done["gyr_align"],
-        acc_align=s.done.get("acc_align"),
-        mag_step2=s.done.get("mag_step2"),
+        gyr_bias=done["gyr_bias"],
+        gyr_align=done["gyr_align"],
+        acc_align=done.get("acc_align"),
+        mag_step2=done.get("mag_step2"),
     )

@@ -1,14 +1,17 @@
 """What a session's stages produced, for its files: the stage listing (``stages.json``) of the
-stage-per-rule path, the artifacts per sensor and the figures of the partial path.
+stage-per-rule path; the calibration, the artifacts per sensor and the figures of the partial
+path.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from imucal.calibration import FORMAT_VERSION
 from imucal.columns import SENSORS
 from imucal.pipeline.outcome import not_run_reason
 from imucal.pipeline.partial.session import Outcome
@@ -78,6 +81,40 @@ def full_protocol_stages(
         else "reference-free checks only: the dataset has no reference recording"),
     })  # fmt: skip
     return rows
+
+
+@dataclass(frozen=True)
+class PartialFiles:
+    """What a partial session's rule writes.
+
+    Attributes
+    ----------
+    outcomes : list of Outcome
+        Each stage's, in the registry's order.
+    calibration : dict
+        ``calibration.json`` (:func:`calibration_file`).
+    stages : dict
+        ``stages.json``: the dataset's name and each stage's summary.
+    artifacts : dict
+        Sensor -> the artifacts of its stages that ran (``{mag,acc,gyr}.json``).
+    """
+
+    outcomes: list[Outcome]
+    calibration: dict
+    stages: dict
+    artifacts: dict
+
+
+def calibration_file(final: Mapping) -> dict:
+    """``calibration.json`` of a partial session from its final calibration
+    (:func:`imucal.pipeline.partial.final_calibration`): the format version, each sensor's
+    calibration that ran, why the others have none, and the frame they are in."""
+    return {
+        "format_version": FORMAT_VERSION,
+        **{sensor: entry["calibration"] for sensor, entry in final["sensors"].items()},
+        "missing": final["missing"],
+        "frame": "B of the session's own protocol (see each sensor's method)",
+    }
 
 
 def stage_results(outcomes: list[Outcome]) -> dict[str, dict]:

@@ -6,27 +6,29 @@ the reason when the session does not allow it.
 
 from __future__ import annotations
 
-from imucal.pipeline.partial.session import _need, _Session
+from collections.abc import Mapping
+
+from imucal.pipeline.partial.session import Session, need
 
 
-def _mag_step1(s: _Session) -> dict:
+def mag_step1(s: Session, done: Mapping[str, dict]) -> dict:
     return s.run_node("mag_step1", **s.tables)
 
 
-def _mag_step2(s: _Session) -> dict:
-    _need("mag_step1" in s.done, "needs the ellipsoid fit (mag_step1)")
+def mag_step2(s: Session, done: Mapping[str, dict]) -> dict:
+    need("mag_step1" in done, "needs the ellipsoid fit (mag_step1)")
     s.need_phases("mag")
     return s.run_node(
         "mag_step2",
         rotation3d=s.tables["rotation3d"],
         segments=s.segments,
-        mag_step1=s.done["mag_step1"],
+        mag_step1=done["mag_step1"],
     )
 
 
-def _mag_reference(s: _Session) -> dict:
+def mag_reference(s: Session, done: Mapping[str, dict]) -> dict:
     from imucal.pipeline.reference import fit_mag_reference
 
-    _need("mag_step1" in s.done, "needs the ellipsoid fit (mag_step1)")
-    _need("gyr_reference" in s.done, "needs the gyroscope against the reference (gyr_reference)")
-    return fit_mag_reference(s.tables, s.references, s.done["mag_step1"], s.done["gyr_reference"])
+    need("mag_step1" in done, "needs the ellipsoid fit (mag_step1)")
+    need("gyr_reference" in done, "needs the gyroscope against the reference (gyr_reference)")
+    return fit_mag_reference(s.tables, s.references, done["mag_step1"], done["gyr_reference"])

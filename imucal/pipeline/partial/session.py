@@ -1,13 +1,16 @@
-"""The state a partial session's runners share: its tables, segments and results so far
-(:class:`_Session`), the record of what happened to a stage (:class:`Outcome`) and the refusal
-of a stage whose requirements the data do not meet (:class:`NotApplicable`).
+"""What a partial session's runners read: its tables, segments, options and references
+(:class:`Session`, the same for every stage), the record of what happened to a stage
+(:class:`Outcome`) and the refusal of a stage whose requirements the data do not meet
+(:class:`NotApplicable`, :func:`need`). The artifacts of the stages before are no part of the
+session: each runner gets those it reads as its node's inputs.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -18,6 +21,9 @@ from imucal.pipeline.outcome import NotApplicable
 from imucal.pipeline.registry import STAGES, split_held_out
 from imucal.pipeline.stages.common import sensors_of
 from imucal.segments.table import rows_of
+
+if TYPE_CHECKING:
+    from imucal.io.dataset import Dataset
 
 
 @dataclasses.dataclass
@@ -48,23 +54,45 @@ class Outcome:
         }
 
 
-def _need(condition: bool, reason: str) -> None:
+def need(condition: bool, reason: str) -> None:
+    """Raise :class:`NotApplicable` with ``reason`` unless ``condition`` holds."""
     if not condition:
         raise NotApplicable(reason)
 
 
-class _Session:
-    """The ingested tables, segments and the results so far of one partial session."""
+class Session:
+    """The ingested tables, segments, options and references of one partial session.
+
+    Parameters
+    ----------
+    tables : mapping of str to DataFrame
+        Ingested recordings by name (SI units; absent sensors have no columns).
+    segments : DataFrame
+        Segments table of the session (automatic or from a section list).
+    options : PipelineOptions
+        The settings of its fits, as the other chains take them
+        (:func:`imucal.pipeline.partial.session_options`).
+    notes : mapping of str to str, optional
+        Segmentation notes per recording (why its protocol was not found); they join the
+        reasons of the stages that needed it.
+    references : mapping, optional
+        Recording -> (ingested orientation reference, its metadata) for the stage
+        ``gyr_reference`` (:mod:`imucal.pipeline.reference`).
+    reference_where : mapping, optional
+        Recording -> key path of its reference in dataset.yaml (error messages).
+    """
 
     def __init__(
         self,
         tables: Mapping[str, pd.DataFrame],
         segments: pd.DataFrame,
         options: PipelineOptions,
-        notes: Mapping[str, str],
+        *,
+        notes: Mapping[str, str] | None = None,
         references: Mapping[str, tuple[pd.DataFrame, Mapping]] | None = None,
         reference_where: Mapping[str, str] | None = None,
     ):
+        self.recordings = dict(tables)
         self.options = options
         self.methods = options.methods
         self.exact = options.exact_rotation
@@ -79,9 +107,19 @@ class _Session:
         self.ratetable = options.ratetable
         self.saturation_rad_s = options.limit("gyr")
         self.sensors = {name: sensors_of(t) for name, t in self.tables.items()}
-        self.notes = dict(notes)
-        # the artifacts of the stages that ran before the one running (its node sets them)
-        self.done: dict[str, dict] = {}
+        self.notes = dict(notes or {})
+
+    def on(self, tables: Mapping[str, pd.DataFrame], segments: pd.DataFrame) -> Session:
+        """The same session's options, notes and references on other recordings (a part of
+        its data)."""
+        return Session(
+            tables,
+            segments,
+            self.options,
+            notes=self.notes,
+            references=self.references,
+            reference_where=self.reference_where,
+        )
 
     @functools.cached_property
     def settings(self) -> dict:
@@ -124,7 +162,7 @@ class _Session:
         return rows_of(self.segments, recording, "position", "static")
 
 
-def _axis_vector(up: str) -> np.ndarray:
+def axis_vector(up: str) -> np.ndarray:
     """'+x', '-z', 'x' ... -> unit vector in B."""
     sign = -1.0 if up.startswith("-") else 1.0
     axis = up.lstrip("+-")
@@ -133,3 +171,71 @@ def _axis_vector(up: str) -> np.ndarray:
     v = np.zeros(3)
     v["xyz".index(axis)] = sign
     return v
+
+
+def session_options(
+    dataset: Dataset, metadata: Iterable[Mapping], settings: Mapping
+) -> PipelineOptions:
+    """The options of a partial session, built as the other chains build theirs
+    (:meth:`PipelineOptions.of_dataset`) with the ranges its recordings give.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The session's ``dataset.yaml``.
+    metadata : iterable of mapping
+        The ingested recordings' metadata (their sensors' ranges,
+        :func:`imucal.ingest.sensor_limits`).
+    settings : mapping
+        The pipeline's settings (:func:`imucal.pipeline.options.pipeline_settings`).
+
+    Returns
+    -------
+    PipelineOptions
+        With ``ranges`` where every recording of a sensor reads it in raw counts with one
+        range; readings at a range are clipped and left out of the fits where it is known.
+    """
+    from imucal.ingest import sensor_limits
+
+    return PipelineOptions.of_dataset(
+        dataset, **settings, ranges=sensor_limits(metadata, dataset.range_counts)
+    )
+
+
+def session_of(
+    dataset: Dataset,
+    ingested: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    segments: pd.DataFrame,
+    notes: Mapping[str, str],
+    references: Mapping[str, tuple[pd.DataFrame, Mapping]],
+    settings: Mapping,
+) -> Session:
+    """A partial session as the workflow reads it.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The session's ``dataset.yaml``.
+    ingested : mapping
+        Recording -> (ingested table, its metadata), every recording but the reference.
+    segments : DataFrame
+        The session's segments table.
+    notes : mapping of str to str
+        The segmentation's notes (the segments' metadata ``notes``).
+    references : mapping
+        Recording -> (ingested orientation reference, its metadata).
+    settings : mapping
+        The pipeline's settings (:func:`imucal.pipeline.options.pipeline_settings`).
+
+    Returns
+    -------
+    Session
+    """
+    return Session(
+        {name: table for name, (table, _) in ingested.items()},
+        segments,
+        session_options(dataset, (meta for _, meta in ingested.values()), settings),
+        notes=notes,
+        references=references,
+        reference_where={name: dataset.reference_where(name) for name in references},
+    )

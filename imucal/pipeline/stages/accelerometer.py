@@ -21,7 +21,7 @@ from imucal.fits import accelerometer, orientations
 from imucal.fits.alignment import ALIGNMENT_RULE, align_constant_component
 from imucal.fits.propagation import alignment_sensitivity
 from imucal.pipeline.outcome import NotApplicable
-from imucal.pipeline.stages.common import ALIGNMENT_METHODS, _phases, plain, sensors_of
+from imucal.pipeline.stages.common import ALIGNMENT_METHODS, phase_values, plain, sensors_of
 from imucal.segments.table import cut_finite, rows_of
 from imucal.validation.plausibility import bound_warnings
 
@@ -180,7 +180,7 @@ def align_acc(
     """
     upper = np.asarray(cube_fit["upper"], dtype=float)
     bias = np.asarray(cube_fit["bias"], dtype=float)
-    raw = _phases(rotation3d_lowpass, segments, "acc")
+    raw = phase_values(rotation3d_lowpass, segments, "acc")
     phases = {label: errormodel.apply(upper, bias, values) for label, values in raw.items()}
     alignments = {
         name: align_constant_component(phases, method=name, exact=exact, correlated=with_covariance)

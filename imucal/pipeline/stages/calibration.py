@@ -17,7 +17,7 @@ from imucal.calibration import CONVENTION, FORMAT_VERSION, FRAME, ImuCalibration
 from imucal.columns import ACC, GYR, MAG, PARAMETER_STD_SUFFIX, TIME, temperature_column
 from imucal.fits.alignment import ALIGNMENT_RULE, phase_samples
 from imucal.pipeline.outcome import not_run_reason
-from imucal.pipeline.stages.gyroscope import RATE_TABLE_RULE, _table_covariance
+from imucal.pipeline.stages.gyroscope import RATE_TABLE_RULE, table_covariance
 from imucal.pipeline.stages.toolfree import tool_free_gyr
 from imucal.segments.table import rows_of
 from imucal.validation.plausibility import bound_warnings
@@ -95,7 +95,7 @@ def combine_gyr(
     if has_table:
         rotation = np.asarray(table_alignment[table_alignment["used"]]["matrix"], dtype=float)
         upper = np.asarray(table["upper"], dtype=float)
-        covariance = _table_covariance(table, table_alignment, exact) if with_covariance else None
+        covariance = table_covariance(table, table_alignment, exact) if with_covariance else None
         with_table = SensorCalibration(
             "gyr",
             table["bias"],

@@ -37,7 +37,7 @@ def at_range(values: np.ndarray, limit: float) -> np.ndarray:
     return np.any(np.abs(values) >= limit, axis=1)
 
 
-def _phases(table: pd.DataFrame, segments: pd.DataFrame, sensor: str) -> dict[str, np.ndarray]:
+def phase_values(table: pd.DataFrame, segments: pd.DataFrame, sensor: str) -> dict[str, np.ndarray]:
     """Phase label -> the sensor's samples (n, 3) in that rotation3d phase."""
     return {label: values for label, (_, values) in phase_samples(table, segments, sensor).items()}
 

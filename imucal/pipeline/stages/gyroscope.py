@@ -23,8 +23,8 @@ from imucal.fits.ratetable import fit_rate_table, rate_table_crlb
 from imucal.pipeline.outcome import NotApplicable
 from imucal.pipeline.stages.common import (
     ALIGNMENT_METHODS,
-    _phases,
     at_range,
+    phase_values,
     plain,
     sensors_of,
 )
@@ -165,7 +165,7 @@ def align_gyr(
         (``correlated=False``), for callers that read fitted values only.
     """
     s = np.eye(3) if upper is None else np.asarray(upper, dtype=float)
-    raw = _phases(rotation3d_lowpass, segments, "gyr")
+    raw = phase_values(rotation3d_lowpass, segments, "gyr")
     phases = {label: errormodel.apply(s, bias, values) for label, values in raw.items()}
     alignments = {
         name: align_rotation_axis(phases, method=name, exact=exact, correlated=with_covariance)
@@ -257,7 +257,7 @@ def fit_gyr_table(
     return artifact, {"gyr_table": figure}
 
 
-def _table_covariance(table: Mapping, table_alignment: Mapping, exact: bool) -> np.ndarray:
+def table_covariance(table: Mapping, table_alignment: Mapping, exact: bool) -> np.ndarray:
     """Covariance of the rate-table gyroscope calibration ``T_R S'``, ``b``, (21, 21)."""
     chosen = table_alignment[table_alignment["used"]]
     return uncertainty.two_step_covariance(

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from imucal.pipeline.outcome import NotApplicable
-from imucal.pipeline.stages.common import _phases, sensors_of
+from imucal.pipeline.stages.common import phase_values, sensors_of
 from imucal.validation.plausibility import bound_warnings
 
 #: Recordings whose magnetometer samples may feed the ellipsoid fit, preferred first.
@@ -84,7 +84,7 @@ def align_mag(
     fit = magnetometer.EllipsoidFit.from_dict(dict(step1))
     phases = {
         label: values[np.all(np.isfinite(values), axis=1)]
-        for label, values in _phases(rotation3d, segments, "mag").items()
+        for label, values in phase_values(rotation3d, segments, "mag").items()
     }
     result = magnetometer.calibrate_alignment(
         fit, phases, method=method, exact=exact, with_covariance=with_covariance

@@ -115,7 +115,10 @@ class TemperatureDrift(Effect):
     """The module warms up over the session; biases and scales drift per axis; adds ``temp_c``.
 
     ``T(t) = start_c + rise_c (1 - exp(-t / tau_s))`` on the session clock (recordings follow one
-    another, see :func:`imucal.sim.session.simulate_session`). With ``dT = T - start_c`` and the
+    another, see :func:`imucal.sim.session.simulate_session`), or, where ``path_c`` is given,
+    the temperature path it holds: ``T`` interpolated linearly between its values at evenly
+    spaced times ``0 .. path_span_s`` (held at its ends outside), a recorded channel that no
+    warm-up curve describes (a climate chamber cycled down and up). With ``dT = T - start_c`` and the
     sensor-frame input ``u = matrix^-1 true`` (what the sensing element sees), axis ``j`` of a
     reading becomes ``(1 + s_j dT) u_j + bias_j + b_j dT + noise``; the truth holds at
     ``start_c``. This is the model term's parameterisation
@@ -128,7 +131,12 @@ class TemperatureDrift(Effect):
         Temperature at the start of the session and its total rise (deg C). Realistic warm-up:
         a few K over 5-15 min (effects.md #1).
     tau_s : float
-        Warm-up time constant (s), > 0.
+        Warm-up time constant (s), > 0 (not read where ``path_c`` is given).
+    path_c : tuple of float, optional
+        Temperatures (deg C) at ``linspace(0, path_span_s, len(path_c))`` on the session clock,
+        at least 2; empty (the default): the warm-up curve.
+    path_span_s : float
+        Time of the last value of ``path_c`` (s), > 0 where ``path_c`` is given.
     acc_per_k, gyr_per_k, mag_per_k : tuple of 3 float
         Bias drift per kelvin of the x, y, z axes (m/s^2/K, rad/s/K, normalised/K); one number
         is the same drift on all three axes. Realistic: the shape a real part has, each axis
@@ -160,10 +168,19 @@ class TemperatureDrift(Effect):
     acc_scale_per_k: tuple = (2.6e-4, 2.6e-4, 2.6e-4)
     gyr_scale_per_k: tuple = (1e-4, -6e-5, 8e-5)
     mag_scale_per_k: tuple = (0.0, 0.0, 0.0)
+    path_c: tuple = ()
+    path_span_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.tau_s > 0:
             raise ValueError(f"temperature_drift tau_s must be > 0 s, got {self.tau_s}")
+        path = tuple(float(v) for v in self.path_c)
+        if path and (len(path) < 2 or not np.all(np.isfinite(path)) or not self.path_span_s > 0):
+            raise ValueError(
+                "temperature_drift path_c needs at least 2 finite temperatures and "
+                f"path_span_s > 0 s, got {len(path)} values over {self.path_span_s} s"
+            )
+        object.__setattr__(self, "path_c", path)
         for key in self.scalable:
             object.__setattr__(self, key, axis_values(self.name, key, getattr(self, key)))
 
@@ -176,6 +193,9 @@ class TemperatureDrift(Effect):
     def temperature_c(self, sample: np.ndarray, ctx: RecordingContext) -> np.ndarray:
         """Temperature (deg C) at module samples ``sample`` of the recording, shape (n,)."""
         t = ctx.session_start_s + np.asarray(sample) / ctx.rate_hz
+        if self.path_c:
+            knots = np.linspace(0.0, self.path_span_s, len(self.path_c))
+            return np.interp(t, knots, self.path_c)
         return self.start_c + self.rise_c * (1 - np.exp(-t / self.tau_s))
 
     def on_readings(

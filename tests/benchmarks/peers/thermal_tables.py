@@ -19,6 +19,8 @@ import sys
 from collections.abc import Mapping
 from pathlib import Path
 
+from imucal.report.docblocks import replace_block
+
 REPO = Path(__file__).resolve().parents[3]
 HOLDOUT = REPO / "results" / "spluque_cats_thermal" / "temperature_holdout.json"
 #: Display unit per sensor: (label, factor from SI).
@@ -113,17 +115,6 @@ def sentences(d: Mapping) -> str:
         "intervals and the reasons in `docs/real-recordings.md`, generated from the JSON)."
     )
     return " ".join(text)
-
-
-def replace_block(path: Path, name: str, text: str) -> None:
-    """Replace the text between ``<!-- generated: NAME -->`` and ``<!-- end: NAME -->``."""
-    begin, end = f"<!-- generated: {name} -->", f"<!-- end: {name} -->"
-    content = path.read_text()
-    if begin not in content or end not in content:
-        raise ValueError(f"{path}: no block {begin} ... {end}")
-    head, rest = content.split(begin, 1)
-    _, tail = rest.split(end, 1)
-    path.write_text(f"{head}{begin}\n{text}\n{end}{tail}")
 
 
 def main() -> None:

@@ -14,7 +14,7 @@ import sys
 import numpy as np
 
 from imucal.pipeline import partial
-from imucal.pipeline.options import FitMethods, PipelineOptions
+from imucal.pipeline.options import PipelineOptions
 from imucal.pipeline.parts import check_full_session, check_partial_session
 from imucal.segments.segmentation import segment_dataset
 from imucal.sim import ProtocolConfig, TumbleConfig, make_truth, simulate_session, simulate_tumble
@@ -25,18 +25,13 @@ def tumble_check(seed: int) -> dict:
     truth = make_truth("random", stream_rng(seed, "truth"))
     tables = {"poses": simulate_tumble(truth, seed, TumbleConfig(hold_s=(2.0, 3.0))).si_frame()}
     segments = segment_dataset(tables, fallback=True)
-    keywords = {
-        "gravity_m_s2": truth.world.gravity_m_s2, "field_norm": 1.0, "ratetable": None,
-        "saturation_m_s2": None, "saturation_rad_s": None, "notes": segments.attrs["notes"],
-        "lowpass_order": 4, "lowpass_cutoff_hz": 5.0, "references": {}, "reference_where": {},
-        "methods": FitMethods(), "exact_rotation": True,
-    }  # fmt: skip
-    outcomes = partial.run_stages(tables, segments, **keywords)
-    final = partial.final_calibration(outcomes)
+    # SI tables, ranges unknown, every other setting the schema's default
+    options = PipelineOptions(truth.world.gravity_m_s2, {}, {}, None, ranges={})
+    session = partial.Session(tables, segments, options, notes=segments.attrs["notes"])
+    outcomes = partial.run_stages(session)
+    final = partial.final_calibration(outcomes, options)
     return check_partial_session(
-        tables,
-        segments,
-        keywords,
+        session,
         [o.summary() for o in outcomes],
         {s: e["calibration"] for s, e in final["sensors"].items()},
         {o.name: o.artifact for o in outcomes if o.status == "run"},
