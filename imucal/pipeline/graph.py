@@ -1,10 +1,11 @@
 """The paper's calibration stages as one executable graph: what each reads, when it applies,
 the settings it takes, how it runs and what it writes.
 
-Every stage of the full protocol is a :class:`Node`, defined once here. The workflow generates
-one rule per node from :data:`FULL_PROTOCOL` (``workflow/rules/stages.smk``) and runs each with
-one script (``workflow/scripts/stage.py``), so every stage stays a rule that can be rerun alone
-on new data. The in-process chain (:func:`imucal.pipeline.full.calibrate_session`, which the
+Every stage of the full protocol is a :class:`Node`, defined once here. The workflow runs a
+sensor's nodes of :data:`FULL_PROTOCOL` in one rule (:mod:`imucal.pipeline.jobs`,
+``workflow/rules/stages.smk``, one script ``workflow/scripts/stage.py``), each node writing its
+own artifact, so every stage's result stays a file and a sensor's stages can be rerun alone on
+new data. The in-process chain (:func:`imucal.pipeline.full.calibrate_session`, which the
 diagnosis's twin, the closed loop and the checks use) runs the same nodes in the same order with
 :func:`run_nodes`, with the same settings (:meth:`Node.settings_of`) and the same outcome when a
 stage cannot run on the data (a not-run record, :mod:`imucal.pipeline.outcome`). The two paths
@@ -262,7 +263,7 @@ def _gyr_reads(recordings: frozenset) -> dict:
 
 _ALIGNMENT = ("exact", "with_covariance")
 
-#: The stages of the paper's protocol in run order (each one rule of the workflow).
+#: The stages of the paper's protocol in run order (a sensor's run in one rule of the workflow).
 FULL_PROTOCOL: dict[str, Node] = {
     node.name: node
     for node in (

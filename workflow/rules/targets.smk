@@ -4,6 +4,7 @@ import atexit
 import sys
 from imucal.export.formats import FORMATS as EXPORT_FORMATS
 from imucal.pipeline.graph import FULL_PROTOCOL
+from imucal.pipeline.jobs import STAGE_JOBS
 
 EXPORT_FILES = [f"{fmt}/{name}" for fmt, names in EXPORT_FORMATS.items() for name in names]
 
@@ -87,7 +88,8 @@ def stage_report_files(d, info):
         for out in node.outputs
         if out.path.endswith(".png")
     ]
-    return figures, [f"results/{d}/benchmarks/{node.name}.tsv" for node in nodes]
+    jobs = [job.name for job in STAGE_JOBS.values() if job.applies(recordings)]
+    return figures, [f"results/{d}/benchmarks/{name}.tsv" for name in jobs]
 
 
 def rule_log(rule_name, **wildcards):
@@ -118,8 +120,8 @@ def report_logs(d, info):
         if holdout_recording(d) is not None:
             logs.append(rule_log("temperature_holdout", dataset=d))
         return logs
-    stages = [n.name for n in FULL_PROTOCOL.values() if n.applies(frozenset(info.recordings))]
-    logs += [rule_log(name, dataset=d) for name in stages]
+    jobs = [j.name for j in STAGE_JOBS.values() if j.applies(frozenset(info.recordings))]
+    logs += [rule_log(name, dataset=d) for name in jobs]
     logs.append(rule_log("lowpass", dataset=d, recording="rotation3d"))
     logs += [
         rule_log(name, dataset=d)
