@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from imucal.constants import RECORDING_NAMES
 from imucal.pipeline.graph import FULL_PROTOCOL, Node, node_inputs, read_source, write_output
 from imucal.pipeline.outcome import stage_guard
 
@@ -79,7 +80,7 @@ def stage_jobs(nodes: Mapping[str, Node] = FULL_PROTOCOL) -> dict[str, StageJob]
         words = [_sensor(node), node.needs, "stages"]
         grouped.setdefault("_".join(w for w in words if w), []).append(node)
     jobs = {name: StageJob(name, tuple(members)) for name, members in grouped.items()}
-    everything = frozenset({"rotation3d", "cube", "static", "ratetable", "reference"})
+    everything = frozenset(RECORDING_NAMES)
     for job in jobs.values():
         keys = [key for node in job.nodes for key in (node.name, *(o.key for o in node.outputs))]
         if len(job.files()) != len(keys):

@@ -210,9 +210,9 @@ def estimate_static_temperature_drift(
     parameterisation of the model term's polynomial at order 1), each sensor's taken where
     it predicts held-out block means better than none (:func:`slope_helps`), else 0; one
     orientation shows no scale drift (its input does not change), so the scales are 0. The
-    slopes come from ``half``; the temperature path (:func:`warm_up_params`: the warm-up curve, or the recorded
-    path where no warm-up is an estimate) from the whole channel, an input the twin carries
-    over whole, not a parameter of the drift. Detect: the largest ``|slope| / std`` over the
+    slopes come from ``half``; the temperature path (:func:`warm_up_params`: the warm-up
+    curve, or the recorded path where no warm-up is an estimate) from the whole channel, an
+    input the twin carries over whole, not a parameter of the drift. Detect: the largest ``|slope| / std`` over the
     sensors and axes, taken or not (a unit-free statistic, so that a drift of the
     magnetometer alone is seen as one of the gyroscope is). Evidence: each sensor's fitted
     slopes and their std (:func:`~imucal.gap.streams.temperature_slope_fits`) and which were
