@@ -4,9 +4,9 @@
 # (eq. 36), rate-table fit (eq. 33) and its alignment where the dataset has a rate table, and
 # `gyr`, which combines them with Tables I and II. What each reads, the settings it takes and
 # the figures it writes are the node's; the in-process chain runs the same nodes. A sensor's
-# stages that need the same recording are one rule (imucal.pipeline.jobs.STAGE_JOBS: one
-# process reads the recordings once), each stage with its own artifact, figures and not-run
-# record.
+# stages that need the same recording run in one job, which reads the recordings once in one
+# process (imucal.pipeline.jobs.STAGE_JOBS), each stage with its own artifact, figures and
+# not-run record.
 from imucal.pipeline.graph import source_file
 from imucal.pipeline.jobs import STAGE_JOBS
 
